@@ -1,0 +1,1 @@
+"""The geoproc command line (installed as the package ``geoproc_cli``)."""

@@ -1,0 +1,241 @@
+"""The command-line contract shared by every subcommand.
+
+A subcommand declares the shared options with the ``*Opt`` aliases below and
+runs its body inside :func:`command_run`::
+
+    with command_run("info", params, report=report, checks=check,
+                     quiet=quiet, debug=debug) as run:
+        mesh = run.load_mesh(path, clean=not no_clean)
+        with run.timer("compute"):
+            ...
+        run.metrics.update(...)
+        run.write_mesh(output, mesh)
+
+``command_run`` turns errors into exit codes (2 for bad input or usage, with a
+one-line ``error: <file>: <problem>`` and no traceback unless ``--debug``),
+defers every output file until the body succeeded and the checks are known to
+be valid (so a failed run leaves nothing behind), writes the report, and
+evaluates ``--check`` gates (exit 1 on a miss).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import time
+import traceback
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+from geoproc.errors import GeoprocError, InputError, UsageError
+from geoproc.fileio import sha256_bytes, sha256_file, write_bytes_atomic
+from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
+from geoproc.mesh.write import WRITE_FORMATS
+from geoproc.report import build_report, evaluate_checks, parse_check
+from geoproc.report.report import report_json
+
+EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+
+stderr = Console(stderr=True, highlight=False, soft_wrap=True)
+stdout = Console(highlight=False, soft_wrap=True)
+
+ReportOpt = Annotated[
+    Path | None,
+    typer.Option("--report", help="Write a JSON metric report here (schema: geoproc/report/report.schema.json).",
+                 metavar="FILE.json", show_default=False),
+]
+CheckOpt = Annotated[
+    list[str] | None,
+    typer.Option("--check", help="Gate on a metric, e.g. 'rmse<=0.01' (operators <=, <, >=, >, ==); "
+                 "repeatable; exit 1 when any fails.", metavar="'METRIC<=VALUE'", show_default=False),
+]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or notes on stderr.")]
+DebugOpt = Annotated[bool, typer.Option("--debug", help="Show the full traceback on errors.")]
+NoCleanOpt = Annotated[
+    bool,
+    typer.Option("--no-clean", help="Keep the mesh as stored: do not merge coincident vertices "
+                 "or drop unreferenced ones."),
+]
+
+
+def _fail(message: str, code: int) -> typer.Exit:
+    stderr.print(f"error: {message}", markup=False)
+    return typer.Exit(code)
+
+
+class Run:
+    """State of one subcommand run: inputs, params, metrics, timings, outputs."""
+
+    def __init__(self, command: str, params: dict, quiet: bool):
+        self.command = command
+        self.params = params
+        self.quiet = quiet
+        self.inputs: list[dict] = []
+        self.metrics: dict = {}
+        self.timings: dict[str, float] = {}
+        self._outputs: list[tuple[str, bytes]] = []
+        self._t0 = time.perf_counter()
+
+    # ---- inputs ---------------------------------------------------------
+    def add_input(self, path: str | os.PathLike, data: bytes | None = None) -> None:
+        """Record an input file (or ``-``) with its SHA-256 for the report."""
+        name = os.fspath(path)
+        digest = sha256_bytes(data) if data is not None else sha256_file(name)
+        self.inputs.append({"path": name, "sha256": digest})
+
+    def load_mesh(self, path: str | os.PathLike, clean: bool = True) -> Mesh:
+        """Read a mesh or point cloud (``-`` reads standard input) and record it."""
+        name = os.fspath(path)
+        with self.timer("load"):
+            if name == "-":
+                data = sys.stdin.buffer.read()
+                mesh = load_mesh("-", clean=clean, stdin_bytes=data)
+                self.add_input("-", data)
+            else:
+                mesh = load_mesh(name, clean=clean)
+                self.add_input(name)
+        self.note_load(mesh)
+        return mesh
+
+    def note_load(self, mesh: Mesh) -> None:
+        """Put the read/clean-up log into the metrics and tell the user on stderr."""
+        log = mesh.log
+        self.metrics.update(
+            {
+                "input_vertices": log.stored_vertices,
+                "input_faces": log.stored_faces,
+                "triangulated_polygons": log.triangulated_polygons,
+                "merged_vertices": log.merged_vertices,
+                "removed_unreferenced_vertices": log.removed_unreferenced,
+            }
+        )
+        notes = []
+        if log.triangulated_polygons:
+            notes.append(f"triangulated {log.triangulated_polygons} polygons")
+        if log.merged_vertices:
+            notes.append(f"merged {log.merged_vertices} coincident vertices")
+        if log.removed_unreferenced:
+            notes.append(f"dropped {log.removed_unreferenced} unreferenced vertices")
+        if notes:
+            self.note(f"{log.path}: " + ", ".join(notes) + " (--no-clean keeps the mesh as stored)"
+                      if log.merged_vertices or log.removed_unreferenced else f"{log.path}: " + ", ".join(notes))
+
+    def note(self, text: str) -> None:
+        """A one-line remark on stderr (silenced by --quiet)."""
+        if not self.quiet:
+            stderr.print(f"note: {text}", markup=False)
+
+    # ---- timing and progress -------------------------------------------
+    @contextlib.contextmanager
+    def timer(self, name: str) -> Iterator[None]:
+        """Accumulate wall-clock seconds under ``timings_s[name]``."""
+        t = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - t
+
+    @contextlib.contextmanager
+    def progress(self, description: str, total: float = 1.0) -> Iterator[Callable[[float], None]]:
+        """A rich progress bar on stderr; yields ``update(done)`` with done in [0, total].
+
+        Nothing is drawn with --quiet or when stderr is not a terminal.
+        """
+        if self.quiet or not stderr.is_terminal:
+            yield lambda done: None
+            return
+        bar = Progress(
+            TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+            TimeElapsedColumn(), TimeRemainingColumn(), console=stderr, transient=True,
+        )
+        with bar:
+            task = bar.add_task(description, total=total)
+            yield lambda done: bar.update(task, completed=done)
+
+    # ---- outputs ---------------------------------------------------------
+    def write_bytes(self, path: str | os.PathLike, data: bytes) -> None:
+        """Queue an output file; written atomically only when the run succeeds."""
+        self._outputs.append((os.fspath(path), data))
+
+    def write_mesh(self, path: str | os.PathLike, mesh: Mesh, ascii: bool = False) -> None:
+        """Queue a mesh output: ``-`` is binary PLY on stdout, else by extension."""
+        name = os.fspath(path)
+        if name == "-":
+            self._outputs.append(("-", mesh_to_bytes(mesh, "ply", binary=True)))
+            return
+        ext = os.path.splitext(name)[1].lower().lstrip(".")
+        if ext not in WRITE_FORMATS:
+            raise UsageError(f"{name}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
+        self._outputs.append((name, mesh_to_bytes(mesh, ext, binary=not ascii)))
+
+    def _check_output_folders(self) -> None:
+        for name, _ in self._outputs:
+            folder = os.path.dirname(os.path.abspath(name))
+            if name != "-" and not os.path.isdir(folder):
+                raise UsageError(f"{name}: output folder '{folder}' does not exist")
+
+    def _commit(self, report: Path | None) -> None:
+        self._check_output_folders()
+        for name, data in self._outputs:
+            if name == "-":
+                sys.stdout.buffer.write(data)
+                sys.stdout.buffer.flush()
+            else:
+                write_bytes_atomic(name, data)
+        self.timings["total"] = time.perf_counter() - self._t0
+        if report is not None:
+            rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings)
+            write_bytes_atomic(report, report_json(rep).encode())
+
+
+@contextlib.contextmanager
+def command_run(
+    command: str,
+    params: dict,
+    *,
+    report: Path | None = None,
+    checks: list[str] | None = None,
+    quiet: bool = False,
+    debug: bool = False,
+) -> Iterator[Run]:
+    """Run a subcommand body under the command-line contract (see module doc).
+
+    Exit codes: 0 success, 1 a --check failed, 2 bad input or usage, 3 an
+    internal error (a bug; --debug shows the traceback).
+    """
+    run = Run(command, dict(params), quiet)
+    try:
+        parsed = [parse_check(c) for c in (checks or [])]
+        if report is not None and not os.path.isdir(os.path.dirname(os.path.abspath(report))):
+            raise UsageError(f"--report {report}: folder does not exist")
+        yield run
+        failures = evaluate_checks(parsed, run.metrics)  # raises on unknown metric names
+        run._commit(report)
+    except typer.Exit:
+        raise
+    except InputError as exc:
+        if debug:
+            traceback.print_exc()
+        raise _fail(exc.line(), EXIT_BAD_INPUT) from None
+    except (UsageError, GeoprocError) as exc:
+        if debug:
+            traceback.print_exc()
+        raise _fail(str(exc), EXIT_BAD_INPUT) from None
+    except KeyboardInterrupt:
+        raise _fail("interrupted", 130) from None
+    except Exception as exc:  # a bug: keep the one-line contract, offer the traceback
+        if debug:
+            traceback.print_exc()
+        line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise _fail(f"internal error: {type(exc).__name__}: {line} (rerun with --debug for the traceback)",
+                    EXIT_INTERNAL) from None
+    if failures:
+        for line in failures:
+            stderr.print(line, markup=False)
+        raise typer.Exit(EXIT_CHECK_FAILED)

@@ -1,0 +1,76 @@
+"""``geoproc info``: counts, topology and sizes of a mesh or point cloud."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from geoproc.mesh import mesh_info
+from geoproc.report import json_safe
+from geoproc_cli.common import (
+    CheckOpt,
+    DebugOpt,
+    NoCleanOpt,
+    QuietOpt,
+    ReportOpt,
+    command_run,
+    stdout,
+)
+
+
+def info(
+    mesh: Annotated[str, typer.Argument(help="Mesh or point cloud: .obj, .ply, .off, .stl, or - for stdin.",
+                                        metavar="MESH")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as one JSON object on stdout.")] = False,
+    no_clean: NoCleanOpt = False,
+    report: ReportOpt = None,
+    check: CheckOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Print vertices, faces, edges, components, boundary loops, Euler characteristic,
+    genus, manifold and orientation flags, degenerate/duplicate/unreferenced counts,
+    mean edge length and bounding-box diagonal (in the file's length unit).
+
+    Genus is given only for closed, orientable, edge- and vertex-manifold meshes
+    (summed over components); otherwise null. Every numeric entry is a metric for
+    --check, e.g. --check 'genus==0'.
+    """
+    params = {"mesh": mesh, "clean": not no_clean}
+    with command_run("info", params, report=Path(report) if report else None, checks=check,
+                     quiet=quiet, debug=debug) as run:
+        m = run.load_mesh(mesh, clean=not no_clean)
+        with run.timer("compute"):
+            summary = mesh_info(m)
+        summary["load"] = m.log.as_dict()
+        run.metrics.update({k: v for k, v in summary.items() if not isinstance(v, list | dict)})
+        if as_json:
+            typer.echo(json.dumps(json_safe(summary), indent=2))
+        else:
+            stdout.print(_table(mesh, summary))
+
+
+def _table(name: str, s: dict) -> Table:
+    t = Table(title=name, show_header=False, title_justify="left")
+    t.add_column("key", style="bold")
+    t.add_column("value", justify="right")
+    for k, v in s.items():
+        if k == "load":
+            continue
+        if isinstance(v, float):
+            v = f"{v:.6g}"
+        elif isinstance(v, list):
+            v = ", ".join(v) if v else "-"
+        elif v is None:
+            v = "-"
+        t.add_row(k, str(v))
+    return t
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``info`` to the application."""
+    app.command("info")(info)

@@ -1,0 +1,47 @@
+"""Print a summary table of geoproc JSON reports: ``python -m geoproc_cli.report_table DIR``.
+
+Used by ``make demo``; reads every ``*.json`` in DIR that is a geoproc report.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+
+def summary_table(folder: Path, max_metrics: int = 6) -> Table:
+    """One row per report in ``folder``: command, input, a few metrics, total time."""
+    t = Table(title=f"geoproc reports in {folder}")
+    for col in ("report", "command", "input", "metrics", "total s"):
+        t.add_column(col)
+    for path in sorted(folder.glob("*.json")):
+        try:
+            rep = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            continue
+        if not isinstance(rep, dict) or "command" not in rep or "metrics" not in rep:
+            continue
+        shown = [
+            f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+            for k, v in rep["metrics"].items()
+            if isinstance(v, int | float) and not isinstance(v, bool)
+            and not k.startswith(("input_", "merged_", "removed_", "triangulated_"))
+        ][:max_metrics]
+        inputs = ", ".join(Path(i["path"]).name for i in rep.get("inputs", []))
+        t.add_row(path.name, rep["command"], inputs, " ".join(shown),
+                  f"{rep.get('timings_s', {}).get('total', float('nan')):.2f}")
+    return t
+
+
+def main(argv: list[str]) -> int:
+    folder = Path(argv[1]) if len(argv) > 1 else Path("out/demo")
+    Console().print(summary_table(folder))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

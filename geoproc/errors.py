@@ -1,0 +1,37 @@
+"""Typed errors shared by every algorithm and reader.
+
+The command line maps :class:`InputError` and :class:`UsageError` to exit code 2
+and prints them as one line, ``error: <file>: <problem>``.
+"""
+
+from __future__ import annotations
+
+
+class GeoprocError(Exception):
+    """Base class of every error geoproc raises on purpose."""
+
+
+class InputError(GeoprocError):
+    """Bad input data: unreadable, malformed or unsuitable for the method.
+
+    Parameters
+    ----------
+    path : str or None
+        The file the problem is in (``"-"`` for standard input), or None when the
+        problem is not tied to one file.
+    problem : str
+        One line saying what is wrong, without the path.
+    """
+
+    def __init__(self, path: str | None, problem: str):
+        self.path = None if path is None else str(path)
+        self.problem = problem
+        super().__init__(self.line())
+
+    def line(self) -> str:
+        """The one-line message, ``<file>: <problem>`` (or just the problem)."""
+        return self.problem if self.path is None else f"{self.path}: {self.problem}"
+
+
+class UsageError(GeoprocError):
+    """Bad parameters or option values (exit code 2)."""

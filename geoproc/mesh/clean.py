@@ -1,0 +1,93 @@
+"""Explicit, reported clean-up applied after reading a mesh."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geoproc.mesh.mesh import LoadLog, Mesh
+
+
+def merge_coincident_vertices(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Merge vertices with bit-identical positions.
+
+    UVs and normals are ignored, so an OBJ that was split at UV seams becomes one
+    connected surface. The first occurrence (lowest index) of each position is
+    kept and the order of first occurrences is preserved.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+
+    Returns
+    -------
+    V2 : (k, 3) float array
+        Unique positions, k <= n.
+    F2 : (m, 3) int array
+        Faces re-indexed into V2.
+    keep : (k,) int array
+        Index into V of each kept vertex (``V2 == V[keep]``).
+    """
+    group = position_groups(V)
+    first = np.full(group.max() + 1 if len(V) else 0, len(V), dtype=np.int64)
+    np.minimum.at(first, group, np.arange(len(V)))
+    order = np.argsort(first, kind="stable")  # groups sorted by first occurrence
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    keep = first[order]
+    return V[keep], rank[group][F], keep
+
+
+def position_groups(V: np.ndarray) -> np.ndarray:
+    """(n,) label per vertex; equal labels exactly when positions are equal."""
+    if len(V) == 0:
+        return np.zeros(0, dtype=np.int64)
+    order = np.lexsort((V[:, 2], V[:, 1], V[:, 0]))
+    Vs = V[order]
+    new = np.ones(len(V), dtype=bool)
+    new[1:] = (Vs[1:] != Vs[:-1]).any(axis=1)
+    group = np.empty(len(V), dtype=np.int64)
+    group[order] = np.cumsum(new) - 1
+    return group
+
+
+def remove_unreferenced_vertices(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Drop vertices that no face uses.
+
+    Returns ``(V2, F2, keep)`` with ``V2 == V[keep]`` and F2 re-indexed.
+    """
+    used = np.zeros(len(V), dtype=bool)
+    used[F.reshape(-1)] = True
+    keep = np.flatnonzero(used)
+    remap = np.full(len(V), -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    return V[keep], remap[F], keep
+
+
+def clean_mesh(mesh: Mesh) -> Mesh:
+    """Merge coincident positions, then drop unreferenced vertices.
+
+    Per-vertex fields follow the kept vertex (the first of each merged group).
+    A point cloud (no faces) is left as it is: nothing references its points.
+    The counts are recorded in ``mesh.log``.
+
+    Parameters
+    ----------
+    mesh : Mesh
+
+    Returns
+    -------
+    Mesh
+        A new mesh; the input is not modified.
+    """
+    log = LoadLog(**mesh.log.as_dict())
+    log.cleaned = True
+    if mesh.is_point_cloud:
+        return Mesh(mesh.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields), log)
+    V, F, keep1 = merge_coincident_vertices(mesh.V, mesh.F)
+    log.merged_vertices = len(mesh.V) - len(V)
+    V, F, keep2 = remove_unreferenced_vertices(V, F)
+    log.removed_unreferenced = len(keep1) - len(keep2)
+    keep = keep1[keep2]
+    fields = {k: v[keep] for k, v in mesh.vertex_fields.items()}
+    return Mesh(V, F, fields, dict(mesh.face_fields), log)

@@ -1,0 +1,97 @@
+"""Topological and geometric summary of a mesh (``geoproc info``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geoproc.mesh.clean import position_groups
+from geoproc.mesh.mesh import Mesh
+from geoproc.mesh.topology import (
+    count_boundary_loops,
+    degenerate_faces,
+    nonmanifold_edges,
+    nonmanifold_vertices,
+    orientation_status,
+    unique_edges,
+    vertex_components,
+)
+
+
+def mesh_info(mesh: Mesh) -> dict:
+    """Counts, topology flags and sizes of a mesh or point cloud.
+
+    Parameters
+    ----------
+    mesh : Mesh
+
+    Returns
+    -------
+    dict
+        ``vertices, faces, edges`` (unique undirected), ``components`` (edge-connected,
+        over referenced vertices), ``boundary_edges, boundary_loops``,
+        ``euler_characteristic`` (V - E + F, V counting referenced vertices),
+        ``genus`` (closed, orientable, edge- and vertex-manifold meshes only, summed
+        over components: (2C - chi) / 2; else None), ``closed, edge_manifold,
+        vertex_manifold, orientable, consistently_oriented``,
+        ``nonmanifold_edges, nonmanifold_vertices, degenerate_faces,
+        duplicate_vertices`` (vertices at a position already taken by a lower index),
+        ``unreferenced_vertices, mean_edge_length`` (length unit),
+        ``bbox_diagonal`` (length unit), ``vertex_properties, face_properties``
+        (names), ``point_cloud``. Topology entries are None for a point cloud.
+    """
+    V, F = mesh.V, mesh.F
+    n = len(V)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) if n else 0.0
+    duplicates = n - (int(position_groups(V).max()) + 1) if n else 0
+    info: dict = {
+        "vertices": n,
+        "faces": len(F),
+        "point_cloud": mesh.is_point_cloud,
+        "duplicate_vertices": int(duplicates),
+        "bbox_diagonal": diag,
+        "vertex_properties": sorted(mesh.vertex_fields),
+        "face_properties": sorted(mesh.face_fields),
+    }
+    if mesh.is_point_cloud:
+        info.update(dict.fromkeys(
+            ["edges", "components", "boundary_edges", "boundary_loops", "euler_characteristic",
+             "genus", "closed", "edge_manifold", "vertex_manifold", "orientable",
+             "consistently_oriented", "nonmanifold_edges", "nonmanifold_vertices",
+             "degenerate_faces", "mean_edge_length"]))
+        info["unreferenced_vertices"] = 0
+        return info
+    E, _, count = unique_edges(F)
+    used = np.zeros(n, dtype=bool)
+    used[F.reshape(-1)] = True
+    n_used = int(used.sum())
+    n_comp, _ = vertex_components(F, n)
+    nm_e = len(nonmanifold_edges(F))
+    nm_v = len(nonmanifold_vertices(F, n))
+    orientable, oriented = orientation_status(F)
+    n_boundary = int((count == 1).sum())
+    chi = n_used - len(E) + len(F)
+    closed = n_boundary == 0
+    manifold = nm_e == 0 and nm_v == 0
+    genus = None
+    if closed and manifold and orientable and (2 * n_comp - chi) % 2 == 0:
+        genus = (2 * n_comp - chi) // 2
+    lengths = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
+    info.update(
+        edges=len(E),
+        components=n_comp,
+        boundary_edges=n_boundary,
+        boundary_loops=count_boundary_loops(F),
+        euler_characteristic=int(chi),
+        genus=genus,
+        closed=bool(closed),
+        edge_manifold=nm_e == 0,
+        vertex_manifold=nm_v == 0,
+        orientable=bool(orientable) if nm_e == 0 else None,
+        consistently_oriented=bool(oriented) if nm_e == 0 else None,
+        nonmanifold_edges=nm_e,
+        nonmanifold_vertices=nm_v,
+        degenerate_faces=len(degenerate_faces(V, F)),
+        unreferenced_vertices=n - n_used,
+        mean_edge_length=float(lengths.mean()) if len(lengths) else 0.0,
+    )
+    return info

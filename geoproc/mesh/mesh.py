@@ -1,0 +1,96 @@
+"""The in-memory mesh (or point cloud) with named per-vertex and per-face fields."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class LoadLog:
+    """What happened between the bytes on disk and the :class:`Mesh` in memory.
+
+    Attributes
+    ----------
+    path : str
+        The file read (``"-"`` for standard input).
+    format : str
+        ``"obj"``, ``"ply"``, ``"off"`` or ``"stl"``.
+    stored_vertices, stored_faces : int
+        Counts as stored in the file (faces after triangulation).
+    triangulated_polygons : int
+        Polygons with more than three corners that were split into triangles (fan).
+    merged_vertices : int
+        Vertices removed by merging coincident positions.
+    removed_unreferenced : int
+        Vertices removed because no face used them.
+    cleaned : bool
+        False when the mesh was kept as stored (``--no-clean``).
+    """
+
+    path: str = ""
+    format: str = ""
+    stored_vertices: int = 0
+    stored_faces: int = 0
+    triangulated_polygons: int = 0
+    merged_vertices: int = 0
+    removed_unreferenced: int = 0
+    cleaned: bool = True
+
+    def as_dict(self) -> dict:
+        """Plain-dict form, for reports."""
+        return dict(self.__dict__)
+
+
+@dataclass
+class Mesh:
+    """A triangle mesh, or a point cloud when ``F`` has no rows.
+
+    Attributes
+    ----------
+    V : (n, 3) float64 array
+        Vertex positions, in the file's length unit.
+    F : (m, 3) int64 array
+        Triangles as vertex indices, counter-clockwise seen from outside; shape
+        (0, 3) for a point cloud.
+    vertex_fields : dict of str to (n,) or (n, k) float64 array
+        Named per-vertex values (PLY vertex properties other than x, y, z).
+    face_fields : dict of str to (m,) or (m, k) float64 array
+        Named per-face values (PLY face properties other than the index list).
+    log : LoadLog
+        How the mesh was read and cleaned.
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    vertex_fields: dict[str, np.ndarray] = field(default_factory=dict)
+    face_fields: dict[str, np.ndarray] = field(default_factory=dict)
+    log: LoadLog = field(default_factory=LoadLog)
+
+    def __post_init__(self) -> None:
+        self.V = np.ascontiguousarray(self.V, dtype=np.float64).reshape(-1, 3)
+        self.F = np.ascontiguousarray(self.F, dtype=np.int64).reshape(-1, 3)
+
+    @property
+    def is_point_cloud(self) -> bool:
+        """True when the mesh has vertices and no faces."""
+        return len(self.F) == 0
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.V)
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.F)
+
+    def copy(self) -> Mesh:
+        """Deep copy (arrays and field dicts)."""
+        return Mesh(
+            self.V.copy(),
+            self.F.copy(),
+            {k: v.copy() for k, v in self.vertex_fields.items()},
+            {k: v.copy() for k, v in self.face_fields.items()},
+            LoadLog(**self.log.as_dict()),
+        )

@@ -1,0 +1,180 @@
+"""Combinatorial queries on triangle meshes: edges, boundaries, components,
+manifoldness and orientability. All are vectorized over numpy/scipy.sparse.
+
+Conventions: ``F`` is an (m, 3) int array of vertex indices; ``n`` the number of
+vertices. Half-edge ``3*f + k`` goes from ``F[f, k]`` to ``F[f, (k+1) % 3]``;
+corner ``3*f + k`` is vertex ``F[f, k]`` seen from face f.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+
+def halfedges(F: np.ndarray) -> np.ndarray:
+    """(3m, 2) array of directed half-edges (tail, head) in face order."""
+    return np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)
+
+
+def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Undirected edges of a triangle mesh.
+
+    Returns
+    -------
+    E : (k, 2) int array
+        Each edge once, with ``E[:, 0] < E[:, 1]`` (edges of degenerate faces
+        with a repeated index appear as (i, i)).
+    edge_of_halfedge : (3m,) int array
+        Index into E of every half-edge.
+    face_count : (k,) int array
+        Number of faces incident to each edge (2 inside a manifold, 1 on the
+        boundary, more on a non-manifold edge).
+    """
+    H = np.sort(halfedges(F), axis=1)
+    n = int(F.max()) + 1 if F.size else 1
+    keys, inverse, counts = np.unique(H[:, 0] * n + H[:, 1], return_inverse=True, return_counts=True)
+    E = np.column_stack([keys // n, keys % n])
+    return E, inverse.reshape(-1), counts
+
+
+def boundary_edges(F: np.ndarray) -> np.ndarray:
+    """(b, 2) undirected edges used by exactly one face."""
+    E, _, count = unique_edges(F)
+    return E[count == 1]
+
+
+def count_boundary_loops(F: np.ndarray) -> int:
+    """Number of boundary loops: the cycle rank of the boundary-edge graph.
+
+    For a manifold boundary (every boundary vertex on two boundary edges) this is
+    the number of closed loops; where two loops touch at a vertex it still counts
+    them as two (edges - vertices + components of the boundary graph).
+    """
+    B = boundary_edges(F)
+    if len(B) == 0:
+        return 0
+    verts, local = np.unique(B, return_inverse=True)
+    local = local.reshape(-1, 2)
+    nb = len(verts)
+    A = sp.coo_matrix((np.ones(len(local)), (local[:, 0], local[:, 1])), shape=(nb, nb))
+    n_comp, _ = connected_components(A, directed=False)
+    return int(len(B) - nb + n_comp)
+
+
+def vertex_components(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:
+    """Connected components of the vertices used by faces (edge connectivity).
+
+    Returns
+    -------
+    count : int
+        Number of components among referenced vertices (unreferenced vertices are
+        not counted).
+    labels : (n,) int array
+        Component of each vertex; -1 for unreferenced vertices.
+    """
+    H = halfedges(F)
+    A = sp.coo_matrix((np.ones(len(H)), (H[:, 0], H[:, 1])), shape=(n, n))
+    _, labels = connected_components(A, directed=False)
+    used = np.zeros(n, dtype=bool)
+    used[F.reshape(-1)] = True
+    labels = np.where(used, labels, -1)
+    uniq, labels_used = np.unique(labels[used], return_inverse=True)
+    labels[used] = labels_used
+    return len(uniq), labels
+
+
+def nonmanifold_edges(F: np.ndarray) -> np.ndarray:
+    """(k, 2) undirected edges shared by more than two faces."""
+    E, _, count = unique_edges(F)
+    return E[count > 2]
+
+
+def vertex_fans(F: np.ndarray, n: int) -> np.ndarray:
+    """Number of fans around each vertex.
+
+    A fan is a maximal set of faces around a vertex connected through edges that
+    contain the vertex. A vertex of a manifold mesh (closed or with boundary) has
+    exactly one fan; more than one marks a non-manifold vertex (a bowtie).
+
+    Returns
+    -------
+    (n,) int array
+        0 for unreferenced vertices.
+    """
+    m = len(F)
+    H = halfedges(F)
+    he = np.arange(3 * m)
+    corner_tail = he
+    corner_head = 3 * (he // 3) + (he % 3 + 1) % 3
+    lo_is_tail = H[:, 0] <= H[:, 1]
+    corner_lo = np.where(lo_is_tail, corner_tail, corner_head)
+    corner_hi = np.where(lo_is_tail, corner_head, corner_tail)
+    key = np.sort(H, axis=1)
+    code = key[:, 0] * (int(F.max()) + 1) + key[:, 1]
+    order = np.argsort(code, kind="stable")
+    same = code[order][1:] == code[order][:-1]
+    a, b = order[:-1][same], order[1:][same]
+    rows = np.concatenate([corner_lo[a], corner_hi[a]])
+    cols = np.concatenate([corner_lo[b], corner_hi[b]])
+    G = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
+    _, label = connected_components(G, directed=False)
+    corner_vertex = F.reshape(-1).astype(np.int64)
+    pairs = np.unique(corner_vertex * (3 * m) + label)
+    return np.bincount(pairs // (3 * m), minlength=n)
+
+
+def nonmanifold_vertices(F: np.ndarray, n: int) -> np.ndarray:
+    """Indices of vertices whose incident faces form more than one fan."""
+    return np.flatnonzero(vertex_fans(F, n) > 1)
+
+
+def orientation_status(F: np.ndarray) -> tuple[bool, bool]:
+    """Whether an edge-manifold mesh is orientable and consistently oriented.
+
+    Two faces sharing an edge are consistent when they traverse it in opposite
+    directions. The mesh is orientable when flipping some faces makes every pair
+    consistent: a two-colouring check on a doubled face graph (each face as
+    "kept" and "flipped"); it fails exactly when some face's two copies are
+    connected.
+
+    Returns
+    -------
+    orientable, consistently_oriented : bool
+        Meaningless (both False) when some edge has more than two faces.
+    """
+    m = len(F)
+    H = halfedges(F)
+    E, edge_of, count = unique_edges(F)
+    if (count > 2).any():
+        return False, False
+    interior = count[edge_of] == 2
+    he = np.flatnonzero(interior)
+    order = he[np.argsort(edge_of[he], kind="stable")]
+    h1, h2 = order[0::2], order[1::2]
+    consistent = H[h1, 0] != H[h2, 0]
+    f1, f2 = h1 // 3, h2 // 3
+    if consistent.all():
+        return True, True
+    # node f: face as stored, node f + m: face flipped
+    r = np.concatenate([f1, f1 + m])
+    c = np.concatenate([np.where(consistent, f2, f2 + m), np.where(consistent, f2 + m, f2)])
+    G = sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(2 * m, 2 * m))
+    _, label = connected_components(G, directed=False)
+    orientable = not (label[:m] == label[m:]).any()
+    return bool(orientable), False
+
+
+def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m,) triangle areas, in squared length units."""
+    return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+
+
+def degenerate_faces(V: np.ndarray, F: np.ndarray, rel_tol: float = 1e-12) -> np.ndarray:
+    """Indices of degenerate faces: a repeated vertex index, or an area at most
+    ``rel_tol`` times the squared bounding-box diagonal."""
+    diag2 = float(np.sum((V.max(axis=0) - V.min(axis=0)) ** 2)) if len(V) else 0.0
+    repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    tiny = face_areas(V, F) <= rel_tol * max(diag2, np.finfo(float).tiny)
+    return np.flatnonzero(repeated | tiny)

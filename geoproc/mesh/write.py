@@ -1,0 +1,101 @@
+"""Write a :class:`Mesh` as PLY (named properties), OBJ, OFF or STL.
+
+PLY keeps positions and every field as float64 (``double``) so a round trip is
+exact. A field of shape (n, k) is written as k scalar properties ``name_0`` ...
+``name_{k-1}``. OBJ, OFF and STL carry geometry only.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+
+import numpy as np
+
+from geoproc.errors import UsageError
+from geoproc.fileio import write_bytes_atomic
+from geoproc.mesh.mesh import Mesh
+
+WRITE_FORMATS = ("ply", "obj", "off", "stl")
+
+
+def save_mesh(path: str | os.PathLike, mesh: Mesh, binary: bool = True) -> None:
+    """Write ``mesh`` to ``path`` atomically; the format follows the extension.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        ``.ply``, ``.obj``, ``.off`` or ``.stl``.
+    mesh : Mesh
+    binary : bool
+        Binary little-endian PLY (default) or ASCII PLY.
+    """
+    ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+    if ext not in WRITE_FORMATS:
+        raise UsageError(f"{path}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
+    write_bytes_atomic(path, mesh_to_bytes(mesh, ext, binary=binary))
+
+
+def mesh_to_bytes(mesh: Mesh, fmt: str = "ply", binary: bool = True) -> bytes:
+    """Serialize ``mesh`` in format ``fmt`` (``ply``, ``obj``, ``off``, ``stl``)."""
+    if fmt == "ply":
+        return _ply_bytes(mesh, binary)
+    if fmt == "obj":
+        return _obj_bytes(mesh)
+    if fmt == "off":
+        return _off_bytes(mesh)
+    if fmt == "stl":
+        import trimesh
+
+        return trimesh.Trimesh(mesh.V, mesh.F, process=False).export(file_type="stl")
+    raise UsageError(f"unknown mesh format '{fmt}'")
+
+
+def _scalar_columns(fields: dict[str, np.ndarray], n: int) -> list[tuple[str, np.ndarray]]:
+    cols = []
+    for name, values in fields.items():
+        a = np.asarray(values, dtype=np.float64).reshape(n, -1)
+        if a.shape[1] == 1:
+            cols.append((name, a[:, 0]))
+        else:
+            cols.extend((f"{name}_{j}", a[:, j]) for j in range(a.shape[1]))
+    return cols
+
+
+def _ply_bytes(mesh: Mesh, binary: bool) -> bytes:
+    from plyfile import PlyData, PlyElement
+
+    n = len(mesh.V)
+    cols = [("x", mesh.V[:, 0]), ("y", mesh.V[:, 1]), ("z", mesh.V[:, 2])]
+    cols += _scalar_columns(mesh.vertex_fields, n)
+    vdata = np.empty(n, dtype=[(name, "f8") for name, _ in cols])
+    for name, values in cols:
+        vdata[name] = values
+    elements = [PlyElement.describe(vdata, "vertex")]
+    if len(mesh.F):
+        fcols = _scalar_columns(mesh.face_fields, len(mesh.F))
+        fdata = np.empty(len(mesh.F), dtype=[("vertex_indices", "i4", (3,))] + [(c, "f8") for c, _ in fcols])
+        fdata["vertex_indices"] = mesh.F
+        for name, values in fcols:
+            fdata[name] = values
+        elements.append(PlyElement.describe(fdata, "face", len_types={"vertex_indices": "u1"}))
+    buf = io.BytesIO()
+    PlyData(elements, text=not binary, byte_order="<", comments=["geoproc"]).write(buf)
+    return buf.getvalue()
+
+
+def _fmt_rows(a: np.ndarray, prefix: str, fmt: str) -> str:
+    if len(a) == 0:
+        return ""
+    return "\n".join(prefix + " ".join(fmt % x for x in row) for row in a.tolist()) + "\n"
+
+
+def _obj_bytes(mesh: Mesh) -> bytes:
+    text = "# geoproc\n" + _fmt_rows(mesh.V, "v ", "%.17g") + _fmt_rows(mesh.F + 1, "f ", "%d")
+    return text.encode()
+
+
+def _off_bytes(mesh: Mesh) -> bytes:
+    head = f"OFF\n{len(mesh.V)} {len(mesh.F)} 0\n"
+    faces = np.column_stack([np.full(len(mesh.F), 3), mesh.F]) if len(mesh.F) else mesh.F
+    return (head + _fmt_rows(mesh.V, "", "%.17g") + _fmt_rows(faces, "", "%d")).encode()

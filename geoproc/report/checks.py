@@ -1,0 +1,83 @@
+"""Metric gates: ``--check 'name<=value'`` compares ``metrics[name]`` with a number."""
+
+from __future__ import annotations
+
+import math
+import operator
+import re
+from dataclasses import dataclass
+
+from geoproc.errors import UsageError
+
+_OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "<": operator.lt, ">": operator.gt}
+_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.]*)\s*(<=|>=|==|<|>)\s*(\S+)\s*$")
+
+
+@dataclass(frozen=True)
+class Check:
+    """One gate: ``metric op value``."""
+
+    metric: str
+    op: str
+    value: float
+    text: str
+
+    def passes(self, measured: float) -> bool:
+        """True when ``measured op value`` holds (NaN never passes)."""
+        return bool(_OPS[self.op](measured, self.value))
+
+
+def parse_check(text: str) -> Check:
+    """Parse ``'name<=value'`` (operators <=, <, >=, >, ==); UsageError if malformed."""
+    m = _PATTERN.match(text)
+    if not m:
+        raise UsageError(
+            f"--check '{text}': expected NAME OP NUMBER with OP one of <=, <, >=, >, == "
+            "(for example 'rmse<=0.01')"
+        )
+    name, op, raw = m.groups()
+    try:
+        value = float(raw)
+    except ValueError:
+        raise UsageError(f"--check '{text}': '{raw}' is not a number") from None
+    return Check(name, op, value, text.strip())
+
+
+def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
+    """Compare every check with ``metrics``.
+
+    Parameters
+    ----------
+    checks : list of Check
+    metrics : dict of str to number, bool or None
+
+    Returns
+    -------
+    list of str
+        One line per failed check (empty when all pass).
+
+    Raises
+    ------
+    UsageError
+        A check names a metric the command does not report (listing the names).
+    """
+    unknown = [c.metric for c in checks if c.metric not in metrics]
+    if unknown:
+        names = ", ".join(sorted(k for k, v in metrics.items() if _numeric(v) is not None))
+        raise UsageError(f"--check: unknown metric '{unknown[0]}'; this run reports: {names}")
+    failures = []
+    for c in checks:
+        measured = _numeric(metrics[c.metric])
+        if measured is None:
+            failures.append(f"check failed: {c.text} (measured: {metrics[c.metric]!r}, not a number)")
+        elif not c.passes(measured):
+            failures.append(f"check failed: {c.text} (measured: {measured:.6g})")
+    return failures
+
+
+def _numeric(value) -> float | None:
+    if isinstance(value, bool):
+        return float(value)
+    if isinstance(value, int | float):
+        return None if isinstance(value, float) and math.isnan(value) else float(value)
+    return None
