@@ -55,6 +55,7 @@ def load_mesh(path: str | os.PathLike, clean: bool = True, stdin_bytes: bytes | 
         data = stdin_bytes
         fmt = sniff_format(data, name)
     else:
+        _require_readable_file(name)
         fmt = format_from_extension(name)
         data = _read_bytes(name)
     return read_mesh_bytes(data, fmt, name, clean=clean)
@@ -142,11 +143,15 @@ def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: 
             )
 
 
-def _read_bytes(path: str) -> bytes:
+def _require_readable_file(path: str) -> None:
     if not os.path.exists(path):
         raise InputError(path, "no such file")
     if os.path.isdir(path):
         raise InputError(path, "is a directory, not a mesh file")
+
+
+def _read_bytes(path: str) -> bytes:
+    _require_readable_file(path)
     try:
         with open(path, "rb") as fh:
             return fh.read()

@@ -1,0 +1,104 @@
+"""Per-face geometry and face neighbourhoods used by the normal filters.
+
+Conventions: ``V`` (n, 3) float64 vertex positions, ``F`` (m, 3) int64 triangles.
+Neighbourhoods are returned as CSR pairs ``(indptr, indices)``: the neighbours of
+face ``i`` are ``indices[indptr[i]:indptr[i + 1]]`` (sorted, including ``i``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from geoproc.mesh.topology import unique_edges
+
+
+def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit face normals and face areas, never NaN.
+
+    A zero-area face gets the area-weighted mean normal of the faces sharing a
+    vertex with it (or +z when all of those have zero area too), so that every
+    later step sees finite unit vectors; its area stays 0, so it carries no weight.
+
+    Returns
+    -------
+    N : (m, 3) float64
+        Unit normals (counter-clockwise orientation).
+    A : (m,) float64
+        Areas in squared length units.
+    """
+    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    length = np.linalg.norm(cross, axis=1)
+    A = 0.5 * length
+    good = length > 0
+    N = np.zeros_like(cross)
+    N[good] = cross[good] / length[good, None]
+    if not good.all():
+        bad = np.flatnonzero(~good)
+        ring = face_vertex_ring(F, len(V))
+        R = ring[bad]
+        fill = R @ cross  # area-weighted sums of neighbour normals (times 2)
+        norm = np.linalg.norm(fill, axis=1)
+        fill = np.where(norm[:, None] > 0, fill / np.maximum(norm, 1e-300)[:, None], [0.0, 0.0, 1.0])
+        N[bad] = fill
+    return N, A
+
+
+def face_centroids(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m, 3) triangle centroids."""
+    return V[F].mean(axis=1)
+
+
+def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
+    """Mean length of the undirected edges of a triangle mesh."""
+    E, _, _ = unique_edges(F)
+    return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
+
+
+def face_vertex_ring(F: np.ndarray, n: int) -> sp.csr_matrix:
+    """(m, m) 0/1 CSR matrix: faces sharing at least one vertex (diagonal included)."""
+    m = len(F)
+    FV = sp.csr_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), F.reshape(-1))), shape=(m, n))
+    R = (FV @ FV.T).tocsr()
+    R.data[:] = 1.0
+    R.sort_indices()
+    return R
+
+
+def face_ring_csr(F: np.ndarray, n: int, rings: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Faces within ``rings`` vertex rings of each face, as CSR ``(indptr, indices)``.
+
+    ``rings=1`` gives the faces sharing a vertex with the face (its one-ring
+    patch, the face itself included); each further ring grows the set by the
+    vertex ring of every member.
+    """
+    R = face_vertex_ring(F, n)
+    P = R
+    for _ in range(rings - 1):
+        P = (P @ R).tocsr()
+        P.data[:] = 1.0
+    P.sort_indices()
+    return P.indptr.astype(np.int64), P.indices.astype(np.int64)
+
+
+def face_edge_neighbors(F: np.ndarray) -> np.ndarray:
+    """(m, 3) edge-adjacent face across each corner's outgoing edge; -1 on a boundary.
+
+    Assumes an edge-manifold mesh (at most two faces per edge).
+    """
+    m = len(F)
+    _, edge_of, _ = unique_edges(F)
+    order = np.argsort(edge_of, kind="stable")
+    e_sorted = edge_of[order]
+    same = e_sorted[1:] == e_sorted[:-1]
+    h1, h2 = order[:-1][same], order[1:][same]
+    out = np.full(3 * m, -1, dtype=np.int64)
+    out[h1] = h2 // 3
+    out[h2] = h1 // 3
+    return out.reshape(m, 3)
+
+
+def vertex_face_incidence(F: np.ndarray, n: int) -> sp.csr_matrix:
+    """(n, m) 0/1 CSR matrix: vertex v is a corner of face f."""
+    m = len(F)
+    return sp.csr_matrix((np.ones(3 * m), (F.reshape(-1), np.repeat(np.arange(m), 3))), shape=(n, m))

@@ -1,0 +1,59 @@
+"""Error of a denoised mesh against its clean reference (same connectivity)."""
+
+from __future__ import annotations
+
+import igl
+import numpy as np
+
+from geoproc.denoise.face_geometry import face_normals_and_areas, mean_edge_length
+
+
+def normal_angles_deg(N: np.ndarray, N_ref: np.ndarray) -> np.ndarray:
+    """(m,) angle in degrees between corresponding unit normals."""
+    cos = np.clip(np.einsum("ij,ij->i", N, N_ref), -1.0, 1.0)
+    return np.degrees(np.arccos(cos))
+
+
+def flipped_faces(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> np.ndarray:
+    """Indices of faces whose normal is more than 90 degrees from the reference."""
+    N, _ = face_normals_and_areas(V, F)
+    N_ref, _ = face_normals_and_areas(V_ref, F)
+    return np.flatnonzero(np.einsum("ij,ij->i", N, N_ref) < 0.0)
+
+
+def two_sided_hausdorff(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray, F_ref: np.ndarray) -> float:
+    """Two-sided Hausdorff distance between two surfaces, from vertices to surfaces
+    (the largest vertex-to-surface distance either way), in length units."""
+    d1, _, _ = igl.point_mesh_squared_distance(V, V_ref, F_ref)
+    d2, _, _ = igl.point_mesh_squared_distance(V_ref, V, F)
+    return float(np.sqrt(max(d1.max(), d2.max())))
+
+
+def denoise_errors(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> dict:
+    """The report metrics of a result against its clean reference.
+
+    Parameters
+    ----------
+    V : (n, 3) result positions; F : (m, 3) triangles shared with the reference;
+    V_ref : (n, 3) clean positions.
+
+    Returns
+    -------
+    dict with
+        mean_normal_angle_deg, max_normal_angle_deg : face normal angles (theta);
+        flipped_faces : faces more than 90 degrees from the reference;
+        hausdorff : two-sided Hausdorff distance / reference bounding-box diagonal;
+        vertex_rmse : RMS vertex distance / reference mean edge length.
+    """
+    N, _ = face_normals_and_areas(V, F)
+    N_ref, _ = face_normals_and_areas(V_ref, F)
+    ang = normal_angles_deg(N, N_ref)
+    diag = float(np.linalg.norm(V_ref.max(axis=0) - V_ref.min(axis=0)))
+    le = mean_edge_length(V_ref, F)
+    return {
+        "mean_normal_angle_deg": float(ang.mean()),
+        "max_normal_angle_deg": float(ang.max()),
+        "flipped_faces": int((ang > 90.0).sum()),
+        "hausdorff": two_sided_hausdorff(V, F, V_ref, F) / diag,
+        "vertex_rmse": float(np.sqrt(np.mean(np.sum((V - V_ref) ** 2, axis=1)))) / le,
+    }

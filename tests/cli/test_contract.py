@@ -1,0 +1,173 @@
+"""The command-line contract, through the real `geoproc` executable and the shared harness."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from geoproc.errors import InputError
+from geoproc.mesh import Mesh, load_mesh, read_mesh_bytes
+from geoproc.report import validate_report
+from geoproc_cli.common import CheckOpt, ReportOpt, command_run
+from geoproc_cli.main import app
+
+BAD_INPUTS = [
+    ("truncated.ply", "unparseable PLY"),
+    ("nan.ply", "non-finite coordinates"),
+    ("out_of_range.obj", "face index out of range"),
+    ("empty.obj", "no faces"),
+]
+
+
+def _one_error_line(stderr: str, path: str) -> str:
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, stderr
+    assert "Traceback" not in stderr
+    assert lines[0].startswith(f"error: {path}: "), lines[0]
+    return lines[0]
+
+
+@pytest.mark.parametrize("name, fragment", BAD_INPUTS)
+def test_bad_input_exits_2_with_one_line_and_no_report(cli, fixture_dir, tmp_path, name, fragment):
+    path = str(fixture_dir / name)
+    report = tmp_path / "r.json"
+    p = cli("info", path, "--report", report)
+    assert p.returncode == 2
+    assert fragment in _one_error_line(p.stderr, path)
+    assert not report.exists() and list(tmp_path.iterdir()) == []
+    assert p.stdout == b""
+
+
+def test_missing_file_unknown_extension_and_folder(cli, tmp_path):
+    for path, fragment in [
+        (tmp_path / "missing.ply", "no such file"),
+        (tmp_path / "mesh.xyz", "unknown mesh format"),
+        (tmp_path, "is a directory"),
+    ]:
+        if path.suffix == ".xyz":
+            path.write_text("0 0 0\n")
+        p = cli("info", path)
+        assert p.returncode == 2, p.stderr
+        assert fragment in _one_error_line(p.stderr, str(path))
+
+
+def test_debug_shows_the_traceback(cli, fixture_dir):
+    p = cli("info", fixture_dir / "nan.ply", "--debug")
+    assert p.returncode == 2 and "Traceback" in p.stderr and "InputError" in p.stderr
+
+
+def test_report_is_valid_and_hashes_the_input(cli, fixture_dir, tmp_path):
+    mesh = fixture_dir / "torus.ply"
+    report = tmp_path / "r.json"
+    p = cli("info", mesh, "--report", report, "--quiet")
+    assert p.returncode == 0, p.stderr
+    rep = json.loads(report.read_text())
+    validate_report(rep)
+    assert rep["command"] == "info"
+    assert rep["inputs"] == [{"path": str(mesh), "sha256": hashlib.sha256(mesh.read_bytes()).hexdigest()}]
+    assert rep["metrics"]["genus"] == 1 and rep["timings_s"]["total"] > 0
+
+
+def test_checks_gate_the_exit_code(cli, fixture_dir, tmp_path):
+    mesh = fixture_dir / "torus.ply"
+    ok = cli("info", mesh, "--check", "genus==1", "--check", "vertices>1000")
+    assert ok.returncode == 0, ok.stderr
+    report = tmp_path / "r.json"
+    bad = cli("info", mesh, "--check", "genus==0", "--check", "faces<10", "--check", "vertices>1",
+              "--report", report)
+    assert bad.returncode == 1
+    lines = bad.stderr.strip().splitlines()
+    assert len(lines) == 2 and lines[0].startswith("check failed: genus==0") and "faces<10" in lines[1]
+    validate_report(json.loads(report.read_text()))  # the run itself succeeded
+
+
+def test_unknown_metric_and_malformed_check_are_usage_errors(cli, fixture_dir, tmp_path):
+    report = tmp_path / "r.json"
+    p = cli("info", fixture_dir / "torus.ply", "--check", "nonsense<1", "--report", report)
+    assert p.returncode == 2 and "unknown metric 'nonsense'" in p.stderr
+    assert not report.exists()
+    p = cli("info", fixture_dir / "torus.ply", "--check", "genus=1")
+    assert p.returncode == 2 and "--check 'genus=1'" in p.stderr
+
+
+def test_report_into_missing_folder_is_a_usage_error(cli, fixture_dir, tmp_path):
+    p = cli("info", fixture_dir / "torus.ply", "--report", tmp_path / "no" / "r.json")
+    assert p.returncode == 2 and "does not exist" in p.stderr
+
+
+def test_stdin_input_and_clean_stdout(cli, fixture_dir):
+    data = (fixture_dir / "torus.ply").read_bytes()
+    p = cli("info", "-", "--json", stdin=data)
+    assert p.returncode == 0, p.stderr
+    info = json.loads(p.stdout)  # stdout holds the result only
+    assert info["genus"] == 1
+
+
+def test_notes_go_to_stderr_and_quiet_silences_them(cli, shared_data):
+    spot = shared_data / "meshes" / "spot.obj"
+    p = cli("info", spot, "--json")
+    assert "merged 295 coincident vertices" in p.stderr
+    assert json.loads(p.stdout)["vertices"] == 2930
+    q = cli("info", spot, "--json", "--quiet")
+    assert q.stderr == "" and json.loads(q.stdout)["vertices"] == 2930
+    raw = cli("info", spot, "--json", "--no-clean", "--quiet")
+    assert json.loads(raw.stdout)["vertices"] == 3225
+
+
+def test_every_option_of_every_command_has_help():
+    root = typer.main.get_command(app)
+    assert root.commands, "no subcommands registered"
+    for name, command in root.commands.items():
+        assert command.help, name
+        for param in command.params:
+            if param.param_type_name == "option":
+                assert param.help and len(param.help) > 10, f"{name} {param.opts}"
+        result = CliRunner().invoke(app, [name, "--help"])
+        assert result.exit_code == 0, name
+
+
+# ---- the harness itself, on a small command that writes a mesh -------------
+
+def _toy_app() -> typer.Typer:
+    toy = typer.Typer()
+
+    @toy.command()
+    def flip(mesh: str, output: str = typer.Option(..., "-o"), fail: bool = False,
+             report: ReportOpt = None, check: CheckOpt = None) -> None:
+        with command_run("flip", {"fail": fail}, report=report, checks=check) as run:
+            m = run.load_mesh(mesh)
+            run.write_mesh(output, Mesh(m.V, m.F[:, ::-1], {"one": m.V[:, 0] * 0 + 1}))
+            run.metrics["faces"] = len(m.F)
+            if fail:
+                raise InputError(mesh, "refused after writing")
+
+    return toy
+
+
+def test_outputs_are_written_only_when_the_run_succeeds(fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(out), "--fail"])
+    assert res.exit_code == 2 and not out.exists() and list(tmp_path.iterdir()) == []
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(out),
+                                          "--check", "missing<1"])
+    assert res.exit_code == 2 and not out.exists()
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(out)])
+    assert res.exit_code == 0 and load_mesh(out).vertex_fields["one"].sum() == 1152
+
+
+def test_dash_output_is_binary_ply_on_stdout(fixture_dir):
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", "-"])
+    assert res.exit_code == 0
+    m = read_mesh_bytes(res.stdout_bytes, "ply")
+    assert res.stdout_bytes.startswith(b"ply\nformat binary_little_endian")
+    assert m.F.shape == (2304, 3) and "one" in m.vertex_fields
+
+
+def test_missing_output_folder_is_a_usage_error(fixture_dir, tmp_path):
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(tmp_path / "x" / "o.ply")])
+    assert res.exit_code == 2 and not Path(tmp_path / "x").exists()

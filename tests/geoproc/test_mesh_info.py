@@ -1,0 +1,147 @@
+"""mesh_info and the topology queries, checked against trimesh and libigl."""
+
+from __future__ import annotations
+
+import igl
+import numpy as np
+import pytest
+import trimesh
+
+from geoproc.mesh import Mesh, load_mesh, mesh_info
+from geoproc.mesh.topology import (
+    count_boundary_loops,
+    orientation_status,
+    unique_edges,
+    vertex_components,
+    vertex_fans,
+)
+
+KNOWN = {
+    # fixture: (components, boundary_loops, euler, genus, nonmanifold edges, nonmanifold vertices)
+    "icosphere.ply": (1, 0, 2, 0, 0, 0),
+    "torus.ply": (1, 0, 0, 1, 0, 0),
+    "grid.ply": (1, 1, 1, None, 0, 0),
+    "cube.ply": (1, 0, 2, 0, 0, 0),
+    "bowtie.obj": (1, 2, 1, None, 0, 1),
+    "fin.obj": (1, 2, 1, None, 1, 0),
+}
+
+
+@pytest.mark.parametrize("name", sorted(KNOWN))
+def test_known_answers_on_fixtures(fixture_dir, name):
+    info = mesh_info(load_mesh(fixture_dir / name))
+    got = (
+        info["components"],
+        info["boundary_loops"],
+        info["euler_characteristic"],
+        info["genus"],
+        info["nonmanifold_edges"],
+        info["nonmanifold_vertices"],
+    )
+    assert got == KNOWN[name]
+
+
+def test_degenerate_face_is_counted(fixture_dir):
+    info = mesh_info(load_mesh(fixture_dir / "zero_area.off"))
+    assert info["degenerate_faces"] == 1
+    assert info["faces"] == 9
+
+
+def test_cube_fixture_is_outward_and_closed(fixture_dir):
+    m = load_mesh(fixture_dir / "cube.ply")
+    tm = trimesh.Trimesh(m.V, m.F, process=False)
+    assert tm.is_watertight and tm.is_winding_consistent
+    assert tm.volume == pytest.approx(8.0, rel=1e-12)  # positive: outward normals
+
+
+def test_point_cloud_info(fixture_dir):
+    info = mesh_info(load_mesh(fixture_dir / "points.ply"))
+    assert info["point_cloud"] is True
+    assert info["vertices"] == 200 and info["faces"] == 0
+    assert info["genus"] is None and info["edges"] is None
+
+
+def test_non_orientable_moebius_strip():
+    n, w = 12, 0.3
+    t = 2 * np.pi * np.arange(n) / n
+    V = np.empty((2 * n, 3))
+    for k, s in enumerate((-w, w)):  # vertex 2i + k sits at angle t_i, offset s
+        V[k::2] = np.column_stack([(1 + s * np.cos(t / 2)) * np.cos(t),
+                                   (1 + s * np.cos(t / 2)) * np.sin(t), s * np.sin(t / 2)])
+    a, b = 2 * np.arange(n), 2 * np.arange(n) + 1
+    F = []
+    for i in range(n - 1):
+        F += [[a[i], a[i + 1], b[i + 1]], [a[i], b[i + 1], b[i]]]
+    F += [[a[-1], b[0], a[0]], [a[-1], a[0], b[-1]]]  # the half twist closes the strip
+    F = np.array(F)
+    orientable, consistent = orientation_status(F)
+    assert orientable is False and consistent is False
+    info = mesh_info(Mesh(V, F))
+    assert info["boundary_loops"] == 1 and info["euler_characteristic"] == 0
+    assert info["genus"] is None and info["edge_manifold"] and info["vertex_manifold"]
+
+
+def test_flipped_face_is_orientable_but_inconsistent(make_fixtures):
+    V, F = make_fixtures.icosphere(1)
+    F = F.copy()
+    F[0] = F[0, ::-1]
+    orientable, consistent = orientation_status(F)
+    assert orientable is True and consistent is False
+
+
+def _shared_meshes(shared_data):
+    return sorted((shared_data / "meshes").iterdir())
+
+
+def test_against_trimesh_and_libigl_on_shared_meshes(shared_data):
+    for path in _shared_meshes(shared_data):
+        mesh = load_mesh(path)
+        info = mesh_info(mesh)
+        V, F = mesh.V, mesh.F
+        tm = trimesh.Trimesh(V, F, process=False)
+        where = path.name
+        assert info["edges"] == len(tm.edges_unique), where
+        assert info["euler_characteristic"] == igl.euler_characteristic(F), where
+        n_comp = len(np.unique(igl.vertex_components(F)))
+        assert info["components"] == n_comp, where
+        assert info["components"] == len(trimesh.graph.connected_components(tm.edges)), where
+        assert info["mean_edge_length"] == pytest.approx(tm.edges_unique_length.mean(), rel=1e-12), where
+        assert info["bbox_diagonal"] == pytest.approx(np.linalg.norm(tm.extents), rel=1e-12), where
+        igl_vertex_manifold = bool(np.all(igl.is_vertex_manifold(F)))
+        assert info["vertex_manifold"] == igl_vertex_manifold or not info["edge_manifold"], where
+        igl_edge_manifold = bool(igl.is_edge_manifold(F)[0])
+        ours = info["edge_manifold"] and bool(info["consistently_oriented"])
+        assert ours == igl_edge_manifold, where
+        if info["edge_manifold"] and info["vertex_manifold"]:
+            assert info["boundary_loops"] == len(igl.boundary_loop_all(F)), where
+        if info["closed"] and info["edge_manifold"]:
+            assert info["consistently_oriented"] == tm.is_winding_consistent, where
+
+
+def test_known_shared_topology(shared_data):
+    expect = {"bunny.off": 0, "fertility.off": 4, "armadillo.obj": 0, "spot.obj": 0, "fandisk.off": 0}
+    for name, genus in expect.items():
+        assert mesh_info(load_mesh(shared_data / "meshes" / name))["genus"] == genus, name
+    camel = mesh_info(load_mesh(shared_data / "meshes" / "camelhead.off"))
+    assert camel["boundary_loops"] == 1 and camel["genus"] is None
+    cow = mesh_info(load_mesh(shared_data / "meshes" / "cow.obj"))
+    assert cow["euler_characteristic"] == 1 and cow["genus"] is None
+
+
+def test_unique_edges_counts_faces_per_edge(make_fixtures):
+    V, F = make_fixtures.grid(5)
+    E, edge_of, count = unique_edges(F)
+    assert len(E) == 2 * 4 * 5 + 4 * 4  # horizontal + vertical + diagonals
+    assert (count == 1).sum() == 16 and (count == 2).sum() == len(E) - 16
+    assert np.array_equal(np.sort(F[:, :2], axis=1), E[edge_of.reshape(-1, 3)[:, 0]])
+    assert count_boundary_loops(F) == 1
+
+
+def test_vertex_fans_and_components_of_disjoint_parts(make_fixtures):
+    V1, F1 = make_fixtures.icosphere(1)
+    V2, F2 = make_fixtures.torus(nu=8, nv=6)
+    F = np.concatenate([F1, F2 + len(V1)])
+    n = len(V1) + len(V2)
+    count, labels = vertex_components(F, n)
+    assert count == 2 and set(labels[: len(V1)]) == {0} and set(labels[len(V1):]) == {1}
+    assert (vertex_fans(F, n) == 1).all()

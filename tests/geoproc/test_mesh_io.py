@@ -1,0 +1,150 @@
+"""Reading, writing, clean-up and validation of meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from geoproc.errors import InputError
+from geoproc.fileio import atomic_write
+from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes, read_mesh_bytes, save_mesh
+from geoproc.mesh.clean import merge_coincident_vertices, remove_unreferenced_vertices
+from geoproc.mesh.read import sniff_format
+
+
+@pytest.fixture()
+def sphere(make_fixtures):
+    V, F = make_fixtures.icosphere(2)
+    rng = np.random.default_rng(0)
+    fields = {"distance": rng.random(len(V)), "label": np.arange(len(V), dtype=float)}
+    return Mesh(V, F, fields, {"area": rng.random(len(F))})
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_ply_fields_round_trip_exactly(tmp_path, sphere, binary):
+    path = tmp_path / "s.ply"
+    save_mesh(path, sphere, binary=binary)
+    back = load_mesh(path)
+    assert np.array_equal(back.V, sphere.V) and np.array_equal(back.F, sphere.F)
+    assert set(back.vertex_fields) == {"distance", "label"}
+    for k, v in sphere.vertex_fields.items():
+        assert np.array_equal(back.vertex_fields[k], v), k
+    assert np.array_equal(back.face_fields["area"], sphere.face_fields["area"])
+
+
+def test_ply_vector_field_is_split_into_components(tmp_path, sphere):
+    sphere.vertex_fields = {"normal": np.tile([0.0, 0.0, 1.0], (len(sphere.V), 1))}
+    save_mesh(tmp_path / "n.ply", sphere)
+    back = load_mesh(tmp_path / "n.ply")
+    assert sorted(back.vertex_fields) == ["normal_0", "normal_1", "normal_2"]
+    assert np.all(back.vertex_fields["normal_2"] == 1.0)
+
+
+@pytest.mark.parametrize("ext", ["obj", "off", "stl"])
+def test_geometry_round_trip_other_formats(tmp_path, sphere, ext):
+    save_mesh(tmp_path / f"s.{ext}", sphere)
+    back = load_mesh(tmp_path / f"s.{ext}")
+    assert back.F.shape == sphere.F.shape
+    tol = 1e-6 if ext == "stl" else 0.0  # STL stores float32
+    # compare as sets of triangles (STL merging may renumber vertices)
+    assert np.abs(np.sort(back.V[back.F].reshape(-1, 9), axis=0)
+                  - np.sort(sphere.V[sphere.F].reshape(-1, 9), axis=0)).max() <= tol
+
+
+def test_trimesh_reads_our_ply(tmp_path, sphere):
+    save_mesh(tmp_path / "s.ply", sphere)
+    tm = trimesh.load(tmp_path / "s.ply", process=False)
+    assert np.allclose(tm.vertices, sphere.V) and np.array_equal(tm.faces, sphere.F)
+
+
+def test_ply_without_faces_is_a_point_cloud(fixture_dir):
+    m = load_mesh(fixture_dir / "points.ply")
+    assert m.is_point_cloud and m.V.shape == (200, 3)
+
+
+def test_uv_seams_are_merged_and_no_clean_keeps_them(shared_data):
+    spot = shared_data / "meshes" / "spot.obj"
+    merged, kept = load_mesh(spot), load_mesh(spot, clean=False)
+    assert len(kept.V) == 3225 and merged.log.merged_vertices == 3225 - len(merged.V)
+    assert len(merged.V) == 2930
+    assert merged.log.cleaned and not kept.log.cleaned
+
+
+def test_polygons_are_triangulated_and_counted(fixture_dir):
+    m = load_mesh(fixture_dir / "quad.obj")
+    assert m.log.triangulated_polygons == 2 and len(m.F) == 4
+    tm = trimesh.Trimesh(m.V, m.F, process=False)
+    assert tm.area == pytest.approx(2.0)
+
+
+def test_merge_keeps_first_occurrence_and_fields():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [5, 5, 5]], float)
+    F = np.array([[0, 1, 2], [0, 3, 2]])
+    V2, F2, keep = merge_coincident_vertices(V, F)
+    assert keep.tolist() == [0, 1, 2, 4] and F2.tolist() == [[0, 1, 2], [0, 1, 2]]
+    V3, F3, keep3 = remove_unreferenced_vertices(V2, F2)
+    assert keep3.tolist() == [0, 1, 2] and len(V3) == 3
+
+
+@pytest.mark.parametrize(
+    "name, fragment",
+    [
+        ("truncated.ply", "unparseable PLY"),
+        ("nan.ply", "non-finite coordinates"),
+        ("out_of_range.obj", "face index out of range"),
+        ("empty.obj", "no faces"),
+    ],
+)
+def test_bad_files_raise_input_error_naming_the_file(fixture_dir, name, fragment):
+    with pytest.raises(InputError) as err:
+        load_mesh(fixture_dir / name)
+    assert fragment in err.value.problem
+    assert err.value.path.endswith(name)
+
+
+def test_missing_and_unknown_files(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        load_mesh(tmp_path / "nope.obj")
+    (tmp_path / "m.xyz").write_text("1 2 3\n")
+    with pytest.raises(InputError, match="unknown mesh format"):
+        load_mesh(tmp_path / "m.xyz")
+    (tmp_path / "e.off").write_bytes(b"")
+    with pytest.raises(InputError, match="empty"):
+        load_mesh(tmp_path / "e.off")
+    (tmp_path / "g.off").write_text("this is not an OFF file\n")
+    with pytest.raises(InputError):
+        load_mesh(tmp_path / "g.off")
+
+
+def test_out_of_range_in_ply_and_off(tmp_path):
+    ply = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+           "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n")
+    (tmp_path / "o.ply").write_text(ply)
+    with pytest.raises(InputError, match="face index out of range: face 0 references vertex 3"):
+        load_mesh(tmp_path / "o.ply")
+    (tmp_path / "o.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")
+    with pytest.raises(InputError, match="out of range"):
+        load_mesh(tmp_path / "o.off")
+
+
+@pytest.mark.parametrize("fmt", ["ply", "obj", "off", "stl"])
+def test_sniffing_standard_input(sphere, fmt):
+    data = mesh_to_bytes(sphere, fmt)
+    assert sniff_format(data) == fmt
+    m = read_mesh_bytes(data, fmt, "-")
+    assert len(m.F) == len(sphere.F)
+
+
+def test_atomic_write_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.ply"
+    with pytest.raises(RuntimeError), atomic_write(target) as fh:
+        fh.write(b"partial")
+        raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+    target.write_bytes(b"old")
+    with pytest.raises(RuntimeError), atomic_write(target) as fh:
+        fh.write(b"new")
+        raise RuntimeError("boom")
+    assert target.read_bytes() == b"old" and len(list(tmp_path.iterdir())) == 1

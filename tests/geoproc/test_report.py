@@ -1,0 +1,75 @@
+"""Report building, the JSON Schema, and --check parsing/evaluation."""
+
+from __future__ import annotations
+
+import json
+
+import jsonschema
+import numpy as np
+import pytest
+
+from geoproc.errors import UsageError
+from geoproc.report import build_report, evaluate_checks, parse_check, report_schema, validate_report
+
+
+def test_schema_is_a_valid_json_schema():
+    jsonschema.Draft202012Validator.check_schema(report_schema())
+
+
+def test_built_report_validates_and_is_strict_json():
+    rep = build_report(
+        "info",
+        [{"path": "a.ply", "sha256": "0" * 64}],
+        {"clean": True},
+        {"rmse": np.float64(0.5), "count": np.int64(3), "ok": np.bool_(True), "bad": float("inf")},
+        {"total": 0.1},
+    )
+    validate_report(rep)
+    assert rep["metrics"] == {"rmse": 0.5, "count": 3, "ok": True, "bad": None}
+    json.dumps(rep, allow_nan=False)
+
+
+def test_schema_rejects_malformed_reports():
+    good = build_report("info", [], {}, {}, {"total": 0.0})
+    for broken in (
+        {**good, "inputs": [{"path": "a", "sha256": "xyz"}]},
+        {**good, "metrics": {"m": [1, 2]}},
+        {k: v for k, v in good.items() if k != "timings_s"},
+        {**good, "timings_s": {"total": -1.0}},
+    ):
+        with pytest.raises(jsonschema.ValidationError):
+            validate_report(broken)
+
+
+@pytest.mark.parametrize(
+    "text, measured, passes",
+    [
+        ("rmse<=0.1", 0.1, True),
+        ("rmse<0.1", 0.1, False),
+        ("r >= 0.9", 0.95, True),
+        ("r>0.95", 0.95, False),
+        ("genus==1", 1, True),
+        ("genus==1", 0, False),
+        ("x<=1e-3", 2e-3, False),
+    ],
+)
+def test_check_operators(text, measured, passes):
+    c = parse_check(text)
+    failures = evaluate_checks([c], {c.metric: measured})
+    assert (failures == []) == passes
+
+
+def test_check_on_boolean_and_null_metrics():
+    assert evaluate_checks([parse_check("closed==1")], {"closed": True}) == []
+    assert len(evaluate_checks([parse_check("genus==0")], {"genus": None})) == 1
+
+
+@pytest.mark.parametrize("text", ["rmse", "rmse=<1", "rmse<=abc", "<=1", "rmse <= 1 2"])
+def test_malformed_checks_are_usage_errors(text):
+    with pytest.raises(UsageError):
+        parse_check(text)
+
+
+def test_unknown_metric_is_a_usage_error_listing_names():
+    with pytest.raises(UsageError, match="unknown metric 'nope'.*rmse"):
+        evaluate_checks([parse_check("nope<1")], {"rmse": 0.1})
