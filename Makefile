@@ -42,7 +42,7 @@ $(DEMO)/.dir:
 
 demo-info: $(FIXTURES) $(DEMO)/.dir
 	$(GEO) info fixtures/data/torus.ply --quiet --report $(DEMO)/info_torus.json --check 'genus==1' > $(DEMO)/info_torus.txt
-	$(GEO) info fixtures/data/grid.ply --quiet --json --report $(DEMO)/info_grid.json --check 'boundary_loops==1' > $(DEMO)/info_grid.json.txt
+	$(GEO) info fixtures/data/grid.ply --quiet --json --report $(DEMO)/info_grid.json --check 'boundary_loops==1' > $(DEMO)/info_grid.txt
 
 DEMO_STEPS := demo-info
 

@@ -238,7 +238,25 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         raise InputError(path, "mesh has no faces (vertices only; store a point cloud as PLY)")
     if V.size == 0 and len(data.strip()) > 0 and fmt != "obj":
         raise InputError(path, f"unparseable {fmt.upper()}: no vertices could be read")
+    if fmt == "off" and _off_declared_faces(data) == len(F):
+        return Mesh(V, F), 0  # every stored face was a triangle
     return Mesh(V, F), _count_polygons(data, fmt)
+
+
+def _off_declared_faces(data: bytes) -> int | None:
+    """The face count in an OFF header, read from the first lines only."""
+    tokens: list[bytes] = []
+    for line in data[:4096].splitlines():
+        line = line.split(b"#")[0].strip()
+        if line:
+            tokens.extend(line.split())
+        if len(tokens) >= 3 and not tokens[0][:1].isdigit():
+            break
+    nums = [t for t in tokens if t[:1].isdigit()]
+    try:
+        return int(nums[1])
+    except (IndexError, ValueError):
+        return None
 
 
 def _count_polygons(data: bytes, fmt: str) -> int:
