@@ -12,7 +12,6 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-
 HEADLINE = (
     "mean_relative_error", "pearson_r", "rmse", "mae", "max_abs_error", "bias",
     "mean_normal_angle_deg", "flipped_faces", "hausdorff", "f1", "precision", "recall",
