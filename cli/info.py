@@ -32,7 +32,9 @@ def info(
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
-    """Print vertices, faces, edges, components, boundary loops, Euler characteristic,
+    """Summarize a mesh: counts, topology, manifoldness, sizes.
+
+    Prints vertices, faces, edges, components, boundary loops, Euler characteristic,
     genus, manifold and orientation flags, degenerate/duplicate/unreferenced counts,
     mean edge length and bounding-box diagonal (in the file's length unit).
 

@@ -15,6 +15,7 @@ app = typer.Typer(
     "Exit codes: 0 success, 1 a --check failed, 2 bad input or usage, 3 internal error.",
     no_args_is_help=True,
     add_completion=False,
+    rich_markup_mode="markdown",
     pretty_exceptions_enable=False,
     context_settings={"help_option_names": ["-h", "--help"]},
 )
