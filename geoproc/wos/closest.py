@@ -1,0 +1,162 @@
+"""Closest-point queries on 2D segments through a uniform grid of candidate lists.
+
+Each grid cell stores the segments that can be closest to *some* point of the
+cell: with ``c`` the cell center, ``h`` its half diagonal and ``d*`` the
+distance from ``c`` to the nearest segment, a segment farther than ``d* + 2h``
+from ``c`` is farther than ``d* + h`` from every point of the cell, while the
+nearest segment is within ``d* + h``. The lists are exact, so a query scans
+only its cell's few candidates. Points outside the grid fall back to a scan of
+every segment.
+
+The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, seg_ids)``
+accepted by :func:`closest_point`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import prange
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def point_segment_d2(px, py, ax, ay, bx, by):
+    """Squared distance from p to segment [a, b] and the parameter t of the closest point."""
+    ex = bx - ax
+    ey = by - ay
+    wx = px - ax
+    wy = py - ay
+    ee = ex * ex + ey * ey
+    t = (wx * ex + wy * ey) / ee if ee > 0.0 else 0.0
+    if t < 0.0:
+        t = 0.0
+    elif t > 1.0:
+        t = 1.0
+    dx = wx - t * ex
+    dy = wy - t * ey
+    return dx * dx + dy * dy, t
+
+
+@numba.njit(cache=True, parallel=True)
+def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items):
+    half = 0.5 * cs * math.sqrt(2.0)
+    n_cells = nx * ny
+    counts = np.zeros(n_cells, dtype=np.int64)
+    for c in prange(n_cells):
+        i = c % nx
+        j = c // nx
+        cx = ox + (i + 0.5) * cs
+        cy = oy + (j + 0.5) * cs
+        best = np.inf
+        d = np.empty(seg_ids.shape[0])
+        for k in range(seg_ids.shape[0]):
+            s = seg_ids[k]
+            d2, t = point_segment_d2(cx, cy, A[s, 0], A[s, 1], B[s, 0], B[s, 1])
+            d[k] = math.sqrt(d2)
+            if d[k] < best:
+                best = d[k]
+        lim = best + 2.0 * half + 1e-12 * (1.0 + best)
+        n = 0
+        for k in range(seg_ids.shape[0]):
+            if d[k] <= lim:
+                if not count_only:
+                    items[start[c] + n] = seg_ids[k]
+                n += 1
+        counts[c] = n
+    return counts
+
+
+def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None = None,
+                       resolution: int | None = None):
+    """Build the candidate grid over segments ``seg_ids`` of ``A -> B`` (S, 2).
+
+    Parameters
+    ----------
+    A, B : (S, 2) float64
+        Segment endpoints.
+    seg_ids : (k,) int64, optional
+        Which segments to index (default: all).
+    resolution : int, optional
+        Cells along the longer side (default ``clip(8 sqrt(k), 32, 256)``).
+
+    Returns
+    -------
+    tuple
+        ``(ox, oy, inv_cs, nx, ny, start, items, seg_ids)`` for :func:`closest_point`.
+    """
+    A = np.ascontiguousarray(A, dtype=np.float64)
+    B = np.ascontiguousarray(B, dtype=np.float64)
+    seg_ids = np.arange(len(A), dtype=np.int64) if seg_ids is None else np.asarray(seg_ids, np.int64)
+    P = np.concatenate([A[seg_ids], B[seg_ids]])
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    span = float(max(hi - lo))
+    span = span if span > 0 else 1.0
+    lo = lo - 1e-6 * span
+    span *= 1 + 2e-6
+    n = resolution or int(np.clip(8 * np.sqrt(len(seg_ids)), 32, 256))
+    cs = span / n
+    nx = max(1, int(np.ceil((hi[0] - lo[0]) / cs + 1e-9)))
+    ny = max(1, int(np.ceil((hi[1] - lo[1]) / cs + 1e-9)))
+    empty = np.zeros(1, dtype=np.int64)
+    counts = _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, True, empty, empty)
+    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    np.cumsum(counts, out=start[1:])
+    items = np.empty(int(start[-1]), dtype=np.int64)
+    _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, False, start, items)
+    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, seg_ids)
+
+
+@numba.njit(cache=True, nogil=True)
+def closest_point(px, py, A, B, grid):
+    """Closest point on the indexed segments to ``(px, py)``.
+
+    Returns
+    -------
+    d2 : float
+        Squared distance.
+    seg : int
+        Segment index (into A, B).
+    t : float
+        Parameter of the closest point on the segment, in [0, 1].
+    """
+    ox, oy, inv_cs, nx, ny, start, items, seg_ids = grid
+    i = int(math.floor((px - ox) * inv_cs))
+    j = int(math.floor((py - oy) * inv_cs))
+    best = np.inf
+    best_s = -1
+    best_t = 0.0
+    if 0 <= i < nx and 0 <= j < ny:
+        c = j * nx + i
+        for k in range(start[c], start[c + 1]):
+            s = items[k]
+            d2, t = point_segment_d2(px, py, A[s, 0], A[s, 1], B[s, 0], B[s, 1])
+            if d2 < best:
+                best = d2
+                best_s = s
+                best_t = t
+    else:
+        for k in range(seg_ids.shape[0]):
+            s = seg_ids[k]
+            d2, t = point_segment_d2(px, py, A[s, 0], A[s, 1], B[s, 0], B[s, 1])
+            if d2 < best:
+                best = d2
+                best_s = s
+                best_t = t
+    return best, best_s, best_t
+
+
+@numba.njit(cache=True, parallel=True)
+def closest_points(P, A, B, grid):
+    """Batch version of :func:`closest_point`: (n, 2) points -> (d (n,), seg (n,), t (n,))."""
+    n = P.shape[0]
+    d = np.empty(n)
+    seg = np.empty(n, dtype=np.int64)
+    tt = np.empty(n)
+    for k in prange(n):
+        d2, s, t = closest_point(P[k, 0], P[k, 1], A, B, grid)
+        d[k] = math.sqrt(d2)
+        seg[k] = s
+        tt[k] = t
+    return d, seg, tt

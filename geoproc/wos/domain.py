@@ -1,0 +1,296 @@
+"""2D polygonal domains: closed loops (outer boundaries and holes).
+
+A :class:`Domain` stores its boundary as directed segments ``A[i] -> B[i]``
+oriented so that the domain lies on the left of every segment (outer loops
+counter-clockwise, holes clockwise), a Neumann flag per segment and optional
+per-vertex boundary values.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+from matplotlib.path import Path as MplPath
+
+from geoproc.errors import InputError
+
+
+@dataclass
+class Domain:
+    """A polygonal domain with holes.
+
+    Attributes
+    ----------
+    loops : list of (n_i, 2) float64
+        Closed loops, first vertex not repeated, oriented with the domain on the left.
+    A, B : (S, 2) float64
+        Segment start and end points (all loops concatenated).
+    loop_of : (S,) int64
+        Loop index of each segment.
+    neumann : (S,) bool
+        True for segments carrying Neumann (flux) data.
+    values : (S, 2) float64 or None
+        Boundary values at each segment's start and end (linear in between), when
+        the input gave per-vertex values.
+    source : str
+        Where the domain came from (file name), for messages.
+    """
+
+    loops: list[np.ndarray]
+    A: np.ndarray
+    B: np.ndarray
+    loop_of: np.ndarray
+    neumann: np.ndarray
+    values: np.ndarray | None = None
+    source: str = "<domain>"
+    _paths: list = field(default_factory=list, repr=False)
+
+    @property
+    def n_segments(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def bbox(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi): (2,) corners of the axis-aligned bounding box."""
+        P = np.concatenate(self.loops)
+        return P.min(axis=0), P.max(axis=0)
+
+    @property
+    def area(self) -> float:
+        """Signed area sum of the oriented loops (= area of the domain)."""
+        return float(sum(loop_signed_area(L) for L in self.loops))
+
+    @property
+    def perimeter(self) -> float:
+        return float(np.linalg.norm(self.B - self.A, axis=1).sum())
+
+    @property
+    def perimeter_neumann(self) -> float:
+        return float(np.linalg.norm(self.B - self.A, axis=1)[self.neumann].sum())
+
+    @property
+    def has_neumann(self) -> bool:
+        return bool(self.neumann.any())
+
+    def contains(self, P: np.ndarray) -> np.ndarray:
+        """(n,) bool: points ``P`` (n, 2) strictly inside (even-odd rule over the loops)."""
+        if not self._paths:
+            self._paths = [MplPath(L) for L in self.loops]
+        inside = np.zeros(len(P), dtype=bool)
+        for path in self._paths:
+            inside ^= path.contains_points(P)
+        return inside
+
+
+def loop_signed_area(L: np.ndarray) -> float:
+    """Shoelace signed area of a closed loop (n, 2); positive when counter-clockwise."""
+    x, y = L[:, 0], L[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
+                 values: list | None = None, source: str = "<domain>") -> Domain:
+    """Validate loops and build an oriented :class:`Domain`.
+
+    Parameters
+    ----------
+    loops : list of (n_i, 2) array-like
+        Closed loops; a repeated first vertex at the end is dropped.
+    neumann_segments : list of (n_i,) bool, optional
+        Per loop, whether segment ``j`` (vertex ``j`` to ``j+1``) is Neumann.
+    values : list of (n_i,) array-like, optional
+        Per-vertex boundary values.
+    source : str
+        File name for error messages.
+
+    Raises
+    ------
+    InputError
+        Open loops (fewer than 3 distinct vertices), non-finite coordinates,
+        self-intersecting or mutually crossing loops, zero-area domains.
+    """
+    if not loops:
+        raise InputError(source, "no boundary loops")
+    clean, flags, vals = [], [], []
+    for k, raw in enumerate(loops):
+        L = np.asarray(raw, dtype=np.float64)
+        if L.ndim != 2 or L.shape[1] != 2:
+            raise InputError(source, f"loop {k} is not a list of [x, y] points")
+        if not np.isfinite(L).all():
+            raise InputError(source, f"loop {k} has non-finite coordinates")
+        nf = np.zeros(len(L), dtype=bool) if neumann_segments is None else np.asarray(neumann_segments[k], bool)
+        v = None if values is None else np.asarray(values[k], dtype=np.float64)
+        if v is not None and (v.shape != (len(L),) or not np.isfinite(v).all()):
+            raise InputError(source, f"loop {k}: values must be {len(L)} finite numbers, one per vertex")
+        if len(L) > 1 and np.array_equal(L[0], L[-1]):
+            L, nf = L[:-1], nf[:-1]
+            v = None if v is None else v[:-1]
+        # drop repeated consecutive vertices (zero-length segments)
+        keep = np.any(L != np.roll(L, 1, axis=0), axis=1) if len(L) > 1 else np.ones(len(L), bool)
+        if len(L) > 1 and not keep.any():
+            keep[0] = True
+        L, nf = L[keep], nf[keep]
+        v = None if v is None else v[keep]
+        if len(L) < 3:
+            raise InputError(source, f"loop {k} is open or degenerate: a closed loop needs at least "
+                             f"3 distinct vertices, got {len(L)}")
+        clean.append(L)
+        flags.append(nf)
+        vals.append(v)
+    _check_simple(clean, source)
+    # orientation: depth = number of other loops containing the loop; even -> CCW
+    paths = [MplPath(L) for L in clean]
+    for k, L in enumerate(clean):
+        depth = sum(bool(paths[j].contains_point(L[0])) for j in range(len(clean)) if j != k)
+        ccw = loop_signed_area(L) > 0
+        if ccw != (depth % 2 == 0):
+            # reversing a loop: vertex order reverses, segment j (v_j -> v_j+1) becomes
+            # segment n-2-j in the new order; keep flags attached to the same edge
+            clean[k] = L[::-1].copy()
+            flags[k] = np.roll(flags[k][::-1], -1)
+            vals[k] = None if vals[k] is None else vals[k][::-1].copy()
+    area = sum(loop_signed_area(L) for L in clean)
+    lo = np.concatenate(clean).min(axis=0)
+    hi = np.concatenate(clean).max(axis=0)
+    diag = float(np.linalg.norm(hi - lo))
+    if not area > 1e-12 * max(diag, 1e-300) ** 2:
+        raise InputError(source, f"domain has zero area ({area:.3g})")
+    A = np.concatenate(clean)
+    B = np.concatenate([np.roll(L, -1, axis=0) for L in clean])
+    loop_of = np.concatenate([np.full(len(L), k, dtype=np.int64) for k, L in enumerate(clean)])
+    seg_vals = None
+    if values is not None:
+        va = np.concatenate(vals)
+        vb = np.concatenate([np.roll(v, -1) for v in vals])
+        seg_vals = np.ascontiguousarray(np.stack([va, vb], axis=1))
+    return Domain(clean, np.ascontiguousarray(A), np.ascontiguousarray(B), loop_of,
+                  np.concatenate(flags), seg_vals, source)
+
+
+def _check_simple(loops: list[np.ndarray], source: str) -> None:
+    A = np.concatenate(loops)
+    B = np.concatenate([np.roll(L, -1, axis=0) for L in loops])
+    loop_of = np.concatenate([np.full(len(L), k, dtype=np.int64) for k, L in enumerate(loops)])
+    start = np.concatenate([[0], np.cumsum([len(L) for L in loops])[:-1]]).astype(np.int64)
+    count = np.array([len(L) for L in loops], dtype=np.int64)
+    i, j = _first_crossing(A, B, loop_of, start, count)
+    if i >= 0:
+        li, lj = loop_of[i], loop_of[j]
+        si, sj = i - start[li], j - start[lj]
+        if li == lj:
+            raise InputError(source, f"loop {li} intersects itself (segments {si} and {sj})")
+        raise InputError(source, f"loops {li} and {lj} intersect (segment {si} of loop {li} "
+                         f"and segment {sj} of loop {lj})")
+
+
+@numba.njit(cache=True)
+def _orient(ax, ay, bx, by, cx, cy):
+    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+
+
+@numba.njit(cache=True)
+def _on_seg(ax, ay, bx, by, cx, cy):
+    return min(ax, bx) <= cx <= max(ax, bx) and min(ay, by) <= cy <= max(ay, by)
+
+
+@numba.njit(cache=True)
+def _segments_touch(a, b, c, d):
+    o1 = _orient(a[0], a[1], b[0], b[1], c[0], c[1])
+    o2 = _orient(a[0], a[1], b[0], b[1], d[0], d[1])
+    o3 = _orient(c[0], c[1], d[0], d[1], a[0], a[1])
+    o4 = _orient(c[0], c[1], d[0], d[1], b[0], b[1])
+    if ((o1 > 0 and o2 < 0) or (o1 < 0 and o2 > 0)) and ((o3 > 0 and o4 < 0) or (o3 < 0 and o4 > 0)):
+        return True
+    if o1 == 0 and _on_seg(a[0], a[1], b[0], b[1], c[0], c[1]):
+        return True
+    if o2 == 0 and _on_seg(a[0], a[1], b[0], b[1], d[0], d[1]):
+        return True
+    if o3 == 0 and _on_seg(c[0], c[1], d[0], d[1], a[0], a[1]):
+        return True
+    if o4 == 0 and _on_seg(c[0], c[1], d[0], d[1], b[0], b[1]):
+        return True
+    return False
+
+
+@numba.njit(cache=True)
+def _first_crossing(A, B, loop_of, start, count):
+    """First pair (i, j) of non-adjacent segments that touch or cross; (-1, -1) if none.
+
+    Adjacent segments of a loop (sharing a vertex) only count when they overlap
+    beyond the shared vertex (a fold back).
+    """
+    S = A.shape[0]
+    lo = np.minimum(A, B)
+    hi = np.maximum(A, B)
+    order = np.argsort(lo[:, 0])
+    for oi in range(S):
+        i = order[oi]
+        for oj in range(oi + 1, S):
+            j = order[oj]
+            if lo[j, 0] > hi[i, 0]:
+                break
+            if lo[j, 1] > hi[i, 1] or hi[j, 1] < lo[i, 1]:
+                continue
+            if loop_of[i] == loop_of[j]:
+                n = count[loop_of[i]]
+                di = (j - i) % n
+                if di == 1 or di == n - 1:
+                    # adjacent: shared vertex; fold back when collinear and opposite
+                    if di == 1:
+                        p, q, r = A[i], B[i], B[j]
+                    else:
+                        p, q, r = A[j], B[j], B[i]
+                    o = _orient(p[0], p[1], q[0], q[1], r[0], r[1])
+                    dot = (p[0] - q[0]) * (r[0] - q[0]) + (p[1] - q[1]) * (r[1] - q[1])
+                    if o == 0 and dot > 0:
+                        return (min(i, j), max(i, j))
+                    continue
+            if _segments_touch(A[i], B[i], A[j], B[j]):
+                return (min(i, j), max(i, j))
+    return (-1, -1)
+
+
+def load_domain_json(path: str, data: bytes | None = None) -> Domain:
+    """Read ``{"loops": [[[x, y], ...], ...], "neumann": [...], "values": [[...], ...]}``.
+
+    ``neumann`` lists loop indices (the whole loop is Neumann) or ``[loop, segment]``
+    pairs (segment ``j`` runs from vertex ``j`` to vertex ``j+1`` of that loop as
+    written). ``values`` (optional) gives one boundary value per vertex.
+    """
+    try:
+        raw = data if data is not None else open(path, "rb").read()
+        doc = json.loads(raw)
+    except OSError as exc:
+        raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"not valid JSON ({exc})") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("loops"), list):
+        raise InputError(path, "expected an object with a 'loops' list of closed loops [[x, y], ...]")
+    loops = doc["loops"]
+    for k, L in enumerate(loops):
+        if not isinstance(L, list) or not all(
+            isinstance(p, list) and len(p) == 2 and all(isinstance(c, int | float) and not isinstance(c, bool)
+                                                       for c in p) for p in L):
+            raise InputError(path, f"loop {k} is not a list of [x, y] number pairs")
+    flags = [np.zeros(len(L), dtype=bool) for L in loops]
+    for item in doc.get("neumann", []) or []:
+        if isinstance(item, int) and not isinstance(item, bool) and 0 <= item < len(loops):
+            flags[item][:] = True
+        elif (isinstance(item, list) and len(item) == 2 and all(isinstance(c, int) for c in item)
+              and 0 <= item[0] < len(loops) and 0 <= item[1] < len(loops[item[0]])):
+            flags[item[0]][item[1]] = True
+        else:
+            raise InputError(path, f"neumann entry {item!r} is not a loop index or [loop, segment] pair "
+                             f"of this domain ({len(loops)} loops)")
+    values = doc.get("values")
+    if values is not None:
+        if not isinstance(values, list) or len(values) != len(loops):
+            raise InputError(path, "'values' must hold one list of per-vertex values per loop")
+        try:
+            values = [np.asarray(v, dtype=np.float64) for v in values]
+        except (TypeError, ValueError):
+            raise InputError(path, "'values' must be numbers") from None
+    return build_domain(loops, flags, values, source=path)

@@ -1,0 +1,186 @@
+"""Control-variate fit: kernel placement, fit points, ridge least squares.
+
+The fit pass estimates u by plain walks at N points spread evenly in the
+domain (farthest-point sampling) and solves the ridge problem
+
+    min_s ||Phi_n s + b - u_hat||^2 + alpha ||s||^2,
+
+where ``Phi_n`` holds the kernels at the fit points scaled to unit RMS per
+column and ``b`` is an unpenalized constant. The coefficients returned are
+``sigma = s / scale`` (the constant cancels in the estimator).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geoproc.wos.domain import Domain
+from geoproc.wos.kernels import ANGLE, GREEN, KernelSet, kernel_matrix
+
+
+def boundary_samples(domain: Domain, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """``m`` points spread evenly by arc length over the boundary and their outward normals.
+
+    Returns
+    -------
+    P, N : (m, 2) float64
+    """
+    E = domain.B - domain.A
+    length = np.linalg.norm(E, axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(length)])
+    s = (np.arange(m) + 0.5) * cum[-1] / m
+    seg = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(length) - 1)
+    t = (s - cum[seg]) / length[seg]
+    P = domain.A[seg] + t[:, None] * E[seg]
+    N = np.stack([E[seg, 1], -E[seg, 0]], axis=1) / length[seg, None]
+    return P, N
+
+
+def green_centers(domain: Domain, m: int, distance_of) -> np.ndarray:
+    """Centers for ``m`` Green kernels: boundary samples pushed outward by the sample spacing.
+
+    A center must land outside the domain, at least half its offset away from
+    the boundary; otherwise the offset is halved (three times), then the center
+    is dropped.
+
+    Parameters
+    ----------
+    distance_of : callable
+        ``distance_of(P) -> (n,)`` distance to the boundary.
+
+    Returns
+    -------
+    (k, 2) float64, k <= m
+    """
+    P, N = boundary_samples(domain, m)
+    delta = np.full(m, domain.perimeter / m)
+    C = P + delta[:, None] * N
+    ok = np.zeros(m, dtype=bool)
+    for _ in range(4):
+        todo = ~ok
+        C[todo] = P[todo] + delta[todo, None] * N[todo]
+        good = ~domain.contains(C) & (distance_of(C) >= 0.5 * delta)
+        ok |= good & todo
+        delta[~ok] *= 0.5
+        if ok.all():
+            break
+    return C[ok]
+
+
+def green_kernels(domain: Domain, m: int, distance_of) -> KernelSet:
+    """:class:`KernelSet` of Green kernels centered outside the domain."""
+    C = np.ascontiguousarray(green_centers(domain, m, distance_of))
+    return KernelSet(GREEN, C, C.copy(), np.arange(len(C), dtype=np.int64), len(C))
+
+
+def angle_kernels(domain: Domain, m: int) -> KernelSet:
+    """:class:`KernelSet` of ``m`` angle kernels, each an arc of consecutive boundary segments.
+
+    Each loop gets a share of the ``m`` arcs proportional to its length (at least
+    one); a loop's segments are split into arcs of nearly equal segment count.
+    With fewer segments than ``m``, every segment is its own kernel.
+    """
+    S = domain.n_segments
+    length = np.linalg.norm(domain.B - domain.A, axis=1)
+    col = np.empty(S, dtype=np.int64)
+    total = length.sum()
+    nloops = int(domain.loop_of.max()) + 1
+    nxt = 0
+    for lp in range(nloops):
+        idx = np.flatnonzero(domain.loop_of == lp)
+        k = int(np.clip(round(m * length[idx].sum() / total), 1, len(idx)))
+        if S <= m:
+            k = len(idx)
+        col[idx] = nxt + (np.arange(len(idx)) * k) // len(idx)
+        nxt += k
+    return KernelSet(ANGLE, np.ascontiguousarray(domain.A), np.ascontiguousarray(domain.B), col, nxt)
+
+
+def spread_points(candidates: np.ndarray, n: int, start: int = 0) -> np.ndarray:
+    """Farthest-point sampling of ``n`` indices among ``candidates`` (k, 2) (deterministic)."""
+    k = len(candidates)
+    if k <= n:
+        return np.arange(k)
+    chosen = np.empty(n, dtype=np.int64)
+    chosen[0] = start
+    d = ((candidates - candidates[start]) ** 2).sum(axis=1)
+    for i in range(1, n):
+        chosen[i] = int(np.argmax(d))
+        d = np.minimum(d, ((candidates - candidates[chosen[i]]) ** 2).sum(axis=1))
+    return chosen
+
+
+def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | None = None,
+              flux: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+    """Ridge least squares with unit-RMS columns and a free (unpenalized) constant.
+
+    Parameters
+    ----------
+    Phi : (N, M) float64
+        Kernels at the fit points.
+    u : (N,) float64
+        Estimates of u there.
+    alpha : float
+        Ridge weight (on the unit-RMS scaled coefficients).
+    dPhi : (K, M) float64, optional
+        Extra rows: kernels' (weighted) normal derivatives at Neumann boundary samples.
+    flux : (K,) float64, optional
+        Their targets: the (equally weighted) Neumann data there.
+
+    Returns
+    -------
+    sigma : (M,) float64
+        Coefficients of the unscaled kernels.
+    b : float
+        Constant term.
+    scale : (M,) float64
+        Column RMS values used.
+    """
+    scale = np.sqrt((Phi**2).mean(axis=0))
+    scale[scale == 0] = 1.0
+    M = Phi.shape[1]
+    D = np.hstack([Phi / scale, np.ones((len(Phi), 1))])
+    y = np.asarray(u, dtype=np.float64)
+    if dPhi is not None and len(dPhi):
+        D = np.vstack([D, np.hstack([dPhi / scale, np.zeros((len(dPhi), 1))])])
+        y = np.concatenate([y, flux])
+    pen = np.full(M + 1, float(alpha))
+    pen[-1] = 0.0
+    x = np.linalg.solve(D.T @ D + np.diag(pen), D.T @ y)
+    return x[:M] / scale, float(x[M]), scale
+
+
+def neumann_samples(domain: Domain, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """About ``m`` points spread by arc length over the Neumann segments, with outward normals."""
+    sel = np.flatnonzero(domain.neumann)
+    E = domain.B[sel] - domain.A[sel]
+    length = np.linalg.norm(E, axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(length)])
+    s = (np.arange(m) + 0.5) * cum[-1] / m
+    k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(length) - 1)
+    t = (s - cum[k]) / length[k]
+    P = domain.A[sel[k]] + t[:, None] * E[k]
+    N = np.stack([E[k, 1], -E[k, 0]], axis=1) / length[k, None]
+    return P, N
+
+
+def fit_control_variate(Phi: np.ndarray, u: np.ndarray, alpha: float) -> np.ndarray:
+    """Coefficients ``sigma`` (M,) of the ridge fit (see :func:`ridge_fit`)."""
+    return ridge_fit(Phi, u, alpha)[0]
+
+
+def make_kernels(method: str, domain: Domain, m: int, distance_of) -> KernelSet:
+    """Kernel family for a method: Green for cv-green and npass, angle for cv-angle."""
+    if method == "cv-angle":
+        return angle_kernels(domain, m)
+    return green_kernels(domain, m, distance_of)
+
+
+def fit_points(candidates: np.ndarray, n: int) -> np.ndarray:
+    """``n`` points (n, 2) spread evenly among interior candidates (k, 2)."""
+    return candidates[spread_points(candidates, n)]
+
+
+__all__ = ["angle_kernels", "boundary_samples", "fit_control_variate", "fit_points",
+           "green_centers", "green_kernels", "kernel_matrix", "make_kernels", "ridge_fit",
+           "spread_points"]

@@ -1,0 +1,67 @@
+"""Domains from binary mask images, traced into polylines.
+
+The mask is read through OpenImageIO (any format it reads); foreground is
+``value > 0.5`` of the first channel (normalized to [0, 1]). Its outline is the
+0.5 iso-contour of the padded mask (contourpy's marching squares), so a traced
+region's area matches its pixel count. Coordinates are pixel units with the
+origin at the image's bottom-left corner and y pointing up: pixel ``(row, col)``
+covers ``[col, col+1] x [H-row-1, H-row]``.
+"""
+
+from __future__ import annotations
+
+import contourpy
+import numpy as np
+
+from geoproc.errors import InputError
+from geoproc.wos.domain import Domain, build_domain
+
+
+def read_mask(path: str) -> np.ndarray:
+    """Read an image through OpenImageIO; return (H, W) bool foreground."""
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(path)
+    if buf.has_error:
+        raise InputError(path, f"cannot read image: {buf.geterror().strip().splitlines()[0]}")
+    pixels = buf.get_pixels(oiio.FLOAT)
+    if buf.has_error or pixels is None or pixels.size == 0:
+        raise InputError(path, "cannot read image pixels")
+    pixels = np.asarray(pixels)
+    if pixels.ndim == 4:  # volume images: first slice
+        pixels = pixels[0]
+    chan = pixels[..., 0] if pixels.ndim == 3 else pixels
+    return np.nan_to_num(chan) > 0.5
+
+
+def trace_mask(mask: np.ndarray) -> list[np.ndarray]:
+    """Trace a boolean mask (H, W) into closed loops (pixel units, y up).
+
+    Returns
+    -------
+    list of (n_i, 2) float64
+        Closed loops (first vertex not repeated), unoriented.
+    """
+    H, W = mask.shape
+    z = np.zeros((H + 2, W + 2))
+    z[1:-1, 1:-1] = mask[::-1].astype(np.float64)  # row 0 at the bottom (y up)
+    xs = np.arange(W + 2) - 0.5  # padded column c has its center at x = c - 1 + 0.5
+    ys = np.arange(H + 2) - 0.5
+    gen = contourpy.contour_generator(xs, ys, z, line_type=contourpy.LineType.Separate)
+    loops = []
+    for line in gen.lines(0.5):
+        L = np.asarray(line, dtype=np.float64)
+        if len(L) > 1 and np.allclose(L[0], L[-1]):
+            L = L[:-1]
+        if len(L) >= 3:
+            loops.append(L)
+    return loops
+
+
+def load_domain_mask(path: str) -> Domain:
+    """Read a mask image and trace it into a :class:`Domain` (raises InputError)."""
+    mask = read_mask(path)
+    if not mask.any():
+        raise InputError(path, "mask has no foreground pixels (value > 0.5 in the first channel)")
+    loops = trace_mask(mask)
+    return build_domain(loops, source=path)

@@ -1,0 +1,74 @@
+"""n-pass refinement: Adam on the control-variate coefficients with fresh walk batches.
+
+Starting from the ridge fit, each step draws a batch of points, estimates the
+residual ``r = u - c`` there by walks that use the current ``c`` as control
+variate (so the gradient's noise shrinks as ``c`` improves), and takes an Adam
+step on the loss ``mean r^2`` in the unit-RMS coefficient scale:
+``grad_s = -2 mean_j r_j Phi_n(x_j)``, ``grad_b = -2 mean_j r_j``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from geoproc.wos.kernels import KernelSet, kernel_matrix
+
+
+def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale: np.ndarray,
+                candidates: np.ndarray, stream_seed_of: Callable[[int], object], *,
+                steps: int = 512, batch: int = 32, walks: int = 16, lr: float = 0.01,
+                progress: Callable[[float], None] | None = None,
+                dPhi: np.ndarray | None = None, flux: np.ndarray | None = None):
+    """Refine ``sigma`` (M,) and ``b`` by Adam.
+
+    Parameters
+    ----------
+    problem : WalkProblem
+    kernels : KernelSet
+    sigma, b, scale
+        Ridge fit result (:func:`geoproc.wos.fit.ridge_fit`).
+    candidates : (k, 2) float64
+        Interior points batches are drawn from.
+    stream_seed_of : callable
+        ``stream_seed_of(step)``: random-stream seed of a step's walks.
+    steps, batch, walks, lr
+        Adam steps, points per batch, walks per point, learning rate.
+    dPhi, flux : optional
+        Neumann rows of the fit (:func:`geoproc.wos.fit.ridge_fit`); their squared
+        misfit joins the loss.
+
+    Returns
+    -------
+    sigma : (M,) float64
+    b : float
+    walks_total, steps_total : int
+    """
+    s = np.append(sigma * scale, b)
+    m1 = np.zeros_like(s)
+    m2 = np.zeros_like(s)
+    beta1, beta2, tiny = 0.9, 0.999, 1e-8
+    walks_total = steps_total = 0
+    for it in range(steps):
+        seed = stream_seed_of(it)
+        pick = np.random.default_rng(int(seed) % (1 << 63)).choice(len(candidates), size=batch)
+        X = candidates[pick]
+        cur = s[:-1] / scale
+        est, _, st = problem.estimate(X, walks, seed, 0, kernels, cur)
+        Phi_n = kernel_matrix(X, kernels) / scale
+        r = est - Phi_n @ s[:-1] - s[-1]
+        grad = np.append(-2.0 * (r[:, None] * Phi_n).mean(axis=0), -2.0 * r.mean())
+        if dPhi is not None and len(dPhi):
+            Dn = dPhi / scale
+            grad[:-1] += 2.0 * Dn.T @ (Dn @ s[:-1] - flux) / len(Dn)
+        m1 = beta1 * m1 + (1 - beta1) * grad
+        m2 = beta2 * m2 + (1 - beta2) * grad**2
+        mh = m1 / (1 - beta1 ** (it + 1))
+        vh = m2 / (1 - beta2 ** (it + 1))
+        s = s - lr * mh / (np.sqrt(vh) + tiny)
+        walks_total += batch * walks
+        steps_total += int(st.sum())
+        if progress is not None:
+            progress((it + 1) / steps)
+    return s[:-1] / scale, float(s[-1]), walks_total, steps_total

@@ -1,0 +1,114 @@
+"""A boundary-value problem ready for walks: segments, acceleration grids, data.
+
+:class:`WalkProblem` bundles what the numba walks need and exposes one call,
+:meth:`WalkProblem.estimate`, that runs Walk on Spheres (Dirichlet only) or
+Walk on Stars (mixed) with an optional control variate.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from geoproc.errors import InputError, UsageError
+from geoproc.wos.closest import build_segment_grid, closest_points
+from geoproc.wos.domain import Domain
+from geoproc.wos.expression import Expression
+from geoproc.wos.kernels import KernelSet
+from geoproc.wos.rng import stream_state
+from geoproc.wos.walk import wos_dirichlet
+from geoproc.wos.wost import silhouette_candidates, wost_mixed
+
+MAX_STEPS = 10_000
+_EMPTY2 = np.zeros((0, 2))
+_EMPTY1 = np.zeros(0)
+_NO_CODE = np.zeros(0, dtype=np.int64)
+_NO_ARCS = np.zeros((0, 2), dtype=np.int64)
+_NO_BOXES = np.zeros((0, 4))
+
+
+def pass_seed(seed: int, tag: int) -> np.uint64:
+    """Seed of the random streams of one pass (``tag``) of a run seeded with ``seed``."""
+    return np.uint64(stream_state(np.uint64(seed % (1 << 63)), np.uint64(tag)))
+
+
+class WalkProblem:
+    """Walk-ready form of a Laplace problem on a :class:`Domain`.
+
+    Parameters
+    ----------
+    domain : Domain
+    boundary : Expression or None
+        Dirichlet data; None uses the domain's per-vertex values.
+    flux : Expression or None
+        Neumann data ``du/dn`` (outward normal) on the Neumann segments; None is zero flux.
+    eps : float
+        Stopping distance (length units).
+    """
+
+    def __init__(self, domain: Domain, boundary: Expression | None, flux: Expression | None,
+                 eps: float):
+        if boundary is None and domain.values is None:
+            raise UsageError("give --boundary 'EXPR' or per-vertex 'values' in the domain JSON")
+        if flux is not None and not domain.has_neumann:
+            raise UsageError(f"--neumann given but {domain.source} marks no Neumann loops "
+                             "(add \"neumann\": [loop indices] to the JSON)")
+        if domain.neumann.all():
+            raise InputError(domain.source, "every boundary segment is Neumann; at least one "
+                             "Dirichlet segment is needed for a unique solution")
+        self.domain = domain
+        self.eps = float(eps)
+        self.A = np.ascontiguousarray(domain.A)
+        self.B = np.ascontiguousarray(domain.B)
+        self.grid_all = build_segment_grid(self.A, self.B)
+        self.mixed = domain.has_neumann
+        if boundary is not None:
+            self.bkind, self.code, self.consts = 0, boundary.code, boundary.consts
+            self.V = _EMPTY2
+        else:
+            self.bkind, self.code, self.consts = 1, _NO_CODE, _EMPTY1
+            self.V = np.ascontiguousarray(domain.values)
+        if self.mixed:
+            dir_ids = np.flatnonzero(~domain.neumann)
+            self.grid_dir = build_segment_grid(self.A, self.B, dir_ids)
+            self.nseg = np.flatnonzero(domain.neumann).astype(np.int64)
+            self.U, self.Vs, self.Wn = silhouette_candidates(self.A, self.B, domain.neumann,
+                                                             domain.loop_of)
+            if flux is not None:
+                self.hkind, self.hcode, self.hconsts = 0, flux.code, flux.consts
+            else:
+                self.hkind, self.hcode, self.hconsts = 1, _NO_CODE, _EMPTY1
+
+    def distance(self, P: np.ndarray, dirichlet_only: bool = False) -> np.ndarray:
+        """(n,) distance from points P (n, 2) to the boundary (or its Dirichlet part)."""
+        grid = self.grid_dir if (dirichlet_only and self.mixed) else self.grid_all
+        d, _, _ = closest_points(np.ascontiguousarray(P, dtype=np.float64), self.A, self.B, grid)
+        return d
+
+    def estimate(self, X: np.ndarray, walks: int, stream_seed, index0: int = 0,
+                 kernels: KernelSet | None = None, sigma: np.ndarray | None = None):
+        """Estimate u at X (n, 2): (mean (n,), var (n,), steps (n,) int64).
+
+        With ``kernels`` and ``sigma`` the control variate ``sum sigma_j phi_j`` is used.
+        """
+        X = np.ascontiguousarray(X, dtype=np.float64)
+        if kernels is None:
+            ckind, KP, KQ, W, ARC, BOX = 0, _EMPTY2, _EMPTY2, _EMPTY1, _NO_ARCS, _NO_BOXES
+        else:
+            ckind, KP, KQ, W = kernels.kind, kernels.P, kernels.Q, kernels.weights(sigma)
+            ARC, BOX = kernels.arcs, kernels.boxes
+        if len(X) == 0:
+            return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
+        old = numba.get_parallel_chunksize()
+        numba.set_parallel_chunksize(16)
+        try:
+            if not self.mixed:
+                return wos_dirichlet(X, index0, int(walks), self.eps, MAX_STEPS, stream_seed,
+                                     self.A, self.B, self.grid_all, self.bkind, self.code,
+                                     self.consts, self.V, ckind, KP, KQ, W, ARC, BOX)
+            return wost_mixed(X, index0, int(walks), self.eps, MAX_STEPS, stream_seed, self.A,
+                              self.B, self.grid_dir, self.nseg, self.U, self.Vs, self.Wn,
+                              self.bkind, self.code, self.consts, self.V, self.hkind, self.hcode,
+                              self.hconsts, ckind, KP, KQ, W, ARC, BOX)
+        finally:
+            numba.set_parallel_chunksize(old)

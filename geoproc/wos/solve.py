@@ -1,0 +1,248 @@
+"""Solve a 2D Laplace problem on a grid by Walk on Spheres/Stars, with control variates.
+
+Methods
+-------
+naive
+    Plain walks at every grid point.
+cv-green, cv-angle
+    Two passes: a fit pass (walks at ``fit_points`` spread points, ridge fit of
+    Green or segment-angle kernels) and a residual pass (walks for ``g - c``,
+    ``c`` added back).
+npass
+    cv-green's fit refined by Adam on fresh walk batches before the residual pass.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geoproc.errors import UsageError
+from geoproc.wos.domain import Domain
+from geoproc.wos.expression import Expression, evaluate
+from geoproc.wos.fit import fit_points, make_kernels, neumann_samples, ridge_fit
+from geoproc.wos.kernels import kernel_matrix, kernel_normal_matrix
+from geoproc.wos.npass import adam_refine
+from geoproc.wos.problem import WalkProblem, pass_seed
+
+METHODS = ("naive", "cv-green", "cv-angle", "npass")
+_TAG_FIT, _TAG_RESIDUAL, _TAG_NPASS = 1, 2, 1000
+_CHUNK = 4096
+
+
+@dataclass
+class GridSpec:
+    """Pixel-center grid: x = x0 + (col + 0.5) h, y = y1 - (row + 0.5) h; shape (ny, nx)."""
+
+    x0: float
+    y1: float
+    h: float
+    nx: int
+    ny: int
+
+    def points(self) -> np.ndarray:
+        """(ny * nx, 2) pixel centers, row-major from the top row."""
+        xs = self.x0 + (np.arange(self.nx) + 0.5) * self.h
+        ys = self.y1 - (np.arange(self.ny) + 0.5) * self.h
+        X, Y = np.meshgrid(xs, ys)
+        return np.stack([X.ravel(), Y.ravel()], axis=1)
+
+
+def grid_over(domain: Domain, n: int) -> GridSpec:
+    """Square-pixel grid over the domain's bounding box, ``n`` pixels along its longer side."""
+    lo, hi = domain.bbox
+    size = hi - lo
+    h = float(size.max()) / n
+    nx = max(1, int(round(size[0] / h)))
+    ny = max(1, int(round(size[1] / h)))
+    cx, cy = (lo + hi) / 2
+    return GridSpec(float(cx - nx * h / 2), float(cy + ny * h / 2), h, nx, ny)
+
+
+@dataclass
+class WosResult:
+    """Output of :func:`solve_laplace`.
+
+    Attributes
+    ----------
+    U : (ny, nx) float64
+        Estimates at pixel centers, NaN outside the domain.
+    stderr : (ny, nx) float64
+        Standard error of each estimate (NaN outside).
+    exact : (ny, nx) float64 or None
+        The declared exact solution (``exact=True``), NaN outside.
+    scored : (ny, nx) bool
+        Pixels the error metrics use (inside, farther than 2 eps from the boundary).
+    grid : GridSpec
+    metrics : dict
+        Scalars for the report.
+    sigma : (M,) float64 or None
+        Control-variate coefficients.
+    """
+
+    U: np.ndarray
+    stderr: np.ndarray
+    exact: np.ndarray | None
+    scored: np.ndarray
+    grid: GridSpec
+    metrics: dict = field(default_factory=dict)
+    sigma: np.ndarray | None = None
+
+
+def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expression | None = None,
+                  method: str = "naive", walks: int = 128, grid: int = 256, eps: float = 1e-3,
+                  kernels: int = 80, fit_walks: int = 128, ridge: float = 0.1, seed: int = 0,
+                  exact: bool = False, fit_points_n: int | None = None, npass_steps: int = 512,
+                  npass_batch: int = 32, npass_walks: int = 16, npass_lr: float = 0.01,
+                  progress: Callable[[float], None] | None = None) -> WosResult:
+    """Estimate the harmonic function with the given boundary data on a pixel grid.
+
+    Parameters
+    ----------
+    domain : Domain
+    boundary : Expression or None
+        Dirichlet data (None: the domain's per-vertex values).
+    flux : Expression or None
+        Neumann data ``du/dn`` (outward) on the domain's Neumann segments (None: zero).
+    method : {"naive", "cv-green", "cv-angle", "npass"}
+    walks : int
+        Walks per grid point in the residual (or only) pass.
+    grid : int
+        Pixels along the longer side of the bounding box.
+    eps : float
+        Stopping distance, in the domain's length unit.
+    kernels : int
+        Number of control-variate kernels.
+    fit_walks : int
+        Walks per fit point.
+    fit_points_n : int, optional
+        Number of fit points (default ``8 * kernels``).
+    ridge : float
+        Ridge weight.
+    seed : int
+        Seed of every random stream.
+    exact : bool
+        ``boundary`` is harmonic: use it as the exact solution for error metrics.
+    progress : callable, optional
+        ``progress(fraction_done)``.
+
+    Returns
+    -------
+    WosResult
+    """
+    if method not in METHODS:
+        raise UsageError(f"--method {method}: choose one of {', '.join(METHODS)}")
+    for name, v in (("--walks", walks), ("--grid", grid), ("--kernels", kernels),
+                    ("--fit-walks", fit_walks)):
+        if v < 1:
+            raise UsageError(f"{name} must be at least 1, got {v}")
+    if not eps > 0:
+        raise UsageError(f"--epsilon must be positive, got {eps}")
+    if not ridge >= 0:
+        raise UsageError(f"--ridge must be non-negative, got {ridge}")
+    if exact and boundary is None:
+        raise UsageError("--exact needs --boundary 'EXPR' (the declared exact solution)")
+    if method == "cv-angle" and domain.has_neumann:
+        raise UsageError("cv-angle supports Dirichlet-only domains (its kernels' normal "
+                         "derivatives are singular on Neumann segments); use cv-green or npass")
+    report = progress or (lambda f: None)
+    problem = WalkProblem(domain, boundary, flux, eps)
+    gs = grid_over(domain, grid)
+    P = gs.points()
+    d_all = problem.distance(P)
+    d_dir = problem.distance(P, dirichlet_only=True) if problem.mixed else d_all
+    inside = domain.contains(P) | (d_dir < eps)
+    X = np.ascontiguousarray(P[inside])
+    if len(X) == 0:
+        raise UsageError(f"--grid {grid}: no grid point falls inside the domain; use a finer grid")
+    # compile (or load cached code) outside the timed passes
+    problem.estimate(X[:1], 1, pass_seed(seed, 0))
+
+    metrics: dict = {"segments": domain.n_segments, "loops": len(domain.loops),
+                     "neumann_segments": int(domain.neumann.sum()), "domain_area": domain.area,
+                     "grid_width": gs.nx, "grid_height": gs.ny, "grid_points_inside": int(len(X)),
+                     "pixel_size": gs.h, "walks": walks}
+    total_walks = total_steps = 0
+    walk_time = 0.0
+    ks = sigma = None
+    if method != "naive":
+        t0 = time.perf_counter()
+        far = X[problem.distance(X) > 2 * eps]
+        cand = far if len(far) else X
+        ks = make_kernels(method, domain, kernels, problem.distance)
+        F = fit_points(cand, fit_points_n or 8 * ks.M)
+        u_fit, _, st = problem.estimate(F, fit_walks, pass_seed(seed, _TAG_FIT))
+        dPhi = hN = None
+        if domain.has_neumann:
+            # the residual's Neumann data is h - dc/dn: fit dc/dn to h on Neumann samples,
+            # rows weighted by the kernel spacing so they read as value differences
+            nb = max(8, int(round(len(F) * domain.perimeter_neumann / domain.perimeter)))
+            Zb, Nb = neumann_samples(domain, nb)
+            ell = domain.perimeter / ks.M
+            dPhi = ell * kernel_normal_matrix(Zb, Nb, ks)
+            hN = ell * (evaluate(flux, Zb[:, 0], Zb[:, 1]) if flux is not None else np.zeros(nb))
+        sigma, b, scale = ridge_fit(kernel_matrix(F, ks), u_fit, ridge, dPhi, hN)
+        fit_seconds = time.perf_counter() - t0
+        total_walks += len(F) * fit_walks
+        total_steps += int(st.sum())
+        walk_time += fit_seconds
+        metrics.update({"kernels_used": ks.M, "fit_points": len(F), "fit_walks": fit_walks,
+                        "fit_seconds": fit_seconds, "fit_steps": int(st.sum())})
+        report(0.05)
+        if method == "npass":
+            t0 = time.perf_counter()
+            sigma, b, nw, ns = adam_refine(
+                problem, ks, sigma, b, scale, cand, lambda it: pass_seed(seed, _TAG_NPASS + it),
+                steps=npass_steps, batch=npass_batch, walks=npass_walks, lr=npass_lr,
+                progress=lambda f: report(0.05 + 0.15 * f), dPhi=dPhi, flux=hN)
+            refine_seconds = time.perf_counter() - t0
+            total_walks += nw
+            total_steps += ns
+            walk_time += refine_seconds
+            metrics.update({"refine_seconds": refine_seconds, "refine_steps": ns,
+                            "refine_iterations": npass_steps})
+    start_frac = 0.0 if method == "naive" else (0.2 if method == "npass" else 0.05)
+    t0 = time.perf_counter()
+    mean = np.empty(len(X))
+    var = np.empty(len(X))
+    steps = np.empty(len(X), dtype=np.int64)
+    rseed = pass_seed(seed, _TAG_RESIDUAL)
+    for i in range(0, len(X), _CHUNK):
+        sl = slice(i, i + _CHUNK)
+        mean[sl], var[sl], steps[sl] = problem.estimate(X[sl], walks, rseed, i, ks, sigma)
+        report(start_frac + (1 - start_frac) * min(1.0, (i + _CHUNK) / len(X)))
+    residual_seconds = time.perf_counter() - t0
+    total_walks += len(X) * walks
+    total_steps += int(steps.sum())
+    walk_time += residual_seconds
+    metrics.update({"residual_seconds": residual_seconds, "residual_steps": int(steps.sum()),
+                    "total_walks": total_walks, "total_steps": total_steps,
+                    "steps_per_second": total_steps / walk_time if walk_time > 0 else float("nan"),
+                    "residual_steps_per_second": int(steps.sum()) / residual_seconds
+                    if residual_seconds > 0 else float("nan"),
+                    "mean_steps_per_walk": float(steps.sum()) / (len(X) * walks)})
+    se = np.sqrt(var / walks)
+    metrics["mean_standard_error"] = float(se.mean())
+
+    shape = (gs.ny, gs.nx)
+    U = np.full(len(P), np.nan)
+    U[inside] = mean
+    SE = np.full(len(P), np.nan)
+    SE[inside] = se
+    scored = inside & (d_all > 2 * eps)
+    exact_img = None
+    if exact:
+        ue = np.full(len(P), np.nan)
+        ue[inside] = evaluate(boundary, X[:, 0], X[:, 1])
+        err = U[scored] - ue[scored]
+        if len(err) == 0:
+            raise UsageError("--exact: no grid point lies farther than 2*epsilon from the boundary")
+        metrics.update({"rmse": float(np.sqrt(np.mean(err**2))),
+                        "max_abs_error": float(np.max(np.abs(err))),
+                        "bias": float(np.mean(err)), "error_points": int(len(err))})
+        exact_img = ue.reshape(shape)
+    return WosResult(U.reshape(shape), SE.reshape(shape), exact_img, scored.reshape(shape), gs,
+                     metrics, sigma)

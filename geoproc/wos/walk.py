@@ -1,0 +1,111 @@
+"""Walk on Spheres (Muller 1956) for the Dirichlet Laplace problem, in numba.
+
+From ``x`` jump to a uniform point on the largest empty circle (radius = the
+distance to the boundary) until within ``eps`` of the boundary, then score the
+boundary data at the closest boundary point. With a harmonic control variate
+``c`` the walk scores the residual ``g(y) - c(p)`` (``p`` the last position,
+``y`` its closest boundary point) and ``c(x)`` is added back: unbiased, lower
+variance when ``c`` is close to ``u`` on the boundary.
+
+Points run in parallel (numba ``prange``); point ``i`` draws from the random
+stream ``(stream_seed, i)``, so results do not depend on the thread count.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import prange
+
+from geoproc.wos.closest import closest_point
+from geoproc.wos.expression import eval_program
+from geoproc.wos.kernels import cv_value
+from geoproc.wos.rng import next_uniform, stream_state
+
+TWO_PI = 2.0 * math.pi
+
+
+@numba.njit(cache=True, nogil=True)
+def boundary_value(seg, t, qx, qy, bkind, code, consts, V):
+    """Boundary data at a boundary point: expression (bkind 0) or per-vertex values (1)."""
+    if bkind == 0:
+        return eval_program(code, consts, qx, qy)
+    return (1.0 - t) * V[seg, 0] + t * V[seg, 1]
+
+
+@numba.njit(cache=True, parallel=True)
+def wos_dirichlet(X, index0, walks, eps, max_steps, stream_seed, A, B, grid,
+                  bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX):
+    """Estimate ``u`` at points X (n, 2) with ``walks`` walks each.
+
+    Parameters
+    ----------
+    X : (n, 2) float64
+        Query points inside the domain.
+    index0 : int
+        Stream index of X[0] (point k draws from stream ``index0 + k``).
+    walks, max_steps : int
+        Walks per point; cap on steps per walk (then the walk is projected).
+    eps : float
+        Stopping distance to the boundary (length units).
+    stream_seed : int
+        Seed of the per-point random streams.
+    A, B, grid
+        Segments and their :func:`~geoproc.wos.closest.build_segment_grid`.
+    bkind, code, consts, V
+        Boundary data (see :func:`boundary_value`).
+    ckind, KP, KQ, W, ARC, BOX
+        Control variate (``ckind`` 0: none); see :mod:`geoproc.wos.kernels`. Its
+        constant term cancels and is not needed.
+
+    Returns
+    -------
+    mean : (n,) float64
+        Estimates of ``u``.
+    var : (n,) float64
+        Sample variance of the per-walk scores (standard error = sqrt(var / walks)).
+    steps : (n,) int64
+        Walk steps taken per point.
+    """
+    n = X.shape[0]
+    mean = np.empty(n)
+    var = np.empty(n)
+    steps = np.zeros(n, dtype=np.int64)
+    for k in prange(n):
+        state = stream_state(stream_seed, index0 + k)
+        x0 = X[k, 0]
+        y0 = X[k, 1]
+        s1 = 0.0
+        s2 = 0.0
+        nsteps = 0
+        for _w in range(walks):
+            px = x0
+            py = y0
+            taken = 0
+            while True:
+                d2, seg, t = closest_point(px, py, A, B, grid)
+                d = math.sqrt(d2)
+                if d < eps or taken >= max_steps:
+                    break
+                state, u = next_uniform(state)
+                th = TWO_PI * u
+                px += d * math.cos(th)
+                py += d * math.sin(th)
+                taken += 1
+            nsteps += taken
+            qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
+            qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
+            score = boundary_value(seg, t, qx, qy, bkind, code, consts, V)
+            if ckind != 0:
+                score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
+            s1 += score
+            s2 += score * score
+        m = s1 / walks
+        mean[k] = m
+        var[k] = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
+        steps[k] = nsteps
+        if ckind != 0:
+            mean[k] += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+    return mean, var, steps

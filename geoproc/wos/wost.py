@@ -1,0 +1,234 @@
+"""Walk on Stars (Sawhney, Miller et al. 2023) for mixed Dirichlet/Neumann Laplace problems.
+
+Each step uses the star-shaped region ``St(x, R)`` with ``R`` the smaller of the
+distance to the Dirichlet boundary and the distance to the closest *silhouette*
+point of the Neumann boundary (a Neumann vertex whose two segments face ``x``
+from opposite sides). The walk shoots a uniformly random ray (over the half
+plane when ``x`` lies on the Neumann boundary) and moves to its first hit on
+the Neumann boundary within ``R``, or to the circle of radius ``R``. The flux
+``h = du/dn`` (outward normal) enters through
+
+    u(x) = E[u(next)] + k * |Gamma_N cap B(x, R)| * G_R(x, z) * h(z),
+
+``z`` uniform on the Neumann boundary inside the ball, ``G_R(x, z) =
+log(R / |x - z|) / 2 pi`` and ``k = 2`` on the boundary, 1 inside. Walks stop
+within ``eps`` of the Dirichlet boundary. With a control variate ``c`` the walk
+solves for the residual: Dirichlet data ``g - c``, Neumann data ``h - dc/dn``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import prange
+
+from geoproc.wos.closest import closest_point
+from geoproc.wos.expression import eval_program
+from geoproc.wos.kernels import cv_gradient, cv_value
+from geoproc.wos.rng import next_uniform, stream_state
+from geoproc.wos.walk import boundary_value
+
+TWO_PI = 2.0 * math.pi
+
+
+def silhouette_candidates(A: np.ndarray, B: np.ndarray, neumann: np.ndarray,
+                          loop_of: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vertices joining two Neumann segments: (U, V, Wn) each (k, 2).
+
+    ``V`` is the shared vertex, ``U`` the start of the segment ending at ``V`` and
+    ``Wn`` the end of the segment starting there.
+    """
+    S = len(A)
+    nxt = np.empty(S, dtype=np.int64)
+    for lp in np.unique(loop_of):
+        idx = np.flatnonzero(loop_of == lp)
+        nxt[idx] = np.roll(idx, -1)
+    sel = np.flatnonzero(neumann & neumann[nxt])
+    return (np.ascontiguousarray(A[sel]), np.ascontiguousarray(B[sel]),
+            np.ascontiguousarray(B[nxt[sel]]))
+
+
+@numba.njit(cache=True, nogil=True)
+def closest_silhouette_d2(px, py, U, V, Wn, limit2):
+    """Squared distance to the closest silhouette vertex (or ``limit2`` if none is closer)."""
+    best = limit2
+    for k in range(V.shape[0]):
+        dx = V[k, 0] - px
+        dy = V[k, 1] - py
+        d2 = dx * dx + dy * dy
+        if d2 >= best:
+            continue
+        o1 = (V[k, 0] - U[k, 0]) * (py - U[k, 1]) - (V[k, 1] - U[k, 1]) * (px - U[k, 0])
+        o2 = (Wn[k, 0] - V[k, 0]) * (py - V[k, 1]) - (Wn[k, 1] - V[k, 1]) * (px - V[k, 0])
+        if (o1 > 0.0 and o2 < 0.0) or (o1 < 0.0 and o2 > 0.0):
+            best = d2
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def ray_hit(ox, oy, dx, dy, rmax, A, B, nseg, skip):
+    """First hit of the ray ``o + s d`` (``0 < s < rmax``) on segments ``nseg``; (s, seg) or (rmax, -1)."""
+    best = rmax
+    best_s = -1
+    for k in range(nseg.shape[0]):
+        i = nseg[k]
+        if i == skip:
+            continue
+        ex = B[i, 0] - A[i, 0]
+        ey = B[i, 1] - A[i, 1]
+        den = dx * ey - dy * ex
+        if den == 0.0:
+            continue
+        wx = A[i, 0] - ox
+        wy = A[i, 1] - oy
+        s = (wx * ey - wy * ex) / den
+        u = (wx * dy - wy * dx) / den
+        if 0.0 <= u <= 1.0 and 1e-12 < s < best:
+            best = s
+            best_s = i
+    return best, best_s
+
+
+@numba.njit(cache=True, nogil=True)
+def _clip_to_disk(ax, ay, bx, by, cx, cy, R):
+    """Parameter interval [u0, u1] of segment a->b inside the disk (c, R); u0 > u1 if none."""
+    ex = bx - ax
+    ey = by - ay
+    fx = ax - cx
+    fy = ay - cy
+    qa = ex * ex + ey * ey
+    qb = 2.0 * (fx * ex + fy * ey)
+    qc = fx * fx + fy * fy - R * R
+    disc = qb * qb - 4.0 * qa * qc
+    if qa == 0.0 or disc <= 0.0:
+        return 1.0, 0.0
+    sq = math.sqrt(disc)
+    u0 = max((-qb - sq) / (2.0 * qa), 0.0)
+    u1 = min((-qb + sq) / (2.0 * qa), 1.0)
+    return u0, u1
+
+
+@numba.njit(cache=True, nogil=True)
+def _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, state):
+    """One-sample estimate of the ball's Neumann integral ``int G_R h``; returns (value, state)."""
+    total = 0.0
+    for k in range(nseg.shape[0]):
+        i = nseg[k]
+        u0, u1 = _clip_to_disk(A[i, 0], A[i, 1], B[i, 0], B[i, 1], px, py, R)
+        if u1 > u0:
+            total += (u1 - u0) * math.sqrt((B[i, 0] - A[i, 0]) ** 2 + (B[i, 1] - A[i, 1]) ** 2)
+    if total <= 0.0:
+        return 0.0, state
+    state, r = next_uniform(state)
+    target = r * total
+    acc = 0.0
+    for k in range(nseg.shape[0]):
+        i = nseg[k]
+        u0, u1 = _clip_to_disk(A[i, 0], A[i, 1], B[i, 0], B[i, 1], px, py, R)
+        if u1 <= u0:
+            continue
+        ln = math.sqrt((B[i, 0] - A[i, 0]) ** 2 + (B[i, 1] - A[i, 1]) ** 2)
+        piece = (u1 - u0) * ln
+        if acc + piece >= target or k == nseg.shape[0] - 1:
+            u = u0 + (target - acc) / ln if ln > 0.0 else u0
+            u = min(max(u, u0), u1)
+            zx = A[i, 0] + u * (B[i, 0] - A[i, 0])
+            zy = A[i, 1] + u * (B[i, 1] - A[i, 1])
+            r2 = (zx - px) ** 2 + (zy - py) ** 2
+            if r2 <= 0.0:
+                return 0.0, state
+            G = (math.log(R) - 0.5 * math.log(r2)) / TWO_PI
+            h = eval_program(hcode, hconsts, zx, zy) if hkind == 0 else 0.0
+            if ckind != 0:
+                # outward normal = right of the directed segment (domain on the left)
+                nx = (B[i, 1] - A[i, 1]) / ln
+                ny = -(B[i, 0] - A[i, 0]) / ln
+                gx, gy = cv_gradient(zx, zy, ckind, KP, KQ, W, ARC)
+                h -= gx * nx + gy * ny
+            return total * G * h, state
+        acc += piece
+    return 0.0, state
+
+
+@numba.njit(cache=True, parallel=True)
+def wost_mixed(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid, nseg, U, V, Wn,
+               bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, BOX):
+    """Walk on Stars estimates of ``u`` at X (n, 2) for a mixed problem.
+
+    Parameters as :func:`geoproc.wos.walk.wos_dirichlet`, plus ``dgrid`` (the
+    closest-point grid over the Dirichlet segments only), ``nseg`` (Neumann
+    segment indices), ``U, V, Wn`` (:func:`silhouette_candidates`) and the flux
+    ``hkind`` (0: expression ``hcode, hconsts``; 1: zero flux).
+
+    Returns
+    -------
+    mean, var : (n,) float64
+    steps : (n,) int64
+    """
+    n = X.shape[0]
+    mean = np.empty(n)
+    var = np.empty(n)
+    steps = np.zeros(n, dtype=np.int64)
+    use_flux = hkind == 0 or ckind != 0
+    for k in prange(n):
+        state = stream_state(stream_seed, index0 + k)
+        x0 = X[k, 0]
+        y0 = X[k, 1]
+        s1 = 0.0
+        s2 = 0.0
+        nsteps = 0
+        for _w in range(walks):
+            px = x0
+            py = y0
+            on_seg = -1
+            nxn = 0.0
+            nyn = 0.0
+            score = 0.0
+            taken = 0
+            while True:
+                d2, seg, t = closest_point(px, py, A, B, dgrid)
+                d = math.sqrt(d2)
+                if d < eps or taken >= max_steps:
+                    break
+                R2 = closest_silhouette_d2(px, py, U, V, Wn, d2)
+                R = max(math.sqrt(R2), eps)
+                if use_flux:
+                    f, state = _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts,
+                                          ckind, KP, KQ, W, ARC, state)
+                    score += (2.0 if on_seg >= 0 else 1.0) * f
+                state, u = next_uniform(state)
+                if on_seg >= 0:
+                    # uniform direction in the half plane around the inward normal
+                    th = math.atan2(nyn, nxn) + math.pi * (u - 0.5)
+                else:
+                    th = TWO_PI * u
+                dx = math.cos(th)
+                dy = math.sin(th)
+                s, hit = ray_hit(px, py, dx, dy, R, A, B, nseg, on_seg)
+                px += s * dx
+                py += s * dy
+                if hit >= 0:
+                    on_seg = hit
+                    ln = math.sqrt((B[hit, 0] - A[hit, 0]) ** 2 + (B[hit, 1] - A[hit, 1]) ** 2)
+                    nxn = -(B[hit, 1] - A[hit, 1]) / ln
+                    nyn = (B[hit, 0] - A[hit, 0]) / ln
+                else:
+                    on_seg = -1
+                taken += 1
+            nsteps += taken
+            qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
+            qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
+            score += boundary_value(seg, t, qx, qy, bkind, code, consts, Vals)
+            if ckind != 0:
+                score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
+            s1 += score
+            s2 += score * score
+        m = s1 / walks
+        mean[k] = m
+        var[k] = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
+        steps[k] = nsteps
+        if ckind != 0:
+            mean[k] += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+    return mean, var, steps
