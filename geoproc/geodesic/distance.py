@@ -1,0 +1,256 @@
+"""One entry point for every geodesic method, with input checks and timings."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geoproc.errors import InputError, UsageError
+from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass, mean_edge_length
+from geoproc.mesh.topology import face_areas, vertex_components
+from geoproc.mesh.validate import require_manifold
+
+METHODS = ("exact", "heat", "varadhan", "log-splitting", "log-ode", "log-heat")
+SOLVERS = ("lu", "newton", "cvxpy")
+
+#: Laplacian each method uses unless told otherwise.
+DEFAULT_LAPLACIAN = {
+    "heat": "cotan",
+    "varadhan": "cotan",
+    "log-splitting": "cotan",
+    "log-ode": "intrinsic-delaunay",
+    "log-heat": "intrinsic-delaunay",
+}
+#: Methods that need an edge- and vertex-manifold mesh.
+NEEDS_MANIFOLD = ("exact", "heat", "log-splitting", "log-heat")
+#: exp(w) is 0 in double precision below this log value (smallest subnormal).
+LOG_TINIEST = math.log(5e-324)
+
+
+@dataclass
+class GeodesicResult:
+    """What :func:`geodesic_distance` returns.
+
+    Attributes
+    ----------
+    distance : (n,) float array
+        Distance to the nearest source (mesh length unit); +inf on vertices
+        not connected to a source (and where a method's heat underflowed).
+    t : float or None
+        Diffusion time used (area unit); None for ``exact``.
+    h : float
+        Mean edge length.
+    timings : dict
+        ``setup`` (operators and factorizations, reusable for other sources)
+        and ``solve`` (the part repeated per source set), seconds.
+    stats : dict
+        Scalars for the report: ``unreachable_vertices``, and per method
+        ``zero_heat_vertices`` (u == 0), ``negative_heat_vertices``,
+        ``min_log_heat``, ``log_heat_below_double`` (w < log 5e-324, i.e.
+        exp(w) underflows), ``iterations``.
+    """
+
+    distance: np.ndarray
+    t: float | None
+    h: float
+    timings: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+
+def diffusion_time(h: float, time_factor: float | None = 1.0, time: float | None = None) -> float:
+    """``t = time`` when given, else ``time_factor * h**2``; UsageError unless > 0 and finite."""
+    if time is not None:
+        if not (math.isfinite(time) and time > 0):
+            raise UsageError(f"--time must be a positive finite number, got {time}")
+        return float(time)
+    c = 1.0 if time_factor is None else time_factor
+    if not (math.isfinite(c) and c > 0):
+        raise UsageError(f"--time-factor must be a positive finite number, got {c}")
+    return float(c) * h * h
+
+
+def check_sources(sources, n: int, F: np.ndarray, path: str | None) -> np.ndarray:
+    """Sources as an int array: at least one, each in [0, n) and used by a face."""
+    src = np.unique(np.asarray(sources, dtype=np.int64).reshape(-1))
+    if len(src) == 0:
+        raise UsageError("give at least one source vertex (--source I or --sources-file F)")
+    bad = src[(src < 0) | (src >= n)]
+    if len(bad):
+        raise InputError(path, f"source vertex {int(bad[0])} is out of range "
+                               f"(the mesh has {n} vertices, numbered from 0)")
+    used = np.zeros(n, dtype=bool)
+    used[F.reshape(-1)] = True
+    iso = src[~used[src]]
+    if len(iso):
+        raise InputError(path, f"source vertex {int(iso[0])} is isolated (no face uses it)")
+    return src
+
+
+def source_submesh(V: np.ndarray, F: np.ndarray, sources: np.ndarray):
+    """The part of the mesh connected to a source.
+
+    Returns ``(V2, F2, keep, src2)``: ``keep`` (k,) indexes the kept vertices
+    (``V2 = V[keep]``), ``F2`` and ``src2`` are re-indexed into V2.
+    """
+    _, labels = vertex_components(F, len(V))
+    reach = np.isin(labels, labels[sources]) & (labels >= 0)
+    keep = np.flatnonzero(reach)
+    remap = np.full(len(V), -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    F2 = remap[F[reach[F[:, 0]]]]
+    return V[keep], F2, keep, remap[sources]
+
+
+def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat", *,
+                      time_factor: float | None = 1.0, time: float | None = None, steps: int = 1,
+                      laplacian: str | None = None, solver: str = "lu", path: str | None = None,
+                      progress=None) -> GeodesicResult:
+    """Geodesic distance from ``sources`` by ``method`` (see :data:`METHODS`).
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+    sources : int or sequence of int
+        Source vertices; the distance is to the nearest one.
+    method : str
+        ``exact`` (MMP), ``heat`` (Crane et al.), ``varadhan``
+        (``sqrt(-4T log u)``), ``log-splitting``, ``log-ode`` (discrete log
+        ODE), ``log-heat`` (heat method on the log ODE).
+    time_factor, time : float
+        Diffusion time ``t = time`` if given, else ``time_factor * h^2`` with
+        h the mean edge length. For ``heat`` it is the single step; for the
+        others the total time reached in ``steps`` equal steps.
+    steps : int
+        Backward-Euler steps (>= 1); ``heat`` always uses one.
+    laplacian : {"cotan", "intrinsic-delaunay"}, optional
+        Default per :data:`DEFAULT_LAPLACIAN`.
+    solver : {"lu", "newton", "cvxpy"}
+        Log-ODE solver (``log-ode`` only; ``log-splitting`` always uses cvxpy).
+    path : str, optional
+        Named in error messages.
+    progress : callable, optional
+        ``progress(fraction_done)``.
+    """
+    if method not in METHODS:
+        raise UsageError(f"unknown method '{method}'; choose one of {', '.join(METHODS)}")
+    if not isinstance(steps, int | np.integer) or steps < 1:
+        raise UsageError(f"--steps must be at least 1, got {steps}")
+    if solver not in SOLVERS:
+        raise UsageError(f"unknown solver '{solver}'; choose one of {', '.join(SOLVERS)}")
+    if laplacian is not None and laplacian not in LAPLACIANS:
+        raise UsageError(f"unknown Laplacian '{laplacian}'; choose cotan or intrinsic-delaunay")
+    if len(F) == 0:
+        raise InputError(path, "is a point cloud (no faces); geodesic distance needs a triangle mesh")
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    n = len(V)
+    src = check_sources(sources, n, F, path)
+    h = mean_edge_length(V, F)
+    t = None if method == "exact" else diffusion_time(h, time_factor, time)
+    lap = None if method == "exact" else (laplacian or DEFAULT_LAPLACIAN[method])
+    if method in NEEDS_MANIFOLD:
+        from geoproc.mesh import Mesh
+        from geoproc.mesh.mesh import LoadLog
+
+        require_manifold(Mesh(V, F, log=LoadLog(path=path or "")))
+    area = face_areas(V, F)
+    if (area <= 0).any() and (method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"):
+        k = int(np.flatnonzero(area <= 0)[0])
+        raise InputError(path, f"{int((area <= 0).sum())} faces have zero area (first: face {k}); "
+                               f"method '{method}' needs non-degenerate triangles")
+
+    V2, F2, keep, s2 = source_submesh(V, F, src)
+    stats: dict = {"unreachable_vertices": int(n - len(keep))}
+    timings: dict = {}
+    t0 = _now()
+    d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress)
+    timings.setdefault("solve", _now() - t0 - timings.get("setup", 0.0))
+    d = np.full(n, np.inf)
+    d[keep] = d2
+    return GeodesicResult(d, t, h, timings, stats)
+
+
+def _now() -> float:
+    return time.perf_counter()
+
+
+def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progress):
+    if method == "exact":
+        from geoproc.geodesic.exact import exact_geodesic_distance
+
+        timings["setup"] = 0.0
+        return exact_geodesic_distance(V, F, src)
+    if method == "heat":
+        from geoproc.geodesic.heat import HeatMethodSolver
+
+        a = _now()
+        hs = HeatMethodSolver(V, F, t, lap)
+        timings["setup"] = _now() - a
+        a = _now()
+        d, u = hs.solve(src)
+        timings["solve"] = _now() - a
+        stats["zero_heat_vertices"] = int((u == 0).sum())
+        stats["negative_heat_vertices"] = int((u < 0).sum())
+        return d
+    if method == "log-heat":
+        from geoproc.geodesic.log_heat import LogHeatSolver
+
+        a = _now()
+        ls = LogHeatSolver(V, F, t, steps, lap, poisson=lap)
+        timings["setup"] = _now() - a
+        a = _now()
+        d, w = ls.solve(src)
+        timings["solve"] = _now() - a
+        _log_stats(w, stats)
+        return d
+    a = _now()
+    L, M = laplacian_and_mass(V, F, lap)
+    if method == "varadhan":
+        from geoproc.geodesic.varadhan import varadhan_distance
+
+        timings["setup"] = _now() - a
+        d, u = varadhan_distance(L, M, src, t, steps)
+        stats["zero_heat_vertices"] = int((u == 0).sum())
+        stats["negative_heat_vertices"] = int((u < 0).sum())
+        return d
+    if method == "log-ode":
+        from geoproc.geodesic.log_ode import LogODESolver, LogStepSystem, log_ode_step
+
+        if solver == "cvxpy":
+            from geoproc.geodesic.log_ode_cvxpy import log_ode_steps_cvxpy
+
+            timings["setup"] = _now() - a
+            w, _ = log_ode_steps_cvxpy(L, M, src, t, steps, progress)
+        else:
+            fast = LogODESolver(L, M, t / steps) if solver == "lu" else LogStepSystem(L, M, t / steps)
+            timings["setup"] = _now() - a
+            w = np.full(len(M), -np.inf)
+            w[src] = 0.0
+            total = 0
+            for k in range(steps):
+                w, it = fast.step(w) if solver == "lu" else log_ode_step(fast, w)
+                total += it
+                if progress is not None:
+                    progress((k + 1) / steps)
+            stats["iterations"] = total
+        _log_stats(w, stats)
+        return np.sqrt(np.maximum(0.0, -4.0 * t * w))
+    if method == "log-splitting":
+        from geoproc.geodesic.log_splitting import LogSplittingSolver
+
+        sol = LogSplittingSolver(V, F, L, M, t, steps)
+        timings["setup"] = _now() - a
+        d, w = sol.solve(src, progress)
+        _log_stats(w, stats)
+        return d
+    raise AssertionError(method)
+
+
+def _log_stats(w: np.ndarray, stats: dict) -> None:
+    stats["min_log_heat"] = float(np.min(w))
+    stats["log_heat_below_double"] = int((w < LOG_TINIEST).sum())
+    stats["nonfinite_log_heat"] = int((~np.isfinite(w)).sum())
