@@ -19,7 +19,7 @@ def _find(uf, x):
 
 
 @numba.njit(cache=True)
-def merge_forest(adj_ptr, adj_nbr, adj_edge, order, rank, value, threshold, cancel):
+def merge_forest(adj_ptr, adj_nbr, adj_edge, order, rank, value, threshold, cancel, keep):
     """0-dimensional lower-star persistence and the descent forest.
 
     Vertices are visited in ``order``; at vertex v its lower edges (neighbours
@@ -49,6 +49,8 @@ def merge_forest(adj_ptr, adj_nbr, adj_edge, order, rank, value, threshold, canc
         component drains into the surviving one.
     cancel : bool
         Whether to cancel pairs below ``threshold``.
+    keep : (N,) bool array
+        Minima never cancelled, whatever their persistence.
 
     Returns
     -------
@@ -125,7 +127,7 @@ def merge_forest(adj_ptr, adj_nbr, adj_edge, order, rank, value, threshold, canc
             death_nbr[p] = u
             death_edge[p] = be[i]
             p += 1
-            if cancel and value[v] - value[mn] < threshold:
+            if cancel and value[v] - value[mn] < threshold and not keep[mn]:
                 prev = y
                 cur = x
                 while cur != -1:

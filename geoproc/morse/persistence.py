@@ -102,7 +102,7 @@ def lower_star_persistence(cx: SurfaceComplex, f: np.ndarray) -> PersistencePair
     f = np.asarray(f, dtype=np.float64)
     order, rank = vertex_order(f)
     b0, _, _, e0, _, ess0, first = merge_forest(
-        cx.adj_ptr, cx.adj_nbr, cx.adj_edge, order, rank, f, 0.0, False
+        cx.adj_ptr, cx.adj_nbr, cx.adj_edge, order, rank, f, 0.0, False, np.zeros(len(f), bool)
     )
     pe, pt, killing, ess2 = dual_pairs(cx.F, cx.ET, cx.adj_ptr, cx.adj_nbr, cx.adj_edge, order, rank)
     edge_top = _top_vertex(cx.E, rank)

@@ -1,0 +1,398 @@
+"""Optimal topological simplification of a function on a surface
+(Bauer, Lange, Wardetzky, "Optimal topological simplification of discrete
+functions on surfaces", Discrete Comput. Geom. 47, 2012).
+
+Given f and a threshold P > 0, build g with ||f - g||_inf <= P/2 whose critical
+points are those of f in persistence pairs with persistence >= P (and the
+essential ones), and no others. P/2 is optimal: by the stability theorem no
+function closer to f can lose a pair of persistence P.
+
+How g is built
+--------------
+1. Which pairs go. Union-find over the vertices in the total order (value,
+   index) grows the sublevel-set components with a descent forest (each vertex
+   points to its lowest neighbour). When a component dies at a saddle with
+   persistence < P, its descent path from the merging edge down to its minimum
+   is reversed and continued across the edge (Forman's cancellation): the
+   whole basin now drains into the older component. The same on -f over the
+   mesh with its boundary coned off by a virtual vertex above everything (a
+   region that reaches the boundary is no peak) picks the maxima that stay.
+2. Basins flooded. The descent forest, plus "every neighbour is above" for each
+   minimum that stays, is an acyclic relation a < b. Values are assigned in
+   the box [f - P/2, f + P/2]: a backward pass gives each vertex the largest
+   value hi(v) <= f(v) + P/2 from which all its successors can still be
+   reached strictly increasing (saddles carved down), a forward pass sets
+   g(v) = max(min(f(v), hi(v)), next float above g of every predecessor)
+   (basins flooded up), so g = f wherever no cancellation reaches, and
+   f - P/2 <= g <= f + P/2 (every descent chain drops by less than P).
+3. Peaks carved. The ascent forest is rebuilt on the flooded function (so
+   ascents agree with the flooding), peaks that go have their ascent path
+   reversed across their saddle, and both forests plus "every neighbour is
+   below" for each maximum that stays are assigned in one pass as in 2.
+4. Where P/2 cannot be met. For piecewise-linear vertex functions the bound
+   P/2 (optimal for Forman's discrete Morse functions, where every cell has
+   its own value) is not always reachable: if a cancelled minimum m and a
+   cancelled maximum M meet at the same multiple saddle s and m (resp. M) has
+   no other neighbour within P of it, then g(M) < g(s) < g(m) is forced and
+   |f - g| >= (f(M) - f(m)) / 2 > P/2 somewhere. Such chains get the smallest
+   local widening of the box that makes them feasible (half the drop of the
+   chain through the vertex); a vertex where the ascent and descent witnesses
+   disagree (a cycle of the relation) loses its ascent witness.
+5. Exact critical points. Monotone sweeps (Tierny and Pascucci 2012) from the
+   minima that stay (raising) and from the maxima that stay and the boundary
+   (lowering) are repeated until neither changes anything; they leave g alone
+   when steps 2-3 already produced the right extrema, and otherwise repair
+   them. The vertices where |f - g| > P/2 are reported.
+6. Made strict: vertices are sorted by (g, index) and equal values are moved
+   up by one unit in the last place, so g has no ties; sorting its vertices by
+   (value, index) gives exactly the kept minima and maxima and, by
+   c0 - c1 + c2 = chi, exactly as many saddles (with multiplicity) as the kept
+   pairs and essential classes need.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from geoproc.morse.complex import SurfaceComplex
+from geoproc.morse.merge_forest import cone_adjacency, merge_forest
+from geoproc.morse.order import vertex_order
+
+
+@dataclass
+class Simplification:
+    """The simplified function and what was cancelled.
+
+    Attributes
+    ----------
+    g : (n,) float64 array
+        The simplified function, without ties.
+    threshold : float
+        Absolute persistence threshold P.
+    kept_minima, kept_maxima : int64 arrays
+        Vertices that stay minima / maxima (sorted).
+    pairs_removed, pairs_kept : int
+        Finite persistence pairs (both dimensions, zero persistence included)
+        with persistence < P and >= P.
+    max_abs_change : float
+        ``max |f - g|``.
+    widened_vertices : int64 array
+        Vertices where P/2 could not be met (see "Where P/2 cannot be met" in
+        the module docstring); empty in the common case.
+    """
+
+    g: np.ndarray
+    threshold: float
+    kept_minima: np.ndarray
+    kept_maxima: np.ndarray
+    pairs_removed: int
+    pairs_kept: int
+    max_abs_change: float
+    widened_vertices: np.ndarray
+    repaired_vertices: int
+
+
+@numba.njit(cache=True)
+def _assign_values(f, half, down, up, keep_min, keep_max, adj_ptr, adj_nbr):
+    """Backward and forward passes of step 3; returns (g, half-width used per
+    vertex, stuck) where ``stuck`` marks vertices on a cycle of the relation
+    (none when it is acyclic)."""
+    n = f.shape[0]
+    # relation a < b as edge lists
+    cnt = 0
+    for v in range(n):
+        if down[v] >= 0:
+            cnt += 1
+        if up[v] >= 0 and up[v] < n:
+            cnt += 1
+        if keep_min[v] or keep_max[v]:
+            cnt += adj_ptr[v + 1] - adj_ptr[v]
+    A = np.empty(cnt, np.int64)
+    B = np.empty(cnt, np.int64)
+    c = 0
+    for v in range(n):
+        if down[v] >= 0:
+            A[c] = down[v]
+            B[c] = v
+            c += 1
+        if up[v] >= 0 and up[v] < n:
+            A[c] = v
+            B[c] = up[v]
+            c += 1
+        if keep_min[v]:
+            for j in range(adj_ptr[v], adj_ptr[v + 1]):
+                A[c] = v
+                B[c] = adj_nbr[j]
+                c += 1
+        if keep_max[v]:
+            for j in range(adj_ptr[v], adj_ptr[v + 1]):
+                A[c] = adj_nbr[j]
+                B[c] = v
+                c += 1
+    ptr = np.zeros(n + 1, np.int64)
+    indeg = np.zeros(n, np.int64)
+    for i in range(cnt):
+        ptr[A[i] + 1] += 1
+        indeg[B[i]] += 1
+    for v in range(n):
+        ptr[v + 1] += ptr[v]
+    pos = ptr[:-1].copy()
+    succ = np.empty(cnt, np.int64)
+    for i in range(cnt):
+        succ[pos[A[i]]] = B[i]
+        pos[A[i]] += 1
+    topo = np.empty(n, np.int64)
+    head = 0
+    tail = 0
+    for v in range(n):
+        if indeg[v] == 0:
+            topo[tail] = v
+            tail += 1
+    while head < tail:
+        a = topo[head]
+        head += 1
+        for j in range(ptr[a], ptr[a + 1]):
+            b = succ[j]
+            indeg[b] -= 1
+            if indeg[b] == 0:
+                topo[tail] = b
+                tail += 1
+    g = np.empty(n, np.float64)
+    half_v = np.full(n, half)
+    stuck = indeg > 0
+    if tail < n:
+        return g, half_v, stuck
+    # widest drop of f along any chain through each vertex
+    top = f.copy()  # max of f over the vertex and everything before it
+    for i in range(n):
+        a = topo[i]
+        for j in range(ptr[a], ptr[a + 1]):
+            b = succ[j]
+            if top[a] > top[b]:
+                top[b] = top[a]
+    bot = f.copy()  # min of f over the vertex and everything after it
+    for i in range(n - 1, -1, -1):
+        a = topo[i]
+        for j in range(ptr[a], ptr[a + 1]):
+            b = succ[j]
+            if bot[b] < bot[a]:
+                bot[a] = bot[b]
+    for v in range(n):
+        d = max(top[v] - f[v], f[v] - bot[v])
+        if d >= 2.0 * half:
+            half_v[v] = 0.5 * d * (1.0 + 1e-9) + 1e-300
+    hi = f + half_v
+    for i in range(n - 1, -1, -1):
+        a = topo[i]
+        for j in range(ptr[a], ptr[a + 1]):
+            x = np.nextafter(hi[succ[j]], -np.inf)
+            if x < hi[a]:
+                hi[a] = x
+    for v in range(n):
+        g[v] = min(f[v], hi[v])
+    for i in range(n):
+        a = topo[i]
+        for j in range(ptr[a], ptr[a + 1]):
+            b = succ[j]
+            x = np.nextafter(g[a], np.inf)
+            if x > g[b]:
+                g[b] = x
+    return g, half_v, stuck
+
+
+@numba.njit(cache=True)
+def _flood_from(g, seeds, adj_ptr, adj_nbr, sign):
+    """Monotone sweep from ``seeds`` on sign * g (Tierny and Pascucci 2012):
+    vertices are taken in increasing sign * g among those next to the swept
+    region, and each gets at least the next float above the previous one, so
+    every vertex but the seeds has a neighbour swept before it, strictly below
+    it. Raises (sign = 1) or lowers (sign = -1) values only. Returns the
+    number of changed vertices."""
+    n = g.shape[0]
+    h = sign * g
+    seen = np.zeros(n, np.bool_)
+    keys = np.empty(adj_nbr.shape[0] + n + 1, np.float64)
+    items = np.empty(adj_nbr.shape[0] + n + 1, np.int64)
+    size = 0
+    for v in range(n):
+        if seeds[v]:
+            seen[v] = True
+            size = _fheap_push(keys, items, size, h[v], v)
+    changed = 0
+    last = -np.inf
+    while size > 0:
+        v, size = _fheap_pop(keys, items, size)
+        if h[v] <= last:
+            h[v] = np.nextafter(last, np.inf)
+            changed += 1
+        last = h[v]
+        for j in range(adj_ptr[v], adj_ptr[v + 1]):
+            w = adj_nbr[j]
+            if not seen[w]:
+                seen[w] = True
+                size = _fheap_push(keys, items, size, h[w], w)
+    for v in range(n):
+        g[v] = sign * h[v]
+    return changed
+
+
+@numba.njit(cache=True, inline="always")
+def _fheap_push(keys, items, size, key, item):
+    i = size
+    keys[i] = key
+    items[i] = item
+    while i > 0:
+        p = (i - 1) >> 1
+        if keys[p] < keys[i] or (keys[p] == keys[i] and items[p] < items[i]):
+            break
+        keys[p], keys[i] = keys[i], keys[p]
+        items[p], items[i] = items[i], items[p]
+        i = p
+    return size + 1
+
+
+@numba.njit(cache=True, inline="always")
+def _fheap_pop(keys, items, size):
+    item = items[0]
+    size -= 1
+    keys[0] = keys[size]
+    items[0] = items[size]
+    i = 0
+    while True:
+        c = 2 * i + 1
+        if c >= size:
+            break
+        if c + 1 < size and (keys[c + 1] < keys[c] or (keys[c + 1] == keys[c] and items[c + 1] < items[c])):
+            c += 1
+        if keys[i] < keys[c] or (keys[i] == keys[c] and items[i] < items[c]):
+            break
+        keys[c], keys[i] = keys[i], keys[c]
+        items[c], items[i] = items[i], items[c]
+        i = c
+    return item, size
+
+
+@numba.njit(cache=True)
+def _make_strict(g, order):
+    out = g.copy()
+    for i in range(1, order.shape[0]):
+        a = out[order[i - 1]]
+        if out[order[i]] <= a:
+            out[order[i]] = np.nextafter(a, np.inf)
+    return out
+
+
+@numba.njit(cache=True)
+def _lowest_neighbour(g, adj_ptr, adj_nbr, keep_min, fallback):
+    """Each vertex's lowest neighbour under (g, index) when it is below the
+    vertex, else ``fallback``; -1 for the minima that stay."""
+    n = g.shape[0]
+    out = np.full(n, -1, np.int64)
+    for v in range(n):
+        if keep_min[v]:
+            continue
+        best = -1
+        for j in range(adj_ptr[v], adj_ptr[v + 1]):
+            w = adj_nbr[j]
+            if best == -1 or g[w] < g[best] or (g[w] == g[best] and w < best):
+                best = w
+        if best >= 0 and (g[best] < g[v] or (g[best] == g[v] and best < v)):
+            out[v] = best
+        else:
+            out[v] = fallback[v]
+    return out
+
+
+def _ascent_forest(ptr, nbr, eid, f, threshold, keep):
+    """merge_forest on -f over the coned adjacency (cone vertex = index n, above all)."""
+    n = len(f)
+    order, _ = vertex_order(f)
+    order_up = np.concatenate([[n], order[::-1]]).astype(np.int64)
+    rank_up = np.empty(n + 1, np.int64)
+    rank_up[order_up] = np.arange(n + 1)
+    value_up = np.concatenate([-f, [-np.inf]])
+    b, d, _, _, up, _, _ = merge_forest(ptr, nbr, eid, order_up, rank_up, value_up, threshold, True, keep)
+    return b, d, up
+
+
+def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float) -> Simplification:
+    """Remove every persistence pair of f with persistence < threshold.
+
+    Parameters
+    ----------
+    cx : SurfaceComplex
+        A 2-manifold mesh (boundary and several components allowed).
+    f : (n,) float array
+        Vertex values.
+    threshold : float
+        Absolute persistence threshold P >= 0 (in f's units). With P = 0
+        nothing is removed and g = f (ties, if any, stay and are broken by
+        vertex index).
+
+    Returns
+    -------
+    Simplification
+        g whose minima and maxima are exactly the kept ones, with
+        ``|f - g| <= P/2`` (up to units in the last place) except at the
+        vertices listed in ``widened_vertices``; see the module docstring.
+    """
+    f = np.asarray(f, dtype=np.float64)
+    n = len(f)
+    P = float(threshold)
+    order, rank = vertex_order(f)
+    no_keep = np.zeros(n + 1, dtype=bool)
+    b0, d0, _, _, down, _, _ = merge_forest(cx.adj_ptr, cx.adj_nbr, cx.adj_edge, order, rank, f, P,
+                                            True, no_keep)
+    ptr, nbr, eid = cone_adjacency(cx.adj_ptr, cx.adj_nbr, cx.adj_edge, cx.boundary)
+    b1, d1, up_f = _ascent_forest(ptr, nbr, eid, f, P, no_keep)
+    pers = np.concatenate([f[d0] - f[b0], f[b1] - f[d1]])
+    removed = int((pers < P).sum())
+    degree = np.diff(cx.adj_ptr)
+    keep_min = down == -1
+    keep_max = (up_f[:n] == -1) & ~cx.boundary & (degree > 0)
+    widened = np.zeros(n, dtype=bool)
+    repaired = 0
+    if P == 0.0:
+        g = f.copy()
+    else:
+        no = np.zeros(n, dtype=bool)
+        none = np.full(n, -1, dtype=np.int64)
+        # minima first: descent forest of f with cancelled basins flooded
+        g_min, _, _ = _assign_values(f, P / 2.0, down, none, keep_min, no, cx.adj_ptr, cx.adj_nbr)
+        # then the ascent witnesses are read on the flooded function, peaks carved
+        keep_up = np.concatenate([keep_max, [False]])
+        _, _, up = _ascent_forest(ptr, nbr, eid, g_min, np.inf, keep_up)
+        up = up[:n].copy()
+        for _ in range(8):
+            g, half_v, stuck = _assign_values(f, P / 2.0, down, up, keep_min, keep_max,
+                                              cx.adj_ptr, cx.adj_nbr)
+            if not stuck.any():
+                break
+            up[stuck] = -1  # conflicting ascent witnesses: left to the sweeps below
+        else:
+            raise RuntimeError("cancellation relation keeps a cycle")
+        widened = half_v > P / 2.0
+        # Repair (Tierny-Pascucci sweeps): only acts where the relation above
+        # could not be kept; normally changes nothing.
+        seeds_max = keep_max | cx.boundary | (degree == 0)
+        for _ in range(50):
+            a = _flood_from(g, keep_min, cx.adj_ptr, cx.adj_nbr, 1.0)
+            b = _flood_from(g, seeds_max, cx.adj_ptr, cx.adj_nbr, -1.0)
+            if a == 0 and b == 0:
+                break
+            repaired += a + b
+        g = _make_strict(g, np.lexsort((np.arange(n), g)))
+    return Simplification(
+        g=g,
+        threshold=P,
+        kept_minima=np.flatnonzero(keep_min),
+        kept_maxima=np.flatnonzero(keep_max),
+        pairs_removed=removed,
+        pairs_kept=int(len(pers) - removed),
+        max_abs_change=float(np.max(np.abs(g - f))) if n else 0.0,
+        widened_vertices=np.flatnonzero(widened | (np.abs(g - f) > P / 2.0 * (1 + 1e-12))),
+        repaired_vertices=repaired,
+    )
