@@ -1,0 +1,163 @@
+"""``geoproc morse-simplify``: critical points, persistence and optimal
+topological simplification of a vertex function on a surface mesh."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from geoproc.errors import UsageError
+from geoproc.mesh.validate import require_manifold, require_triangle_mesh
+from geoproc.morse import (
+    discrete_gradient,
+    find_closed_vpath,
+    lower_star_persistence,
+    simplify_function,
+    surface_complex,
+)
+from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
+from geoproc.morse.diagram_plot import persistence_diagram_png
+from geoproc.morse.fields import field_name, vertex_field
+from geoproc.report import json_safe
+from geoproc_cli.common import (
+    CheckOpt,
+    DebugOpt,
+    NoCleanOpt,
+    QuietOpt,
+    ReportOpt,
+    command_run,
+)
+
+
+def morse_simplify(
+    mesh: Annotated[str, typer.Argument(help="Triangle mesh (.ply, .obj, .off, .stl), or - for stdin; "
+                                        "must be a 2-manifold (boundary and several components are fine).",
+                                        metavar="MESH")],
+    field: Annotated[str, typer.Option(
+        "--field", "-f",
+        help="The vertex function: a per-vertex PLY property (e.g. 'distance' from geoproc geodesic), "
+        "x, y or z, a .npy file with one value per vertex, mean-curvature or gaussian-curvature (libigl).",
+        metavar="SPEC", show_default=False)],
+    persistence: Annotated[float, typer.Option(
+        "--persistence", "-p",
+        help="Remove every critical pair with persistence below this threshold P (>= 0), keep the others.",
+        metavar="P", show_default=False)],
+    output: Annotated[str, typer.Option(
+        "--output", "-o",
+        help="Output .ply (or - for binary PLY on stdout): the simplified field under the field's name, "
+        "the input field as <name>_original.", metavar="OUT.ply", show_default=False)],
+    relative: Annotated[bool, typer.Option(
+        "--relative", help="Read P as a fraction of the field's range (max - min).")] = False,
+    critical: Annotated[Path | None, typer.Option(
+        "--critical", help="Write the critical cells before and after, with their pairs, as JSON.",
+        metavar="CRIT.json", show_default=False)] = None,
+    diagram: Annotated[Path | None, typer.Option(
+        "--diagram", help="Write the persistence diagrams before and after as a PNG.",
+        metavar="PD.png", show_default=False)] = None,
+    no_clean: NoCleanOpt = False,
+    report: ReportOpt = None,
+    check: CheckOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Remove topological noise from a function on a surface.
+
+    The discrete gradient of the field is built by ProcessLowerStars (Robins,
+    Wood, Sheppard 2011) under the total order (value, then vertex index); its
+    critical cells are the minima, saddles (a k-fold saddle counts k times) and
+    maxima. Their lower-star persistence pairs decide what is noise: every pair
+    with persistence < P is cancelled (Bauer, Lange, Wardetzky 2012), every
+    pair with persistence >= P and every essential class stays. The output
+    field g has no ties, its minima and maxima are exactly the kept ones, and
+    |f - g| <= P/2 except where cancelled basins and peaks interact (at a
+    multiple saddle a piecewise-linear g cannot always stay within P/2); those
+    vertices are counted in vertices_beyond_half_threshold.
+
+    Metrics: minima/saddles/maxima before and after, euler_characteristic,
+    betti_0/1/2, pairs_removed, pairs_kept, max_abs_change, threshold.
+    """
+    params = {"mesh": mesh, "field": field, "persistence": persistence, "relative": relative,
+              "output": output, "critical": str(critical) if critical else None,
+              "diagram": str(diagram) if diagram else None, "clean": not no_clean}
+    with command_run("morse-simplify", params, report=Path(report) if report else None, checks=check,
+                     quiet=quiet, debug=debug) as run:
+        if not np.isfinite(persistence) or persistence < 0:
+            raise UsageError(f"--persistence must be a finite number >= 0, got {persistence:g}")
+        if output != "-" and os.path.splitext(output)[1].lower() != ".ply":
+            raise UsageError(f"{output}: the output must be a .ply file (or -) to carry the fields")
+        m = run.load_mesh(mesh, clean=not no_clean)
+        require_triangle_mesh(m)
+        require_manifold(m)
+        with run.timer("field"):
+            f = vertex_field(m, field)
+        if field.lower().endswith(".npy"):
+            run.add_input(field)
+        name = field_name(field)
+        with run.timer("gradient"):
+            cx = surface_complex(m.F, m.n_vertices, m.log.path or None)
+            grad = discrete_gradient(cx, f)
+        cycle = find_closed_vpath(cx, grad)
+        if cycle is not None:
+            raise RuntimeError(f"the discrete gradient has a closed V-path of dimension {cycle[0]}")
+        with run.timer("persistence"):
+            before = lower_star_persistence(cx, f)
+        span = float(f.max() - f.min()) if len(f) else 0.0
+        threshold = float(persistence) * span if relative else float(persistence)
+        with run.timer("simplify"):
+            simp = simplify_function(cx, f, threshold)
+            g = simp.g
+        with run.timer("after"):
+            after = lower_star_persistence(cx, g)
+        chi = cx.euler_characteristic
+        c_before = critical_counts(before)
+        c_after = critical_counts(after)
+        for c, when in [(c_before, "f"), (c_after, "g")]:
+            if c[0] - c[1] + c[2] != chi:
+                raise RuntimeError(f"critical cells of {when} give c0 - c1 + c2 = {c[0] - c[1] + c[2]} "
+                                   f"!= V - E + F = {chi}")
+        if (len(grad.critical_vertices), len(grad.critical_edges), len(grad.critical_triangles)) != c_before:
+            raise RuntimeError("gradient critical cells do not match the persistence pairs")
+        pers = finite_persistence(before)
+        half_tol = threshold / 2.0 * (1 + 1e-12)
+        beyond = int(np.count_nonzero(np.abs(g - f) > half_tol))
+        b0, b1, b2 = before.betti
+        run.metrics.update({
+            "vertices": m.n_vertices,
+            "faces": m.n_faces,
+            "minima_before": c_before[0], "saddles_before": c_before[1], "maxima_before": c_before[2],
+            "minima_after": c_after[0], "saddles_after": c_after[1], "maxima_after": c_after[2],
+            "euler_characteristic": chi,
+            "betti_0": b0, "betti_1": b1, "betti_2": b2,
+            "pairs_removed": int(np.count_nonzero(pers < threshold)),
+            "pairs_kept": int(np.count_nonzero(pers >= threshold)),
+            "max_abs_change": simp.max_abs_change,
+            "threshold": threshold,
+            "vertices_beyond_half_threshold": beyond,
+        })
+        if beyond:
+            run.note(f"{beyond} vertices moved by more than P/2 = {threshold / 2:.6g} "
+                     f"(max |f - g| = {simp.max_abs_change:.6g}) where cancelled basins and peaks "
+                     "interact; the critical points are still exactly the kept ones")
+        out = m.copy()
+        out.vertex_fields[name] = g
+        out.vertex_fields[f"{name}_original"] = f
+        run.write_mesh(output, out)
+        if critical is not None:
+            doc = {"field": name, "threshold": threshold, "euler_characteristic": chi,
+                   "before": critical_cells_table(cx, before), "after": critical_cells_table(cx, after)}
+            run.write_bytes(critical, json.dumps(json_safe(doc)).encode())
+        if diagram is not None:
+            with run.timer("diagram"):
+                png = persistence_diagram_png(before, after, threshold,
+                                              title=f"{os.path.basename(mesh)}: {name}, P = {threshold:.4g}")
+            run.write_bytes(diagram, png)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``morse-simplify`` to the application."""
+    app.command("morse-simplify")(morse_simplify)

@@ -1,0 +1,114 @@
+"""The scalar field a Morse computation runs on, from a --field specification."""
+
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+
+from geoproc.errors import InputError
+from geoproc.mesh import Mesh
+from geoproc.mesh.validate import require_vertex_field
+
+COORDINATES = {"x": 0, "y": 1, "z": 2}
+CURVATURES = ("mean-curvature", "gaussian-curvature")
+
+
+def mean_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(n,) mean curvature (k1 + k2) / 2 per vertex, in 1/length, from libigl's
+    quadric-fitting principal curvatures (``igl.principal_curvature``, its
+    sign convention)."""
+    import igl
+
+    _, _, k1, k2, _ = igl.principal_curvature(np.ascontiguousarray(V), np.ascontiguousarray(F))
+    return 0.5 * (np.asarray(k1) + np.asarray(k2))
+
+
+def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(n,) pointwise Gaussian curvature per vertex, in 1/length^2: libigl's
+    angle defect divided by the vertex's Voronoi area."""
+    import igl
+
+    V = np.ascontiguousarray(V)
+    F = np.ascontiguousarray(F)
+    K = np.asarray(igl.gaussian_curvature(V, F))
+    M = igl.massmatrix(V, F, igl.MassMatrixType.MASSMATRIX_TYPE_VORONOI)
+    area = np.asarray(M.diagonal())
+    return np.divide(K, area, out=np.zeros_like(K), where=area > 0)
+
+
+def field_name(spec: str) -> str:
+    """The vertex property name the field is written under in the output PLY.
+
+    A property keeps its name; ``x``/``y``/``z`` become ``x_value`` etc. (``x``,
+    ``y``, ``z`` are the coordinates); curvatures become ``mean_curvature`` /
+    ``gaussian_curvature``; a ``.npy`` file gives its stem.
+    """
+    if spec in COORDINATES:
+        return f"{spec}_value"
+    if spec in CURVATURES:
+        return spec.replace("-", "_")
+    if spec.lower().endswith(".npy"):
+        stem = os.path.splitext(os.path.basename(spec))[0]
+        return re.sub(r"[^A-Za-z0-9_]", "_", stem) or "field"
+    return spec
+
+
+def vertex_field(mesh: Mesh, spec: str) -> np.ndarray:
+    """Resolve ``spec`` to one finite value per vertex.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The triangle mesh.
+    spec : str
+        A per-vertex property of the mesh (e.g. ``distance`` from
+        ``geoproc geodesic``), ``x``, ``y`` or ``z``, a ``.npy`` file holding one
+        value per vertex, or ``mean-curvature`` / ``gaussian-curvature``.
+
+    Returns
+    -------
+    (n,) float64 array
+
+    Raises
+    ------
+    InputError
+        Unknown property, unreadable ``.npy``, wrong length, or non-finite values.
+    """
+    if spec in COORDINATES:
+        values = mesh.V[:, COORDINATES[spec]]
+    elif spec == "mean-curvature":
+        values = mean_curvature(mesh.V, mesh.F)
+    elif spec == "gaussian-curvature":
+        values = gaussian_curvature(mesh.V, mesh.F)
+    elif spec.lower().endswith(".npy"):
+        try:
+            values = np.load(spec, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise InputError(spec, f"cannot read field: {exc}") from None
+        if values.ndim != 1 and not (values.ndim == 2 and 1 in values.shape):
+            raise InputError(spec, f"field must hold one value per vertex, got shape {values.shape}")
+        if not np.issubdtype(values.dtype, np.number):
+            raise InputError(spec, f"field must be numeric, got dtype {values.dtype}")
+        a = np.asarray(values, dtype=np.float64).reshape(-1)
+        if len(a) != len(mesh.V):
+            raise InputError(spec, f"field has {len(a)} values for {len(mesh.V)} vertices")
+        bad = ~np.isfinite(a)
+        if bad.any():
+            raise InputError(spec, f"field has {int(bad.sum())} non-finite values "
+                             f"(first: vertex {int(np.flatnonzero(bad)[0])})")
+        return a
+    elif spec in mesh.vertex_fields:
+        values = mesh.vertex_fields[spec]
+        if values.ndim != 1:
+            raise InputError(mesh.log.path or None, f"vertex property '{spec}' has {values.shape[1]} "
+                             "components; a scalar field is needed")
+    else:
+        have = ", ".join(sorted(k for k, v in mesh.vertex_fields.items() if v.ndim == 1)) or "none"
+        raise InputError(
+            mesh.log.path or None,
+            f"no vertex property '{spec}' (scalar properties: {have}); use a property name, "
+            "x, y, z, a .npy file, mean-curvature or gaussian-curvature",
+        )
+    return require_vertex_field(mesh, values, spec)
