@@ -8,8 +8,10 @@ nearest segment is within ``d* + h``. The lists are exact, so a query scans
 only its cell's few candidates. Points outside the grid fall back to a scan of
 every segment.
 
-The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, seg_ids)``
-accepted by :func:`closest_point`.
+The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids)``
+accepted by :func:`closest_point`; ``coords`` (k, 5) repeats each candidate's
+start, direction and inverse squared length (``ax, ay, ex, ey, 1/|e|^2``) so a
+query reads one contiguous block and divides nothing.
 """
 
 from __future__ import annotations
@@ -84,7 +86,7 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     Returns
     -------
     tuple
-        ``(ox, oy, inv_cs, nx, ny, start, items, seg_ids)`` for :func:`closest_point`.
+        ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids)`` for :func:`closest_point`.
     """
     A = np.ascontiguousarray(A, dtype=np.float64)
     B = np.ascontiguousarray(B, dtype=np.float64)
@@ -95,7 +97,8 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     span = span if span > 0 else 1.0
     lo = lo - 1e-6 * span
     span *= 1 + 2e-6
-    n = resolution or int(np.clip(8 * np.sqrt(len(seg_ids)), 32, 256))
+    k = len(seg_ids)
+    n = resolution or int(np.clip(min(16 * np.sqrt(k), np.sqrt(4e7 / k)), 32, 512))
     cs = span / n
     nx = max(1, int(np.ceil((hi[0] - lo[0]) / cs + 1e-9)))
     ny = max(1, int(np.ceil((hi[1] - lo[1]) / cs + 1e-9)))
@@ -105,7 +108,11 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     np.cumsum(counts, out=start[1:])
     items = np.empty(int(start[-1]), dtype=np.int64)
     _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, False, start, items)
-    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, seg_ids)
+    E = B[items] - A[items]
+    ee = (E**2).sum(axis=1)
+    inv = np.divide(1.0, ee, out=np.zeros_like(ee), where=ee > 0)
+    coords = np.ascontiguousarray(np.hstack([A[items], E, inv[:, None]]))
+    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, seg_ids)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -121,21 +128,28 @@ def closest_point(px, py, A, B, grid):
     t : float
         Parameter of the closest point on the segment, in [0, 1].
     """
-    ox, oy, inv_cs, nx, ny, start, items, seg_ids = grid
-    i = int(math.floor((px - ox) * inv_cs))
-    j = int(math.floor((py - oy) * inv_cs))
+    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids = grid
+    fi = (px - ox) * inv_cs
+    fj = (py - oy) * inv_cs
     best = np.inf
     best_s = -1
     best_t = 0.0
-    if 0 <= i < nx and 0 <= j < ny:
-        c = j * nx + i
+    if 0.0 <= fi < nx and 0.0 <= fj < ny:
+        c = int(fj) * nx + int(fi)
         for k in range(start[c], start[c + 1]):
-            s = items[k]
-            d2, t = point_segment_d2(px, py, A[s, 0], A[s, 1], B[s, 0], B[s, 1])
+            wx = px - coords[k, 0]
+            wy = py - coords[k, 1]
+            ex = coords[k, 2]
+            ey = coords[k, 3]
+            t = min(max((wx * ex + wy * ey) * coords[k, 4], 0.0), 1.0)
+            dx = wx - t * ex
+            dy = wy - t * ey
+            d2 = dx * dx + dy * dy
             if d2 < best:
                 best = d2
-                best_s = s
+                best_s = k
                 best_t = t
+        best_s = items[best_s]
     else:
         for k in range(seg_ids.shape[0]):
             s = seg_ids[k]

@@ -137,6 +137,10 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         if len(L) < 3:
             raise InputError(source, f"loop {k} is open or degenerate: a closed loop needs at least "
                              f"3 distinct vertices, got {len(L)}")
+        span = float(np.linalg.norm(L.max(axis=0) - L.min(axis=0)))
+        C = L - L.mean(axis=0)
+        if np.linalg.svd(C, compute_uv=False)[-1] <= 1e-12 * max(span, 1e-300) * np.sqrt(len(L)):
+            raise InputError(source, f"loop {k} encloses zero area (its vertices are collinear)")
         clean.append(L)
         flags.append(nf)
         vals.append(v)

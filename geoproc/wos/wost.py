@@ -52,7 +52,13 @@ def silhouette_candidates(A: np.ndarray, B: np.ndarray, neumann: np.ndarray,
 
 @numba.njit(cache=True, nogil=True)
 def closest_silhouette_d2(px, py, U, V, Wn, limit2):
-    """Squared distance to the closest silhouette vertex (or ``limit2`` if none is closer)."""
+    """Squared distance to the closest silhouette vertex (or ``limit2`` if none is closer).
+
+    A vertex is a silhouette when ``p`` lies strictly on opposite sides of its two
+    segments' lines, or on one of those lines (up to round-off) at a reflex vertex:
+    from a point on a Neumann segment the line through a reflex end of that segment
+    bounds what the point sees, inside the domain.
+    """
     best = limit2
     for k in range(V.shape[0]):
         dx = V[k, 0] - px
@@ -60,9 +66,18 @@ def closest_silhouette_d2(px, py, U, V, Wn, limit2):
         d2 = dx * dx + dy * dy
         if d2 >= best:
             continue
-        o1 = (V[k, 0] - U[k, 0]) * (py - U[k, 1]) - (V[k, 1] - U[k, 1]) * (px - U[k, 0])
-        o2 = (Wn[k, 0] - V[k, 0]) * (py - V[k, 1]) - (Wn[k, 1] - V[k, 1]) * (px - V[k, 0])
+        ex1 = V[k, 0] - U[k, 0]
+        ey1 = V[k, 1] - U[k, 1]
+        ex2 = Wn[k, 0] - V[k, 0]
+        ey2 = Wn[k, 1] - V[k, 1]
+        o1 = ex1 * (py - U[k, 1]) - ey1 * (px - U[k, 0])
+        o2 = ex2 * (py - V[k, 1]) - ey2 * (px - V[k, 0])
         if (o1 > 0.0 and o2 < 0.0) or (o1 < 0.0 and o2 > 0.0):
+            best = d2
+            continue
+        tol = 1e-9 * (abs(ex1) + abs(ey1) + abs(ex2) + abs(ey2)) * (math.sqrt(d2) + abs(ex1) + abs(ey1))
+        reflex = ex1 * ey2 - ey1 * ex2 < 0.0
+        if reflex and (abs(o1) <= tol or abs(o2) <= tol):
             best = d2
     return best
 
@@ -193,7 +208,7 @@ def wost_mixed(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid, nseg,
                 if d < eps or taken >= max_steps:
                     break
                 R2 = closest_silhouette_d2(px, py, U, V, Wn, d2)
-                R = max(math.sqrt(R2), eps)
+                R = max(math.sqrt(R2), 1e-3 * eps)
                 if use_flux:
                     f, state = _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts,
                                           ckind, KP, KQ, W, ARC, state)

@@ -1,0 +1,134 @@
+"""``geoproc wos-solve``: 2D Laplace problems by Walk on Spheres/Stars with control variates."""
+
+from __future__ import annotations
+
+import os
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from geoproc.errors import UsageError
+from geoproc_cli.common import CheckOpt, DebugOpt, QuietOpt, ReportOpt, command_run
+
+
+class Method(str, Enum):
+    naive = "naive"
+    cv_green = "cv-green"
+    cv_angle = "cv-angle"
+    npass = "npass"
+
+
+def _need_ext(path: str, ext: str, option: str) -> None:
+    if not path.lower().endswith(ext):
+        raise UsageError(f"{option} {path}: must end in {ext}")
+
+
+def wos_solve(
+    domain: Annotated[str, typer.Argument(
+        help="Domain: a JSON file {\"loops\": [[[x, y], ...], ...], \"neumann\": [loop indices or "
+             "[loop, segment] pairs], \"values\": [[per-vertex values], ...]}, or a binary mask "
+             "image (any format OpenImageIO reads; foreground = first channel > 0.5, traced to "
+             "polylines in pixel units, y up).", metavar="DOMAIN", show_default=False)],
+    output: Annotated[str, typer.Option("--output", "-o", help="Solution image: one-channel float "
+                                        "EXR over the domain's bounding box, NaN outside.",
+                                        metavar="U.exr", show_default=False)],
+    boundary: Annotated[str | None, typer.Option(
+        "--boundary", help="Dirichlet data as an expression in x and y: numbers, + - * / **, "
+        "parentheses, sin cos tan exp log sqrt abs atan2 sinh cosh, pi, e. Default: the "
+        "JSON's per-vertex 'values'.", metavar="'EXPR'", show_default=False)] = None,
+    neumann: Annotated[str | None, typer.Option(
+        "--neumann", help="Flux du/dn (outward normal) on the segments the JSON marks Neumann, "
+        "as an expression; marked segments without it have zero flux.", metavar="'EXPR'",
+        show_default=False)] = None,
+    method: Annotated[Method, typer.Option(
+        "--method", help="naive: plain walks; cv-green / cv-angle: fit a control variate of "
+        "Green / segment-angle kernels, then walk the residual; npass: cv-green refined by Adam "
+        "on fresh walk batches.")] = Method.naive,
+    walks: Annotated[int, typer.Option("--walks", help="Walks per grid point.", min=1)] = 128,
+    grid: Annotated[int, typer.Option("--grid", help="Pixels along the bounding box's longer side.",
+                                      min=1)] = 256,
+    epsilon: Annotated[float, typer.Option("--epsilon", help="Stopping distance to the Dirichlet "
+                                           "boundary, in domain length units.")] = 1e-3,
+    kernels: Annotated[int, typer.Option("--kernels", help="Control-variate kernels.", min=1)] = 80,
+    fit_walks: Annotated[int, typer.Option("--fit-walks", help="Walks per fit point.", min=1)] = 128,
+    fit_points: Annotated[int | None, typer.Option(
+        "--fit-points", help="Fit points spread in the domain [default: 8 x kernels].", min=1,
+        show_default=False)] = None,
+    ridge: Annotated[float, typer.Option("--ridge", help="Ridge weight of the fit (on unit-RMS "
+                                         "kernel columns).")] = 0.1,
+    seed: Annotated[int, typer.Option("--seed", help="Random seed; same seed, same output bytes.",
+                                      min=0)] = 0,
+    exact: Annotated[bool, typer.Option(
+        "--exact", help="Declare --boundary harmonic, hence the exact solution: report rmse, "
+        "max_abs_error and bias over grid points inside and farther than 2 epsilon from the "
+        "boundary.")] = False,
+    error_image: Annotated[str | None, typer.Option(
+        "--error-image", help="PNG of the absolute error (needs --exact).", metavar="E.png",
+        show_default=False)] = None,
+    image: Annotated[str | None, typer.Option("--image", help="Colormapped PNG of the solution "
+                                              "with contour lines.", metavar="U.png",
+                                              show_default=False)] = None,
+    report: ReportOpt = None,
+    check: CheckOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Solve the Laplace equation on a 2D domain by Walk on Spheres (Dirichlet) or Walk on
+    Stars (mixed Dirichlet/Neumann), optionally with a harmonic control variate.
+
+    The report holds walks, total_steps, steps_per_second, fit_seconds and
+    residual_seconds (and rmse, max_abs_error, bias with --exact); all are
+    metrics for --check, e.g. --check 'rmse<=0.01'.
+    """
+    params = {"domain": domain, "boundary": boundary, "neumann": neumann, "method": method.value,
+              "walks": walks, "grid": grid, "epsilon": epsilon, "kernels": kernels,
+              "fit_walks": fit_walks, "fit_points": fit_points, "ridge": ridge, "seed": seed,
+              "exact": exact}
+    with command_run("wos-solve", params, report=Path(report) if report else None, checks=check,
+                     quiet=quiet, debug=debug) as run:
+        from geoproc.wos import load_domain, parse_expression, solve_laplace
+        from geoproc.wos.images import exr_bytes, png_bytes
+
+        _need_ext(output, ".exr", "-o")
+        if image:
+            _need_ext(image, ".png", "--image")
+        if error_image:
+            _need_ext(error_image, ".png", "--error-image")
+            if not exact:
+                raise UsageError("--error-image needs --exact (the error is against the exact solution)")
+        g = parse_expression(boundary, "--boundary") if boundary is not None else None
+        h = parse_expression(neumann, "--neumann") if neumann is not None else None
+        with run.timer("load"):
+            dom = load_domain(domain)
+        run.add_input(domain)
+        if not domain.lower().endswith(".json"):
+            run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
+                     f"area {dom.area:.6g} px^2")
+        with run.timer("solve"), run.progress("walking", 1.0) as update:
+            res = solve_laplace(dom, g, flux=h, method=method.value, walks=walks, grid=grid,
+                                eps=epsilon, kernels=kernels, fit_walks=fit_walks,
+                                fit_points_n=fit_points, ridge=ridge, seed=seed, exact=exact,
+                                progress=update)
+        run.metrics.update(res.metrics)
+        gs = res.grid
+        extent = (gs.x0, gs.x0 + gs.nx * gs.h, gs.y1 - gs.ny * gs.h, gs.y1)
+        with run.timer("write"):
+            run.write_bytes(output, exr_bytes(res.U))
+            name = os.path.basename(domain)
+            if image:
+                run.write_bytes(image, png_bytes(res.U, extent, f"{name}: {method.value}, "
+                                                 f"{walks} walks/point"))
+            if error_image:
+                err = np.abs(res.U - res.exact)
+                err[~res.scored] = np.nan
+                run.write_bytes(error_image, png_bytes(
+                    err, extent, f"{name}: |error|, {method.value}, rmse "
+                    f"{res.metrics['rmse']:.3g}", cmap="magma", contours=0, label="|u - exact|"))
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``wos-solve`` to the application."""
+    app.command("wos-solve")(wos_solve)

@@ -1,0 +1,88 @@
+"""Image outputs: one-channel float EXR (OpenImageIO) and colormapped PNG (matplotlib Agg)."""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+
+import numpy as np
+
+
+def exr_bytes(U: np.ndarray) -> bytes:
+    """Encode a (H, W) float array as a one-channel float32 OpenEXR file (NaN kept).
+
+    Row 0 is the top of the image.
+    """
+    import OpenImageIO as oiio
+
+    U = np.ascontiguousarray(U, dtype=np.float32)
+    H, W = U.shape
+    spec = oiio.ImageSpec(W, H, 1, oiio.FLOAT)
+    spec.channelnames = ("Y",)
+    spec.attribute("compression", "zip")
+    fd, tmp = tempfile.mkstemp(suffix=".exr")
+    os.close(fd)
+    try:
+        out = oiio.ImageOutput.create(tmp)
+        if out is None or not out.open(tmp, spec):
+            raise RuntimeError(f"OpenImageIO cannot write EXR: {oiio.geterror()}")
+        ok = out.write_image(U)
+        out.close()
+        if not ok:
+            raise RuntimeError(f"OpenImageIO failed writing EXR: {out.geterror()}")
+        with open(tmp, "rb") as fh:
+            return fh.read()
+    finally:
+        os.unlink(tmp)
+
+
+def read_exr(path: str) -> np.ndarray:
+    """Read a one-channel EXR written by :func:`exr_bytes` back to (H, W) float32."""
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(path)
+    px = np.asarray(buf.get_pixels(oiio.FLOAT))
+    return px[..., 0] if px.ndim == 3 else px
+
+
+def png_bytes(U: np.ndarray, extent: tuple[float, float, float, float], title: str,
+              cmap: str = "viridis", contours: int = 12, label: str = "u") -> bytes:
+    """Colormapped PNG of a (H, W) field with contour lines; NaN pixels transparent.
+
+    Parameters
+    ----------
+    U : (H, W) float
+        Row 0 at the top.
+    extent : (xmin, xmax, ymin, ymax)
+        Domain coordinates of the image edges.
+    title : str
+    cmap : str
+        Matplotlib colormap name.
+    contours : int
+        Number of contour levels (0: none).
+    label : str
+        Colorbar label.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    H, W = U.shape
+    aspect = H / W
+    fig = Figure(figsize=(6.0, max(2.5, 5.0 * aspect)), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    im = ax.imshow(np.ma.masked_invalid(U), cmap=cmap, extent=extent, origin="upper",
+                   interpolation="nearest")
+    finite = np.isfinite(U)
+    if contours and finite.sum() > 4 and np.nanmax(U) > np.nanmin(U) and min(H, W) > 2:
+        xs = np.linspace(extent[0], extent[1], W + 1)
+        ys = np.linspace(extent[3], extent[2], H + 1)
+        xc, yc = (xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2
+        ax.contour(xc, yc, np.ma.masked_invalid(U), levels=contours, colors="k", linewidths=0.5)
+    fig.colorbar(im, ax=ax, label=label)
+    ax.set_title(title, fontsize=9)
+    ax.set_aspect("equal")
+    bio = io.BytesIO()
+    fig.savefig(bio, format="png", metadata={"Software": None})
+    return bio.getvalue()

@@ -1,0 +1,90 @@
+"""Domains: JSON loading, validation, orientation; mask images traced to loops."""
+
+import json
+
+import numpy as np
+import pytest
+
+from geoproc.errors import InputError
+from geoproc.wos.domain import build_domain, load_domain_json, loop_signed_area
+from geoproc.wos.mask import load_domain_mask, read_mask, trace_mask
+
+from .wos_helpers import wos_fixtures
+
+wf = wos_fixtures()
+
+
+def test_orientation_outer_ccw_holes_cw_and_area():
+    # hole given counter-clockwise, outer clockwise: both must be flipped
+    outer = [[0, 0], [0, 4], [4, 4], [4, 0]]
+    hole = [[1, 1], [2, 1], [2, 2], [1, 2]]
+    d = build_domain([outer, hole])
+    assert loop_signed_area(d.loops[0]) == pytest.approx(16.0)
+    assert loop_signed_area(d.loops[1]) == pytest.approx(-1.0)
+    assert d.area == pytest.approx(15.0)
+    # the domain lies on the left of every segment: left normals point inside
+    mid = (d.A + d.B) / 2
+    E = d.B - d.A
+    left = np.c_[-E[:, 1], E[:, 0]] / np.linalg.norm(E, axis=1)[:, None]
+    assert d.contains(mid + 1e-3 * left).all()
+    assert not d.contains(mid - 1e-3 * left).any()
+
+
+def test_neumann_flags_follow_reversed_loops(tmp_path):
+    # clockwise rectangle: bottom edge written as segment 2 ((2,0)->(0,0)), top as segment 0
+    doc = {"loops": [[[0, 1], [2, 1], [2, 0], [0, 0]]], "neumann": [[0, 0], [0, 2]]}
+    p = tmp_path / "r.json"
+    p.write_text(json.dumps(doc))
+    d = load_domain_json(str(p))
+    ys = (d.A[:, 1] + d.B[:, 1]) / 2
+    horizontal = d.A[:, 1] == d.B[:, 1]
+    assert set(np.flatnonzero(d.neumann)) == set(np.flatnonzero(horizontal))
+    assert sorted(ys[d.neumann]) == [0.0, 1.0]
+
+
+@pytest.mark.parametrize("loops,match", [
+    ([[[0, 0], [1, 1], [1, 0], [0, 1]]], "intersects itself"),
+    ([[[0, 0], [2, 0], [2, 2], [0, 2]], [[1, 1], [3, 1], [3, 3], [1, 3]]], "loops 0 and 1 intersect"),
+    ([[[0, 0], [1, 0]]], "open or degenerate"),
+    ([[[0, 0], [1, 0], [2, 0]]], "zero area"),
+    ([[[0, 0], [1, 0], [float("nan"), 1]]], "non-finite"),
+    ([[[0, 0], [2, 0], [2, 2], [0, 2]], [[1, 0], [1.5, 1], [0.5, 1]]], "intersect"),
+])
+def test_bad_loops_raise_input_error(loops, match):
+    with pytest.raises(InputError, match=match):
+        build_domain(loops)
+
+
+def test_generated_domains_are_valid():
+    for name, dom, _ in wf.domains():
+        d = build_domain(dom["loops"])
+        assert d.area > 0, name
+
+
+@pytest.mark.parametrize("radius,hole", [(30.0, 0.0), (40.0, 15.0)])
+def test_mask_traces_to_pixel_area(tmp_path, radius, hole):
+    mask = wf.disk_mask(100, radius, hole)
+    path = tmp_path / "m.png"
+    wf.write_mask(path, mask)
+    assert np.array_equal(read_mask(str(path)), mask)
+    d = load_domain_mask(str(path))
+    assert len(d.loops) == (2 if hole else 1)
+    # marching squares at the 0.5 level: traced area equals the pixel count up to the
+    # corner cuts along the outline (well under 1 % here)
+    assert d.area == pytest.approx(mask.sum(), rel=0.01)
+    assert d.area == pytest.approx(np.pi * (radius**2 - hole**2), rel=0.02)
+
+
+def test_mask_coordinates_are_pixel_units_y_up():
+    mask = np.zeros((10, 20), bool)
+    mask[1:3, 4:9] = True  # rows 1-2 (top of the image), columns 4-8
+    (L,) = trace_mask(mask)
+    assert L[:, 0].min() == pytest.approx(4.0, abs=0.5) and L[:, 0].max() == pytest.approx(9.0, abs=0.5)
+    assert L[:, 1].min() == pytest.approx(7.0, abs=0.5) and L[:, 1].max() == pytest.approx(9.0, abs=0.5)
+
+
+def test_mask_without_foreground(tmp_path):
+    path = tmp_path / "empty.png"
+    wf.write_mask(path, np.zeros((16, 16), bool))
+    with pytest.raises(InputError, match="no foreground"):
+        load_domain_mask(str(path))

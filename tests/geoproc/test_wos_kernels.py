@@ -1,0 +1,121 @@
+"""Harmonic kernels: Laplacian ~ 0 by finite differences, gradients, fast evaluation paths."""
+
+import numpy as np
+import pytest
+
+from geoproc.wos.domain import build_domain
+from geoproc.wos.fit import angle_kernels, green_kernels
+from geoproc.wos.kernels import (
+    ANGLE,
+    GREEN,
+    cv_gradient,
+    cv_value,
+    green_kernel,
+    kernel_matrix,
+    kernel_normal_matrix,
+    segment_angle_kernel,
+)
+from geoproc.wos.problem import WalkProblem
+
+from .wos_helpers import wos_fixtures
+
+wf = wos_fixtures()
+# step of the 5-point Laplacian: truncation ~ h^2 |d4 phi| / 6, round-off ~ 4 eps |phi| / h^2
+H = 1e-4
+
+
+def _laplacian(f, X):
+    e = np.array([[H, 0.0]]), np.array([[0.0, H]])
+    return (f(X + e[0]) + f(X - e[0]) + f(X + e[1]) + f(X - e[1]) - 4 * f(X)) / H**2
+
+
+def test_green_kernel_is_harmonic_away_from_center():
+    rng = np.random.default_rng(0)
+    Y = np.array([[2.0, -1.0], [-1.5, 0.5]])
+    X = rng.uniform(-1, 1, (40, 2))
+    lap = _laplacian(lambda P: green_kernel(P, Y), X)
+    # |d2 phi| ~ 1/(2 pi r^2) ~ 0.1 here, so a non-harmonic error would be that large
+    assert np.abs(lap).max() < 1e-5
+    # and it is the fundamental solution: the flux through a circle around the center is -1
+    t = np.linspace(0, 2 * np.pi, 2001)[:-1]
+    C = Y[0] + 0.3 * np.c_[np.cos(t), np.sin(t)]
+    flux = (kernel_normal_matrix(C, np.c_[np.cos(t), np.sin(t)],
+                                 _single_green(Y[0]))[:, 0] * 0.3 * 2 * np.pi / len(t)).sum()
+    assert flux == pytest.approx(-1.0, abs=1e-9)
+
+
+def _single_green(y):
+    from geoproc.wos.kernels import KernelSet
+
+    P = np.asarray([y], dtype=float)
+    return KernelSet(GREEN, P, P.copy(), np.zeros(1, dtype=np.int64), 1)
+
+
+def test_segment_angle_kernel_is_harmonic_off_segment():
+    rng = np.random.default_rng(1)
+    A = np.array([[0.0, 0.0], [1.0, -0.5]])
+    B = np.array([[1.0, 0.2], [0.3, 1.5]])
+    X = rng.uniform(-1, 2, (400, 2))
+    # stay away from the segments (where the kernel jumps by 2 pi) and their endpoints
+    from geoproc.wos.closest import build_segment_grid, closest_points
+
+    d, _, _ = closest_points(X, A, B, build_segment_grid(A, B))
+    X = X[d > 0.2]
+    lap = _laplacian(lambda P: segment_angle_kernel(P, A, B), X)
+    # at r >= 0.2 the single second derivatives reach 1/r^2 ~ 25; their sum must vanish
+    # up to h^2 |d4| / 6 ~ 1e-6 and round-off ~ 1e-7
+    assert np.abs(lap).max() < 2e-5
+    # the angle a segment subtends at a point on its left is positive, and pi just beside it
+    assert segment_angle_kernel(np.array([[0.5, 1e-9]]), np.array([[0.0, 0.0]]),
+                                np.array([[1.0, 0.0]]))[0, 0] == pytest.approx(np.pi, abs=1e-6)
+
+
+def test_closed_loop_angle_sum_is_winding_number():
+    d = build_domain(wf.glyph("B", 128)["loops"])
+    ks = angle_kernels(d, 20)
+    rng = np.random.default_rng(2)
+    lo, hi = d.bbox
+    X = rng.uniform(lo, hi, (300, 2))
+    total = kernel_matrix(X, ks).sum(axis=1)
+    np.testing.assert_allclose(total, np.where(d.contains(X), 2 * np.pi, 0.0), atol=1e-9)
+
+
+@pytest.mark.parametrize("family", ["green", "angle"])
+def test_numba_value_and_gradient_match_numpy(family):
+    d = build_domain(wf.star(128, 5, 0.3)["loops"])
+    pb = WalkProblem(d, None if False else _expr("x"), None, 1e-3)
+    ks = green_kernels(d, 30, pb.distance) if family == "green" else angle_kernels(d, 30)
+    sigma = np.random.default_rng(3).standard_normal(ks.M)
+    W = ks.weights(sigma)
+    rng = np.random.default_rng(4)
+    X = rng.uniform(-1.4, 1.4, (300, 2))
+    X = X[pb.distance(X) > 1e-2]
+    want = kernel_matrix(X, ks) @ sigma
+    got = np.array([cv_value(x, y, ks.kind, ks.P, ks.Q, W, ks.arcs, ks.boxes) for x, y in X])
+    # the angle kernel's chord shortcut equals the per-segment sum (no 2 pi jumps)
+    np.testing.assert_allclose(got, want, atol=1e-9)
+    for nrm in (np.array([1.0, 0.0]), np.array([0.0, 1.0])):
+        g_np = kernel_normal_matrix(X, np.tile(nrm, (len(X), 1)), ks) @ sigma
+        g_nb = np.array([np.dot(cv_gradient(x, y, ks.kind, ks.P, ks.Q, W, ks.arcs), nrm)
+                         for x, y in X])
+        np.testing.assert_allclose(g_nb, g_np, rtol=1e-9, atol=1e-9)
+        fd = (kernel_matrix(X + 1e-6 * nrm, ks) - kernel_matrix(X - 1e-6 * nrm, ks)) @ sigma / 2e-6
+        np.testing.assert_allclose(g_np, fd, rtol=1e-4, atol=1e-4)
+    assert ks.kind == (GREEN if family == "green" else ANGLE)
+
+
+def test_green_centers_lie_outside_the_domain():
+    for name in ("u_shape", "square_holes", "glyph_B"):
+        dom = dict((n, dm) for n, dm, _ in wf.domains())[name]
+        d = build_domain(dom["loops"])
+        pb = WalkProblem(d, _expr("x"), None, 1e-3)
+        ks = green_kernels(d, 80, pb.distance)
+        assert ks.M >= 60, name
+        assert not d.contains(ks.P).any(), name
+        assert pb.distance(ks.P).min() > 0, name
+
+
+def _expr(text):
+    from geoproc.wos.expression import parse_expression
+
+    return parse_expression(text)

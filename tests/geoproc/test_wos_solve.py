@@ -1,0 +1,164 @@
+"""Walk on Spheres / Stars estimates against analytic harmonic solutions."""
+
+import numba
+import numpy as np
+import pytest
+
+from geoproc.wos.closest import build_segment_grid, closest_points
+from geoproc.wos.domain import build_domain
+from geoproc.wos.expression import evaluate, parse_expression
+from geoproc.wos.problem import WalkProblem, pass_seed
+from geoproc.wos.solve import solve_laplace
+
+from .wos_helpers import wos_fixtures
+
+wf = wos_fixtures()
+RE_Z3 = parse_expression("x**3 - 3*x*y**2")
+DISK = build_domain(wf.disk(256)["loops"])
+POINTS = np.array([[0.0, 0.0], [0.5, 0.2], [-0.3, -0.6], [0.85, -0.1], [-0.2, 0.93]])
+
+
+def test_closest_points_match_brute_force():
+    d = build_domain(wf.square_with_holes(200)["loops"])
+    rng = np.random.default_rng(0)
+    P = rng.uniform(-1.5, 1.5, (3000, 2))  # some outside the grid: brute-force fallback
+    dist, seg, t = closest_points(P, d.A, d.B, build_segment_grid(d.A, d.B))
+    E = d.B - d.A
+    W = P[:, None, :] - d.A[None]
+    tt = np.clip((W * E).sum(-1) / (E * E).sum(-1), 0, 1)
+    D = np.linalg.norm(W - tt[..., None] * E, axis=-1)
+    np.testing.assert_allclose(dist, D.min(axis=1), rtol=0, atol=1e-12)
+    Q = d.A[seg] + t[:, None] * E[seg]
+    np.testing.assert_allclose(np.linalg.norm(P - Q, axis=1), dist, atol=1e-12)
+
+
+def _seed_errors(problem, X, exact, walks, seeds, kernels=None, sigma=None):
+    errs = np.array([problem.estimate(X, walks, pass_seed(s, 7), 0, kernels, sigma)[0] - exact
+                     for s in range(seeds)])
+    return errs.mean(axis=0), errs.std(axis=0, ddof=1) / np.sqrt(seeds)
+
+
+def test_naive_walks_are_unbiased():
+    pb = WalkProblem(DISK, RE_Z3, None, 1e-4)
+    exact = evaluate(RE_Z3, POINTS[:, 0], POINTS[:, 1])
+    mean, se = _seed_errors(pb, POINTS, exact, 256, 16)
+    assert (np.abs(mean) <= 3 * se).all(), (mean, se)
+    assert (se < 0.02).all()  # the check has teeth: 3 SE stays well below the data's range
+
+
+def test_control_variate_walks_are_unbiased():
+    from geoproc.wos.fit import green_kernels
+
+    pb = WalkProblem(DISK, RE_Z3, None, 1e-4)
+    ks = green_kernels(DISK, 40, pb.distance)
+    # a deliberately poor control variate (random coefficients) must not bias the estimate
+    sigma = np.random.default_rng(5).standard_normal(ks.M) * 0.05
+    exact = evaluate(RE_Z3, POINTS[:, 0], POINTS[:, 1])
+    mean, se = _seed_errors(pb, POINTS, exact, 256, 16, ks, sigma)
+    assert (np.abs(mean) <= 3 * se).all(), (mean, se)
+
+
+def test_rmse_falls_like_inverse_sqrt_walks():
+    walks = np.array([16, 64, 256])
+    rmse = np.array([solve_laplace(DISK, RE_Z3, walks=int(w), grid=24, exact=True, seed=3)
+                     .metrics["rmse"] for w in walks])
+    slope = np.polyfit(np.log(walks), np.log(rmse), 1)[0]
+    assert slope == pytest.approx(-0.5, abs=0.08), rmse
+
+
+def test_control_variates_reduce_rmse_on_disk_re_z3():
+    kw = dict(walks=32, grid=32, exact=True, seed=11, kernels=40)
+    rmse = {m: solve_laplace(DISK, RE_Z3, method=m, npass_steps=64, **kw).metrics["rmse"]
+            for m in ("naive", "cv-green", "cv-angle", "npass")}
+    assert rmse["cv-green"] < 0.2 * rmse["naive"], rmse
+    assert rmse["cv-angle"] < 0.5 * rmse["naive"], rmse
+    assert rmse["npass"] < 0.2 * rmse["naive"], rmse
+
+
+def test_same_seed_same_numbers_any_thread_count():
+    pb = WalkProblem(build_domain(wf.glyph("a", 128)["loops"]), RE_Z3, None, 1e-3)
+    from geoproc.wos.solve import grid_over
+
+    P = grid_over(pb.domain, 12).points()
+    X = P[pb.domain.contains(P)]
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        a = pb.estimate(X, 64, pass_seed(4, 2))
+        numba.set_num_threads(max(2, before) if numba.config.NUMBA_NUM_THREADS > 1 else 1)
+        b = pb.estimate(X, 64, pass_seed(4, 2))
+    finally:
+        numba.set_num_threads(before)
+    c = pb.estimate(X, 64, pass_seed(5, 2))
+    assert len(X) >= 40
+    for u, v in zip(a, b, strict=True):
+        assert np.array_equal(u, v)
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_grid_points_on_the_boundary_take_the_boundary_value():
+    # square with a square hole whose sides pass through pixel centers (grid 4 -> h = 0.25)
+    d = build_domain([[[0, 0], [1, 0], [1, 1], [0, 1]],
+                      [[0.375, 0.375], [0.625, 0.375], [0.625, 0.625], [0.375, 0.625]]])
+    g = parse_expression("exp(x)*cos(y)")
+    r = solve_laplace(d, g, walks=4, grid=4, exact=True, seed=0)
+    ys, xs = np.mgrid[0:4, 0:4]
+    X, Y = (xs + 0.5) * 0.25, 1 - (ys + 0.5) * 0.25
+    in_hole = (X >= 0.375) & (X <= 0.625) & (Y >= 0.375) & (Y <= 0.625)
+    on_hole = in_hole & (np.isin(X, [0.375, 0.625]) | np.isin(Y, [0.375, 0.625]))
+    assert on_hole.sum() == 4
+    np.testing.assert_allclose(r.U[on_hole], np.exp(X[on_hole]) * np.cos(Y[on_hole]), rtol=0, atol=1e-12)
+
+
+def test_per_vertex_values_interpolate_linearly():
+    loops = wf.star(96, 3, 0.25)["loops"]
+    L = np.asarray(loops[0])
+    d = build_domain(loops, values=[2 * L[:, 0] - L[:, 1] + 0.5])
+    r = solve_laplace(d, None, walks=64, grid=20, seed=0, method="cv-green", kernels=24)
+    gs = r.grid
+    P = gs.points().reshape(gs.ny, gs.nx, 2)
+    ok = np.isfinite(r.U)
+    err = r.U[ok] - (2 * P[ok][:, 0] - P[ok][:, 1] + 0.5)
+    assert np.sqrt(np.mean(err**2)) < 0.01
+
+
+# ---- Neumann: Walk on Stars --------------------------------------------------
+
+RECT = build_domain(wf.rectangle_neumann()["loops"], neumann_segments=[np.array([1, 0, 1, 0], bool)])
+RECT_PTS = np.array([[0.3, 0.5], [1.0, 0.1], [1.7, 0.9], [1.0, 0.5]])
+
+
+# flux = du/dn with the outward normal: (0, -1) at the bottom y = 0, (0, 1) at the top y = 1
+@pytest.mark.parametrize("u,flux", [("x", None), ("y", "2*y - 1"), ("x*y - 0.5*x", "x*(2*y - 1)")])
+def test_wost_rectangle_with_flux_is_unbiased(u, flux):
+    g = parse_expression(u)
+    h = parse_expression(flux) if flux else None
+    pb = WalkProblem(RECT, g, h, 1e-3)
+    exact = evaluate(g, RECT_PTS[:, 0], RECT_PTS[:, 1])
+    mean, se = _seed_errors(pb, RECT_PTS, exact, 128, 12)
+    assert (np.abs(mean) <= 3 * se + 2e-3).all(), (mean, se)  # + O(eps) shell bias
+    assert (se < 0.05).all()
+
+
+def test_wost_reflex_sector_zero_flux():
+    dom = wf.reflex_sector(96)
+    flags = np.zeros(len(dom["loops"][0]), bool)
+    flags[[0, -1]] = True
+    d = build_domain(dom["loops"], neumann_segments=[flags])
+    g = parse_expression("-(x*x + y*y)**(1/3) * sin(2*atan2(y, x)/3)")
+    pb = WalkProblem(d, g, None, 1e-3)
+    X = np.array([[0.5, 0.0], [-0.3, 0.4], [-0.2, -0.5], [0.2, 0.7], [0.05, 0.02]])
+    assert d.contains(X).all()
+    exact = evaluate(g, X[:, 0], X[:, 1])
+    mean, se = _seed_errors(pb, X, exact, 128, 12)
+    assert (np.abs(mean) <= 3 * se + 2e-3).all(), (mean, se)
+
+
+def test_control_variate_on_mixed_problem():
+    g = parse_expression("x*y - 0.5*x")
+    h = parse_expression("x*(2*y - 1)")
+    kw = dict(flux=h, walks=32, grid=24, exact=True, seed=2, kernels=40)
+    naive = solve_laplace(RECT, g, **kw).metrics
+    cv = solve_laplace(RECT, g, method="cv-green", **kw).metrics
+    assert cv["rmse"] < 0.3 * naive["rmse"], (cv["rmse"], naive["rmse"])
+    assert abs(cv["bias"]) < 3 * cv["rmse"] / np.sqrt(cv["error_points"]) + 2e-3
