@@ -1,0 +1,170 @@
+"""Discrete gradient, critical cells and lower-star persistence against
+independent references: known answers and gudhi's lower-star persistence."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from geoproc.mesh import load_mesh
+from geoproc.morse import (
+    DiscreteGradient,
+    discrete_gradient,
+    find_closed_vpath,
+    lower_star_persistence,
+    surface_complex,
+    vertex_order,
+)
+
+gudhi = pytest.importorskip("gudhi")
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _fixtures():
+    spec = importlib.util.spec_from_file_location("morse_fixtures", ROOT / "fixtures" / "morse_fixtures.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+mfx = _fixtures()
+
+
+def gudhi_diagrams(F: np.ndarray, f: np.ndarray) -> list[np.ndarray]:
+    """Lower-star persistence by gudhi: every simplex at the max of its vertex
+    values (vertices, then edges, then triangles inserted in batches)."""
+    st = gudhi.SimplexTree()
+    st.insert_batch(np.arange(len(f))[None, :], f)
+    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+    st.insert_batch(E.T, f[E].max(axis=1))
+    st.insert_batch(F.T, f[F].max(axis=1))
+    st.compute_persistence(homology_coeff_field=2, min_persistence=-1, persistence_dim_max=True)
+    return [st.persistence_intervals_in_dimension(d).reshape(-1, 2) for d in range(3)]
+
+
+def positive(d: np.ndarray, at_least: float = 0.0) -> np.ndarray:
+    """Pairs with persistence > 0 (and >= at_least), sorted rows."""
+    p = d[:, 1] - d[:, 0]
+    d = d[(p > 0) & (p >= at_least)]
+    return d[np.lexsort((d[:, 1], d[:, 0]))]
+
+
+def critical_sets(pp):
+    c0 = set(pp.min_vertex.tolist()) | set(pp.essential_vertices.tolist())
+    c1 = set(pp.min_saddle_edge.tolist()) | set(pp.saddle_edge.tolist()) | set(pp.essential_edges.tolist())
+    c2 = set(pp.max_triangle.tolist()) | set(pp.essential_triangles.tolist())
+    return c0, c1, c2
+
+
+SHARED = [("bunny.off", 1), ("camelhead.off", 1), ("fertility.off", 2), ("spot.obj", 1)]
+
+
+@pytest.mark.parametrize("name,axis", SHARED)
+def test_pairs_match_gudhi_on_shared_meshes(shared_data, name, axis):
+    mesh = load_mesh(shared_data / "meshes" / name)
+    f = mfx.noisy_height(mesh.V, axis=axis, noise=0.02, seed=3)
+    cx = surface_complex(mesh.F, len(mesh.V))
+    pp = lower_star_persistence(cx, f)
+    ref = gudhi_diagrams(mesh.F, f)
+    P = 0.02 * (f.max() - f.min())
+    for dim in range(3):
+        ours, theirs = positive(pp.diagram(dim)), positive(ref[dim])
+        assert ours.shape == theirs.shape, (name, dim)
+        np.testing.assert_allclose(ours, theirs, rtol=0, atol=0)
+        assert len(positive(pp.diagram(dim), P)) == len(positive(ref[dim], P))
+    # Betti numbers (Z/2) from gudhi's essential classes
+    assert pp.betti == tuple(int(np.isinf(ref[d][:, 1]).sum()) for d in range(3))
+
+
+@pytest.mark.parametrize("name,axis", SHARED)
+def test_gradient_is_acyclic_and_critical_cells_are_the_pairs(shared_data, name, axis):
+    mesh = load_mesh(shared_data / "meshes" / name)
+    f = mfx.noisy_height(mesh.V, axis=axis, noise=0.02, seed=4)
+    cx = surface_complex(mesh.F, len(mesh.V))
+    grad = discrete_gradient(cx, f)
+    assert find_closed_vpath(cx, grad) is None
+    c0, c1, c2 = critical_sets(lower_star_persistence(cx, f))
+    assert set(grad.critical_vertices.tolist()) == c0
+    assert set(grad.critical_edges.tolist()) == c1
+    assert set(grad.critical_triangles.tolist()) == c2
+    assert len(c0) - len(c1) + len(c2) == cx.euler_characteristic
+    # every cell is critical or in exactly one pair
+    paired_v = int((grad.vertex_edge >= 0).sum())
+    paired_e = int((grad.edge_vertex >= 0).sum() + (grad.edge_triangle >= 0).sum())
+    paired_t = int((grad.triangle_edge >= 0).sum())
+    assert paired_v + len(c0) == cx.n
+    assert paired_e + len(c1) == cx.n_edges
+    assert paired_t + len(c2) == cx.n_faces
+
+
+def test_closed_vpath_is_detected(make_fixtures):
+    V, F = make_fixtures.grid(4)
+    cx = surface_complex(F, len(V))
+    f = V[:, 0] + 0.1 * V[:, 1]
+    grad = discrete_gradient(cx, f)
+    assert find_closed_vpath(cx, grad) is None
+    # a vertex cycle 0 -> 1 -> 5 -> 4 -> 0 around one grid cell (n = 4)
+    cyc = [0, 1, 5, 4]
+    ve = np.full(cx.n, -1)
+    ev = np.full(cx.n_edges, -1)
+    for a, b in zip(cyc, cyc[1:] + cyc[:1], strict=True):
+        e = int(np.flatnonzero((cx.E == sorted((a, b))).all(axis=1))[0])
+        ve[a], ev[e] = e, a
+    bad = DiscreteGradient(ve, ev, np.full(cx.n_edges, -1), np.full(cx.n_faces, -1),
+                           np.array([]), np.array([]), np.array([]), grad.rank)
+    found = find_closed_vpath(cx, bad)
+    assert found is not None and found[0] == 0 and sorted(found[1]) == sorted(cyc)
+
+
+def test_torus_height_has_one_minimum_two_saddles_one_maximum(make_fixtures):
+    V, F = make_fixtures.torus()
+    cx = surface_complex(F, len(V))
+    f = V[:, 0]  # height across the axis; many ties, broken by vertex index
+    grad = discrete_gradient(cx, f)
+    assert (len(grad.critical_vertices), len(grad.critical_edges), len(grad.critical_triangles)) == (1, 2, 1)
+    pp = lower_star_persistence(cx, f)
+    assert pp.betti == (1, 2, 1)
+    assert len(pp.min_vertex) == 0 and len(pp.saddle_edge) == 0
+    assert f[pp.essential_vertices[0]] == f.min()
+    assert f[pp.triangle_top[pp.essential_triangles[0]]] == f.max()
+
+
+def test_ties_are_broken_by_index():
+    order, rank = vertex_order(np.array([1.0, 0.0, 1.0, 0.0]))
+    assert order.tolist() == [1, 3, 0, 2]
+    assert rank.tolist() == [2, 0, 3, 1]
+
+
+def finite(d: np.ndarray, at_least: float) -> int:
+    return int(np.count_nonzero(np.isfinite(d[:, 1]) & (d[:, 1] - d[:, 0] >= at_least)))
+
+
+def test_disk_patch_with_boundary_known_answers():
+    V, F = mfx.disk_patch()
+    cx = surface_complex(F, len(V))
+    r2 = ((V[:, :2] - 0.5) ** 2).sum(axis=1)
+    noise = 1e-3 * np.random.default_rng(5).standard_normal(len(V))
+    # a bowl: one minimum, nothing else above the noise; a dome: the boundary
+    # closes a loop (a saddle on the boundary) that the top fills (a maximum)
+    for f, pairs0, pairs1 in [(r2 + noise, 0, 0), (-r2 + noise, 0, 1)]:
+        pp = lower_star_persistence(cx, f)
+        assert pp.betti == (1, 0, 0)
+        assert (finite(pp.diagram(0), 0.05), finite(pp.diagram(1), 0.05)) == (pairs0, pairs1)
+        ref = gudhi_diagrams(F, f)
+        for dim in range(3):
+            np.testing.assert_array_equal(positive(pp.diagram(dim)), positive(ref[dim]))
+
+
+def test_several_components():
+    V, F = mfx.two_spheres()
+    f = mfx.noisy_height(V, axis=2, noise=0.05, seed=6)
+    cx = surface_complex(F, len(V))
+    pp = lower_star_persistence(cx, f)
+    assert pp.betti == (2, 0, 2)
+    ref = gudhi_diagrams(F, f)
+    for dim in range(3):
+        np.testing.assert_array_equal(positive(pp.diagram(dim)), positive(ref[dim]))

@@ -1,0 +1,148 @@
+"""Topological simplification checked with gudhi (diagrams and bottleneck
+distance), known answers and the sup-norm bound."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoproc.mesh import load_mesh
+from geoproc.morse import discrete_gradient, lower_star_persistence, simplify_function, surface_complex
+
+gudhi = pytest.importorskip("gudhi")
+
+from tests.geoproc.test_morse import gudhi_diagrams, mfx  # noqa: E402
+
+
+def finite_pairs(d: np.ndarray, at_least: float = 0.0, strictly_positive: bool = False) -> np.ndarray:
+    d = d[np.isfinite(d[:, 1])]
+    p = d[:, 1] - d[:, 0]
+    keep = (p > 0) if strictly_positive else (p >= at_least)
+    return d[keep & (p >= at_least)]
+
+
+def check_simplification(V, F, f, P):
+    """The issue's checks, with gudhi computing both diagrams."""
+    cx = surface_complex(F, len(V))
+    s = simplify_function(cx, f, P)
+    g = s.g
+    assert len(np.unique(g)) == len(g)  # no ties
+    ref_f, ref_g = gudhi_diagrams(F, f), gudhi_diagrams(F, g)
+    for dim in (0, 1):
+        big = finite_pairs(ref_f[dim], P)
+        after = finite_pairs(ref_g[dim], strictly_positive=True)
+        assert len(after) == len(big), dim
+        if len(big):
+            assert gudhi.bottleneck_distance(big, after) <= P / 2 * (1 + 1e-9)
+    for dim in range(3):  # essential classes stay
+        assert np.isinf(ref_g[dim][:, 1]).sum() == np.isinf(ref_f[dim][:, 1]).sum()
+    # critical points of g: exactly the kept minima and maxima of f, as many
+    # saddles as needed; sorting g by (value, index) finds them
+    pf, pg = lower_star_persistence(cx, f), lower_star_persistence(cx, g)
+    pers0 = f[pf.edge_top[pf.min_saddle_edge]] - f[pf.min_vertex]
+    pers1 = f[pf.triangle_top[pf.max_triangle]] - f[pf.edge_top[pf.saddle_edge]]
+    kept_min = set(pf.min_vertex[pers0 >= P].tolist()) | set(pf.essential_vertices.tolist())
+    kept_max = set(pf.triangle_top[pf.max_triangle[pers1 >= P]].tolist()) | set(
+        pf.triangle_top[pf.essential_triangles].tolist())
+    gg = discrete_gradient(cx, g)
+    assert set(gg.critical_vertices.tolist()) == kept_min
+    assert set(pg.triangle_top[gg.critical_triangles].tolist()) == kept_max
+    c = (len(gg.critical_vertices), len(gg.critical_edges), len(gg.critical_triangles))
+    assert c[0] - c[1] + c[2] == cx.euler_characteristic
+    assert s.pairs_kept == len(finite_pairs(ref_f[0], P)) + len(finite_pairs(ref_f[1], P))
+    return s
+
+
+@pytest.mark.parametrize("P", [0.05, 0.5])
+def test_noisy_sphere_within_half_threshold(make_fixtures, P):
+    V, F = make_fixtures.icosphere(3)
+    f = V[:, 2] + 0.1 * np.random.default_rng(1).standard_normal(len(V))
+    s = check_simplification(V, F, f, P)
+    assert s.max_abs_change <= P / 2 * (1 + 1e-12)
+    assert len(s.widened_vertices) == 0
+
+
+def test_noisy_sphere_down_to_one_minimum_one_maximum(make_fixtures):
+    V, F = make_fixtures.icosphere(3)
+    f = V[:, 2] + 0.1 * np.random.default_rng(1).standard_normal(len(V))
+    cx = surface_complex(F, len(V))
+    before = discrete_gradient(cx, f)
+    assert len(before.critical_vertices) > 20
+    P = 3.0  # larger than every finite pair (the range of f is about 2.6)
+    s = check_simplification(V, F, f, P)
+    after = discrete_gradient(cx, s.g)
+    assert (len(after.critical_vertices), len(after.critical_edges), len(after.critical_triangles)) == (1, 0, 1)
+    assert after.critical_vertices[0] == np.argmin(f)
+    assert s.max_abs_change <= P / 2
+
+
+def test_open_disk_patch():
+    V, F = mfx.disk_patch()
+    r2 = ((V[:, :2] - 0.5) ** 2).sum(axis=1)
+    f = -r2 + 0.01 * np.random.default_rng(7).standard_normal(len(V))
+    s = check_simplification(V, F, f, 0.1)  # boundary notches make pairs up to ~0.05
+    cx = surface_complex(F, len(V))
+    after = discrete_gradient(cx, s.g)
+    # the dome: one minimum, the boundary saddle, the top
+    assert (len(after.critical_vertices), len(after.critical_edges), len(after.critical_triangles)) == (1, 1, 1)
+
+
+def test_several_components():
+    V, F = mfx.two_spheres()
+    f = mfx.noisy_height(V, axis=2, noise=0.05, seed=8)
+    check_simplification(V, F, f, 0.1 * (f.max() - f.min()))
+
+
+def test_threshold_zero_keeps_f():
+    V, F = mfx.two_spheres(1)
+    f = mfx.noisy_height(V, seed=9)
+    cx = surface_complex(F, len(V))
+    s = simplify_function(cx, f, 0.0)
+    np.testing.assert_array_equal(s.g, f)
+    assert s.pairs_removed == 0
+
+
+SHARED = [("bunny.off", 1, 0.01), ("camelhead.off", 1, 0.05), ("fertility.off", 2, 0.02), ("spot.obj", 1, 0.05)]
+
+
+@pytest.mark.parametrize("name,axis,rel", SHARED)
+def test_shared_meshes_noisy_height(shared_data, name, axis, rel):
+    mesh = load_mesh(shared_data / "meshes" / name)
+    f = mfx.noisy_height(mesh.V, axis=axis, noise=0.02, seed=10)
+    P = rel * (f.max() - f.min())
+    s = check_simplification(mesh.V, mesh.F, f, P)
+    # sup-norm: within P/2 away from the reported vertices, and within P there
+    # (the piecewise-linear limit where a cancelled basin and peak meet)
+    inside = np.ones(len(f), dtype=bool)
+    inside[s.widened_vertices] = False
+    assert np.abs(s.g - f)[inside].max() <= P / 2 * (1 + 1e-12)
+    assert s.max_abs_change <= P * (1 + 1e-12)
+
+
+def test_monkey_saddle_limit_of_piecewise_linear_functions():
+    """A cancelled minimum m and maximum M meeting at one vertex s, each with no
+    other neighbour within P: every piecewise-linear g without them has
+    |f - g| >= (f(M) - f(m)) / 2 > P/2 somewhere; the result meets that bound."""
+    # hexagon fan around s = 0 (interior), ring 1..6; outer ring 7..12 closes it
+    ang = np.arange(6) * np.pi / 3
+    V = np.concatenate([[[0, 0, 0]], np.c_[np.cos(ang), np.sin(ang), 0 * ang],
+                        np.c_[2 * np.cos(ang + np.pi / 6), 2 * np.sin(ang + np.pi / 6), 0 * ang]])
+    F = [[0, 1 + i, 1 + (i + 1) % 6] for i in range(6)]
+    F += [[1 + i, 7 + i, 1 + (i + 1) % 6] for i in range(6)]
+    F += [[1 + (i + 1) % 6, 7 + i, 7 + (i + 1) % 6] for i in range(6)]
+    F = np.array(F)
+    # s = 0.6; ring: m (0.0), high, low, M (1.2), low, high; outer ring alternates
+    f = np.array([0.6, 0.0, 1.9, 0.05, 1.2, 0.1, 1.95] + [2.0, 2.1, -0.5, -0.4, 2.2, 2.3])
+    P = 1.0
+    cx = surface_complex(F, len(V))
+    pp = lower_star_persistence(cx, f)
+    assert 1 in pp.min_vertex and pp.edge_top[pp.min_saddle_edge[pp.min_vertex == 1][0]] == 0
+    at_s = pp.edge_top[pp.saddle_edge] == 0
+    assert 4 in pp.triangle_top[pp.max_triangle[at_s]]  # (s, M), persistence 0.6 < P
+    s = simplify_function(cx, f, P)
+    crit = discrete_gradient(cx, s.g)
+    top_g = lower_star_persistence(cx, s.g).triangle_top
+    assert 1 not in crit.critical_vertices and 4 not in top_g[crit.critical_triangles]
+    need = (f[4] - f[1]) / 2
+    assert s.max_abs_change >= need * (1 - 1e-9)
+    assert s.max_abs_change <= P
