@@ -1,0 +1,129 @@
+"""``geoproc morse-simplify`` through the real command line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from geoproc.mesh import Mesh, load_mesh, save_mesh
+from geoproc.morse import discrete_gradient, surface_complex
+
+
+def metrics(path):
+    return json.loads(path.read_text())["metrics"]
+
+
+def test_torus_x_known_answer_and_outputs(cli, fixture_dir, tmp_path):
+    out, crit, png, rep = tmp_path / "t.ply", tmp_path / "c.json", tmp_path / "d.png", tmp_path / "r.json"
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "--field", "x", "--persistence", "0.1",
+            "-o", out, "--critical", crit, "--diagram", png, "--report", rep, "--quiet")
+    assert p.returncode == 0, p.stderr
+    m = metrics(rep)
+    assert (m["minima_before"], m["saddles_before"], m["maxima_before"]) == (1, 2, 1)
+    assert (m["minima_after"], m["saddles_after"], m["maxima_after"]) == (1, 2, 1)
+    assert m["euler_characteristic"] == 0 and (m["betti_0"], m["betti_1"], m["betti_2"]) == (1, 2, 1)
+    assert m["pairs_removed"] == 0 and m["pairs_kept"] == 0 and m["threshold"] == 0.1
+    mesh = load_mesh(out)
+    assert {"x_value", "x_value_original"} <= set(mesh.vertex_fields)
+    np.testing.assert_array_equal(mesh.vertex_fields["x_value_original"], mesh.V[:, 0])
+    assert np.abs(mesh.vertex_fields["x_value"] - mesh.V[:, 0]).max() <= 0.05
+    doc = json.loads(crit.read_text())
+    assert [c["dimension"] for c in doc["before"]] == [0, 1, 1, 2]
+    assert all(c["paired_with"] is None and c["persistence"] is None for c in doc["before"])
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_chained_property_field_relative(cli, fixture_dir, tmp_path, make_fixtures):
+    V, F = make_fixtures.icosphere(3)
+    d = V[:, 2] + 0.1 * np.random.default_rng(2).standard_normal(len(V))
+    src = tmp_path / "d.ply"
+    save_mesh(src, Mesh(V, F, vertex_fields={"distance": d}))
+    out, rep = tmp_path / "s.ply", tmp_path / "r.json"
+    p = cli("morse-simplify", src, "--field", "distance", "--persistence", "2", "--relative",
+            "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    m = metrics(rep)
+    assert m["threshold"] == pytest.approx(2 * (d.max() - d.min()))
+    assert (m["minima_after"], m["saddles_after"], m["maxima_after"]) == (1, 0, 1)
+    assert m["minima_before"] > 10 and m["pairs_kept"] == 0
+    assert m["pairs_removed"] == m["minima_before"] - 1 + m["maxima_before"] - 1
+    mesh = load_mesh(out)
+    g = mesh.vertex_fields["distance"]
+    np.testing.assert_array_equal(mesh.vertex_fields["distance_original"], d)
+    assert m["max_abs_change"] == pytest.approx(np.abs(g - d).max())
+    assert np.abs(g - d).max() <= m["threshold"] / 2
+    # independent of our persistence code: sorting g by (value, index) and
+    # reading each vertex's lower link gives one minimum and one maximum
+    grad = discrete_gradient(surface_complex(mesh.F, len(g)), g)
+    assert (len(grad.critical_vertices), len(grad.critical_triangles)) == (1, 1)
+
+
+def test_npy_field_and_curvature(cli, fixture_dir, tmp_path):
+    mesh = load_mesh(fixture_dir / "icosphere.ply")
+    vals = np.random.default_rng(3).standard_normal(len(mesh.V))
+    npy = tmp_path / "noise.npy"
+    np.save(npy, vals)
+    rep = tmp_path / "r.json"
+    p = cli("morse-simplify", fixture_dir / "icosphere.ply", "--field", npy, "--persistence", "0.5",
+            "--relative", "-o", tmp_path / "n.ply", "--report", rep, "--check", "minima_after==1")
+    assert p.returncode == 0, p.stderr
+    assert "noise" in load_mesh(tmp_path / "n.ply").vertex_fields
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "--field", "gaussian-curvature",
+            "--persistence", "0.05", "--relative", "-o", tmp_path / "k.ply", "--report", rep, "-q")
+    assert p.returncode == 0, p.stderr
+    m = metrics(rep)
+    assert m["minima_after"] - m["saddles_after"] + m["maxima_after"] == 0
+
+
+@pytest.mark.parametrize("name,needle", [("bowtie.obj", "vertex"), ("fin.obj", "edge")])
+def test_non_manifold_refused(cli, fixture_dir, tmp_path, name, needle):
+    out = tmp_path / "o.ply"
+    p = cli("morse-simplify", fixture_dir / name, "--field", "z", "--persistence", "0.1", "-o", out)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "non-manifold" in lines[0]
+    assert f"first: {needle}" in lines[0]
+    assert not out.exists()
+
+
+def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
+    ico = fixture_dir / "icosphere.ply"
+    n = len(load_mesh(ico).V)
+    short, nan = tmp_path / "short.npy", tmp_path / "nan.npy"
+    np.save(short, np.zeros(n - 1))
+    v = np.zeros(n)
+    v[7] = np.nan
+    np.save(nan, v)
+    out = tmp_path / "o.ply"
+    cases = [
+        (["--field", short, "--persistence", "1"], f"{n - 1} values for {n} vertices"),
+        (["--field", nan, "--persistence", "1"], "non-finite"),
+        (["--field", "z", "--persistence", "-0.5"], "--persistence"),
+        (["--field", "nope", "--persistence", "1"], "no vertex property 'nope'"),
+    ]
+    for args, needle in cases:
+        p = cli("morse-simplify", ico, *args, "-o", out)
+        assert p.returncode == 2, (args, p.stderr)
+        lines = p.stderr.strip().splitlines()
+        assert len(lines) == 1 and needle in lines[0], (args, p.stderr)
+        assert not out.exists()
+    p = cli("morse-simplify", ico, "--field", "z", "--persistence", "1", "-o", tmp_path / "o.obj")
+    assert p.returncode == 2 and ".ply" in p.stderr
+
+
+@pytest.mark.parametrize("name", ["camelhead.off", "fertility.off", "cow.obj", "teapot.obj"])
+def test_shared_meshes(cli, shared_data, tmp_path, name):
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = cli("morse-simplify", shared_data / "meshes" / name, "--field", "y", "--persistence", "0.05",
+            "--relative", "-o", out, "--report", rep, "-q")
+    if name in ("cow.obj", "teapot.obj"):  # not manifolds: refused, naming the vertex
+        assert p.returncode == 2 and "non-manifold" in p.stderr and not out.exists()
+        return
+    assert p.returncode == 0, p.stderr
+    m = metrics(rep)
+    chi = m["euler_characteristic"]
+    assert m["minima_after"] - m["saddles_after"] + m["maxima_after"] == chi
+    assert m["minima_before"] - m["saddles_before"] + m["maxima_before"] == chi
+    assert chi == {"camelhead.off": 1, "fertility.off": -6}[name]
