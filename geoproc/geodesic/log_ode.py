@@ -152,6 +152,7 @@ class LogODESolver:
     def __init__(self, L: sp.spmatrix, M: np.ndarray, dt: float):
         self.system = LogStepSystem(L, M, dt)
         self.lu = LogMMatrixSolver(sp.diags(M) - dt * sp.csr_matrix(L))
+        self.fallbacks = 0
 
     def residual(self, w: np.ndarray, w_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``g = w + c - lse(w)`` (zero at the solution) and ``lse(w)``."""
@@ -164,21 +165,34 @@ class LogODESolver:
     def step(self, w_prev: np.ndarray, rtol: float = 1e-14, max_refine: int = 3) -> tuple[np.ndarray, int]:
         """One backward-Euler step: ``w`` (n,) from ``w_prev`` (-inf allowed).
 
-        Returns ``w`` and the number of refinement passes used.
+        The log-space LU result is checked by its log-sum-exp residual and
+        polished by simplified Newton (``J ~ diag(e^-lse) (M - dt L)
+        diag(e^w)``, the same factors). If the residual is not small (the
+        factorization itself lost entries below the double range, which
+        happens only at extremely small ``dt``), the step is redone by
+        :func:`log_ode_step` (Newton, exact) and ``self.fallbacks`` counts it.
+
+        Returns ``w`` and the number of refinement passes (or Newton
+        iterations after a fallback).
         """
         w = self.lu.solve_log(self.system.logM + w_prev)
         fin = np.isfinite(w)
-        for k in range(max_refine):
+        for k in range(max_refine + 1):
             g, val = self.residual(w, w_prev)
-            if np.all(np.abs(g) <= 8 * rtol * np.maximum(1.0, np.abs(w))):
+            err = np.abs(g)
+            if np.all(err <= 8 * rtol * np.maximum(1.0, np.abs(w))):
                 return w, k
-            # simplified Newton: J ~ diag(e^-lse) (M - dt L) diag(e^w); split g by sign
+            if err.max() > 1e-6 or k == max_refine:
+                break
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 yp = self.lu.solve_log(np.where(g > 0, val + np.log(np.where(g > 0, g, 1.0)), -np.inf))
                 ym = self.lu.solve_log(np.where(g < 0, val + np.log(np.where(g < 0, -g, 1.0)), -np.inf))
                 delta = -(np.exp(yp - w) - np.exp(ym - w))
             w = np.where(fin, w + np.nan_to_num(delta, nan=0.0, posinf=0.0, neginf=0.0), w)
-        return w, max_refine
+        if err.max() <= 1e-10 * max(1.0, float(np.abs(w[fin]).max())):
+            return w, max_refine
+        self.fallbacks += 1
+        return log_ode_step(self.system, w_prev)
 
 
 def log_ode_steps(L: sp.spmatrix, M: np.ndarray, sources: np.ndarray, T: float, steps: int = 1,

@@ -1,0 +1,179 @@
+"""``geoproc geodesic``: distance to source vertices by exact or heat-based methods."""
+
+from __future__ import annotations
+
+import os
+import re
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from geoproc.errors import InputError, UsageError
+from geoproc.geodesic import METHODS, compare_to_reference, geodesic_distance
+from geoproc.geodesic.distance import DEFAULT_LAPLACIAN
+from geoproc_cli.common import (
+    CheckOpt,
+    DebugOpt,
+    NoCleanOpt,
+    QuietOpt,
+    ReportOpt,
+    command_run,
+)
+
+Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
+
+
+class Laplacian(str, Enum):
+    cotan = "cotan"
+    intrinsic_delaunay = "intrinsic-delaunay"
+
+
+class Solver(str, Enum):
+    lu = "lu"
+    newton = "newton"
+    cvxpy = "cvxpy"
+
+
+class Reference(str, Enum):
+    exact = "exact"
+
+
+def read_sources_file(path: str) -> list[int]:
+    """Vertex indices from a text file: integers separated by spaces, commas or
+    newlines; ``#`` starts a comment."""
+    if not os.path.isfile(path):
+        raise InputError(path, "no such file")
+    out = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for lineno, line in enumerate(fh, 1):
+            for tok in re.split(r"[\s,]+", line.split("#", 1)[0].strip()):
+                if not tok:
+                    continue
+                try:
+                    out.append(int(tok))
+                except ValueError:
+                    raise InputError(path, f"line {lineno}: '{tok}' is not a vertex index") from None
+    if not out:
+        raise InputError(path, "no vertex indices in the file")
+    return out
+
+
+def geodesic(
+    mesh: Annotated[str, typer.Argument(help="Triangle mesh: .obj, .ply, .off, .stl, or - for stdin.",
+                                        metavar="MESH")],
+    output: Annotated[str, typer.Option("--output", "-o", help="Output PLY with the distance per vertex "
+                                        "(input vertex and face properties kept); - for stdout.",
+                                        metavar="OUT.ply")],
+    source: Annotated[list[int] | None, typer.Option("--source", "-s", help="Source vertex index "
+                      "(0-based, in the mesh as loaded); repeatable: distance to the nearest.",
+                      metavar="I", show_default=False)] = None,
+    sources_file: Annotated[str | None, typer.Option("--sources-file", help="Text file of source indices.",
+                            metavar="FILE", show_default=False)] = None,
+    method: Annotated[Method, typer.Option("--method", "-m", help="exact (MMP), heat (Crane et al.), "
+                      "varadhan (sqrt(-4T log u)), log-splitting, log-ode, log-heat.")] = Method.heat,
+    time_factor: Annotated[float, typer.Option("--time-factor", "-c", help="t = c * h^2 with h the mean "
+                           "edge length.")] = 1.0,
+    time: Annotated[float | None, typer.Option("--time", "-t", help="Absolute diffusion time (area unit); "
+                    "overrides --time-factor.", show_default=False)] = None,
+    steps: Annotated[int, typer.Option("--steps", "-n", help="Backward-Euler steps to reach t "
+                     "(varadhan, log-ode, log-splitting, log-heat).")] = 1,
+    laplacian: Annotated[Laplacian | None, typer.Option("--laplacian", help="Default: cotan for heat, "
+                         "varadhan, log-splitting; intrinsic-delaunay for log-ode and log-heat.",
+                         show_default=False)] = None,
+    solver: Annotated[Solver, typer.Option("--solver", help="log-ode solver: lu (log-space LU, fast), "
+                      "newton, or cvxpy (Clarabel; reference, slow).")] = Solver.lu,
+    reference: Annotated[Reference | None, typer.Option("--reference", help="Compare with exact "
+                         "geodesics: pearson_r, rmse, mae, mean/max_relative_error in the report.",
+                         show_default=False)] = None,
+    field_name: Annotated[str, typer.Option("--field-name", help="Name of the output vertex property.")]
+    = "distance",
+    render: Annotated[str | None, typer.Option("--render", help="Also draw the mesh colored by distance "
+                      "with isolines into this PNG.", metavar="PNG", show_default=False)] = None,
+    no_clean: NoCleanOpt = False,
+    report: ReportOpt = None,
+    check: CheckOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Geodesic distance from source vertices, written as a per-vertex PLY property.
+
+    Vertices not connected to any source get +inf (counted as
+    unreachable_vertices). Timings: setup (operators, factorizations) and
+    solve (the part repeated for each new source set).
+    """
+    m_name = method.value
+    params = {
+        "mesh": mesh, "output": output, "sources": list(source or []), "sources_file": sources_file,
+        "method": m_name, "time_factor": time_factor, "time": time, "steps": steps,
+        "laplacian": laplacian.value if laplacian else DEFAULT_LAPLACIAN.get(m_name),
+        "solver": solver.value, "reference": reference.value if reference else None,
+        "field_name": field_name, "render": render, "clean": not no_clean,
+    }
+    with command_run("geodesic", params, report=Path(report) if report else None, checks=check,
+                     quiet=quiet, debug=debug) as run:
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
+            raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
+        if output != "-" and not output.lower().endswith(".ply"):
+            raise UsageError(f"{output}: the distance is a vertex property, which only PLY keeps; "
+                             "use a .ply output")
+        if render is not None and not render.lower().endswith(".png"):
+            raise UsageError(f"--render {render}: expected a .png file name")
+        srcs = list(source or [])
+        if sources_file is not None:
+            srcs += read_sources_file(sources_file)
+            run.add_input(sources_file)
+        if not srcs:
+            raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
+        m = run.load_mesh(mesh, clean=not no_clean)
+        if m.log.merged_vertices or m.log.removed_unreferenced:
+            run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
+        with run.progress(f"geodesic {m_name}", 1.0) as update:
+            res = geodesic_distance(m.V, m.F, srcs, m_name, time_factor=time_factor, time=time,
+                                    steps=steps, laplacian=laplacian.value if laplacian else None,
+                                    solver=solver.value, path=m.log.path, progress=update)
+        run.timings["setup"] = res.timings.get("setup", 0.0)
+        run.timings["solve"] = res.timings.get("solve", 0.0)
+        d = res.distance
+        fin = np.isfinite(d)
+        run.metrics.update({
+            "method": m_name, "vertices": m.n_vertices, "faces": m.n_faces,
+            "sources": len(set(srcs)), "mean_edge_length": res.h, "t": res.t,
+            "t_over_h2": None if res.t is None else res.t / res.h**2,
+            "steps": steps if m_name not in ("exact", "heat") else None,
+            "reachable_vertices": int(m.n_vertices - res.stats["unreachable_vertices"]),
+            "nonfinite_distance_vertices": int((~fin).sum() - res.stats["unreachable_vertices"]),
+            "max_distance": float(d[fin].max()) if fin.any() else None,
+            "mean_distance": float(d[fin].mean()) if fin.any() else None,
+        })
+        run.metrics.update(res.stats)
+        for key in ("zero_heat_vertices", "log_heat_below_double"):
+            if res.stats.get(key):
+                what = "heat u underflowed to 0" if key == "zero_heat_vertices" else "exp(log u) < 5e-324"
+                run.note(f"{res.stats[key]} vertices where {what}")
+        if res.stats["unreachable_vertices"]:
+            run.note(f"{res.stats['unreachable_vertices']} vertices are not connected to a source "
+                     "(distance +inf)")
+        if reference is not None:
+            with run.timer("reference"):
+                ref = geodesic_distance(m.V, m.F, srcs, "exact", path=m.log.path).distance
+            cmp = compare_to_reference(d, ref)
+            run.metrics.update(cmp)
+        out = m.copy()
+        if field_name in out.vertex_fields:
+            run.note(f"replacing the input's vertex property '{field_name}'")
+        out.vertex_fields[field_name] = d
+        run.write_mesh(output, out)
+        if render is not None:
+            from geoproc.geodesic.render import render_distance_png
+
+            with run.timer("render"):
+                title = f"{os.path.basename(mesh)}: {m_name}"
+                run.write_bytes(render, render_distance_png(m.V, m.F, d, sorted(set(srcs)), title=title))
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``geodesic`` to the application."""
+    app.command("geodesic")(geodesic)

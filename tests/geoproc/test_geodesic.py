@@ -1,0 +1,244 @@
+"""geoproc.geodesic against independent references: analytic distances (plane,
+sphere), libigl's exact geodesics, scipy's direct sparse solve, a
+high-precision Decimal solve, and the CVXPY/Clarabel convex program."""
+
+from __future__ import annotations
+
+from decimal import Decimal, getcontext
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+
+import geoproc.geodesic as gd
+from geoproc.errors import InputError, UsageError
+from geoproc.geodesic.log_lu import LogMMatrixSolver
+from geoproc.geodesic.log_ode import LogODESolver, LogStepSystem, log_ode_step, log_ode_steps
+from geoproc.mesh import load_mesh
+
+
+def _exact(V, F, s):
+    return gd.exact_geodesic_distance(V, F, np.atleast_1d(s))
+
+
+# ---- exact geodesics against analytic distances -------------------------------------------
+
+@pytest.mark.parametrize("source", [0, 220, 440])
+def test_exact_on_flat_grid_is_euclidean(make_fixtures, source):
+    V, F = make_fixtures.grid()
+    d = _exact(V, F, source)
+    # a flat convex patch: the geodesic is the straight segment
+    assert np.abs(d - np.linalg.norm(V - V[source], axis=1)).max() < 1e-12
+
+
+def test_exact_on_sphere_follows_great_circles(make_fixtures):
+    V, F = make_fixtures.icosphere(3)  # 642 vertices on the unit sphere
+    d = _exact(V, F, 0)
+    arc = np.arccos(np.clip(V @ V[0], -1, 1))
+    # polyhedral vs smooth sphere: O(h^2) apart (h ~ 0.1 here), measured 0.0079
+    assert np.abs(d - arc).max() < 0.012
+    assert np.abs(d - arc).mean() < 0.006
+    assert d.max() == pytest.approx(np.pi, rel=0.005)
+
+
+def test_exact_multi_source_is_min_over_sources(make_fixtures):
+    V, F = make_fixtures.grid()
+    d = _exact(V, F, [0, 440])
+    ref = np.minimum(np.linalg.norm(V - V[0], axis=1), np.linalg.norm(V - V[440], axis=1))
+    assert np.abs(d - ref).max() < 1e-12
+
+
+# ---- the heat method family against exact geodesics ----------------------------------------
+
+_EXACT_CACHE: dict = {}
+
+
+def _shared_exact(shared_data, name, s):
+    """Load a shared mesh and its exact distances from vertex ``s`` (cached per run)."""
+    if (name, s) not in _EXACT_CACHE:
+        m = load_mesh(shared_data / "meshes" / name)
+        _EXACT_CACHE[name, s] = (m, _exact(m.V, m.F, s))
+    return _EXACT_CACHE[name, s]
+
+
+@pytest.mark.parametrize("name", ["bunny.off", "camelhead.off"])
+@pytest.mark.parametrize("method", ["heat", "log-heat"])
+def test_heat_and_log_heat_within_two_percent_of_exact(shared_data, name, method):
+    errs = []
+    for k in (0, 1):
+        m = _shared_exact(shared_data, name, 0)[0]
+        s = 0 if k == 0 else len(m.V) // 2
+        m, ref = _shared_exact(shared_data, name, s)
+        d = gd.geodesic_distance(m.V, m.F, [s], method).distance
+        errs.append(gd.compare_to_reference(d, ref)["mean_relative_error"])
+    # measured 0.7-1.4 % (heat-method accuracy at t = h^2; the open camelhead checks the
+    # boundary treatment); the issue's bar is 2 %
+    assert max(errs) < 0.02
+
+
+def test_heat_on_open_grid_with_two_sources(make_fixtures):
+    V, F = make_fixtures.grid(41)
+    d = gd.geodesic_distance(V, F, [0, 1680], "heat").distance
+    ref = np.minimum(np.linalg.norm(V - V[0], axis=1), np.linalg.norm(V - V[1680], axis=1))
+    assert gd.compare_to_reference(d, ref)["mean_relative_error"] < 0.02
+    assert abs(d[0]) < 1e-3 and abs(d[1680]) < 1e-3
+
+
+def test_heat_solver_reuses_its_factorization(make_fixtures):
+    V, F = make_fixtures.icosphere(3)
+    h = gd.mean_edge_length(V, F)
+    solver = gd.HeatMethodSolver(V, F, h * h)
+    solver.solve([5])
+    again = solver.solve([17])[0]
+    fresh = gd.heat_method_distance(V, F, np.array([17]), h * h)
+    assert np.abs(again - fresh).max() < 1e-12
+    arc = np.arccos(np.clip(V @ V[17], -1, 1))
+    assert gd.compare_to_reference(again, arc)["mean_relative_error"] < 0.02
+
+
+def test_varadhan_matches_direct_heat_solve(make_fixtures):
+    V, F = make_fixtures.icosphere(2)
+    L, M = gd.cotan_laplacian(V, F), gd.lumped_mass(V, F)
+    T = 0.05
+    d, u = gd.varadhan_distance(L, M, np.array([0]), T, steps=2)
+    A = (sp.diags(M) - (T / 2) * L).tocsc()
+    u_ref = spsolve(A, M * spsolve(A, M * np.eye(len(M))[0]))
+    assert np.allclose(u, u_ref, rtol=1e-10, atol=0)
+    assert np.allclose(d, np.sqrt(-4 * T * np.log(u_ref)), rtol=1e-10)
+
+
+# ---- the discrete log ODE -------------------------------------------------------------------
+
+def _sphere_operators(make_fixtures, sub=2):
+    V, F = make_fixtures.icosphere(sub)
+    L, M = gd.intrinsic_delaunay_laplacian(V, F)
+    return V, F, L, M, gd.mean_edge_length(V, F)
+
+
+def test_intrinsic_delaunay_laplacian_has_the_needed_signs(make_fixtures):
+    V, F = make_fixtures.torus()
+    L, M = gd.intrinsic_delaunay_laplacian(V, F)
+    off = sp.triu(L, 1).tocoo()
+    assert (off.data >= 0).all()
+    assert np.abs(np.asarray(L.sum(axis=1))).max() < 1e-12
+    assert M.sum() == pytest.approx(4 * np.pi**2 * 1.0 * 0.35, rel=0.01)  # torus area
+
+
+def test_log_ode_equals_log_of_the_linear_step_where_representable(make_fixtures):
+    V, F, L, M, h = _sphere_operators(make_fixtures)
+    T = h * h
+    w, _ = log_ode_steps(L, M, [0, 40], T, steps=3)
+    A = (sp.diags(M) - (T / 3) * L).tocsc()
+    u = np.zeros(len(M))
+    u[[0, 40]] = 1.0
+    for _ in range(3):
+        u = spsolve(A, M * u)
+    assert np.abs(w - np.log(u)).max() < 1e-10
+
+
+@pytest.mark.parametrize("factor,steps", [(1.0, 1), (1.0, 3), (1e-3, 2)])
+def test_log_ode_fast_solvers_equal_cvxpy_clarabel(make_fixtures, factor, steps):
+    pytest.importorskip("cvxpy")
+    V, F, L, M, h = _sphere_operators(make_fixtures)
+    T = factor * h * h
+    w_lu, _ = log_ode_steps(L, M, [0, 100], T, steps, solver="lu")
+    w_newton, _ = log_ode_steps(L, M, [0, 100], T, steps, solver="newton")
+    w_cvx, _ = log_ode_steps(L, M, [0, 100], T, steps, solver="cvxpy")
+    assert np.abs(w_lu - w_cvx).max() < 1e-6
+    assert np.abs(w_newton - w_cvx).max() < 1e-6
+
+
+def _chain_reference(n, m, a, lg_b):
+    """log of the solution of a path-graph system (diag m+deg*a, off -a) by the
+    Thomas algorithm in 60-digit Decimal arithmetic (exponent range 1e-999999)."""
+    getcontext().prec = 60
+    getcontext().Emin = -999999
+    A = [Decimal(a)] * n
+    diag = [Decimal(m) + Decimal(a) * (1 if i in (0, n - 1) else 2) for i in range(n)]
+    b = [Decimal(0)] * n
+    b[0] = Decimal(lg_b).exp()
+    c, dd = [Decimal(0)] * n, [Decimal(0)] * n
+    c[0], dd[0] = -A[0] / diag[0], b[0] / diag[0]
+    for i in range(1, n):
+        den = diag[i] + A[i] * c[i - 1]
+        c[i] = -A[i] / den
+        dd[i] = (b[i] + A[i] * dd[i - 1]) / den
+    x = [Decimal(0)] * n
+    x[-1] = dd[-1]
+    for i in range(n - 2, -1, -1):
+        x[i] = dd[i] - c[i] * x[i + 1]
+    return np.array([float(v.ln()) for v in x])
+
+
+def test_log_lu_solve_far_below_double_range():
+    # a 400-vertex path with a tiny time step: the answer falls to ~1e-2400
+    n, m, a = 400, 1.0, 1e-6
+    rows = np.arange(n - 1)
+    Lp = sp.coo_matrix((np.full(n - 1, a), (rows, rows + 1)), shape=(n, n))
+    Lp = (Lp + Lp.T).tocsr()
+    A = sp.diags(m + np.asarray(Lp.sum(axis=1)).ravel()) - Lp
+    lb = np.full(n, -np.inf)
+    lb[0] = 0.0
+    w = LogMMatrixSolver(A).solve_log(lb)
+    ref = _chain_reference(n, m, a, 0.0)
+    assert ref.min() < -5000 and np.isfinite(w).all()
+    assert np.abs(w - ref).max() < 1e-9 * np.abs(ref).max()
+
+
+def test_log_ode_solver_and_newton_agree_at_tiny_time(make_fixtures):
+    V, F, L, M, h = _sphere_operators(make_fixtures, 4)
+    T = 1e-12 * h * h
+    w_prev = np.full(len(M), -np.inf)
+    w_prev[0] = 0.0
+    w_lu, _ = LogODESolver(L, M, T).step(w_prev)
+    w_nt, it = log_ode_step(LogStepSystem(L, M, T), w_prev)
+    assert w_lu.min() < -745.2  # exp(w) is below the smallest double there
+    assert np.isfinite(w_lu).all() and np.isfinite(w_nt).all()
+    assert np.abs(w_lu - w_nt).max() < 1e-9 * np.abs(w_nt).max()
+
+
+def test_log_ode_refuses_negative_weights(make_fixtures):
+    V, F = make_fixtures.icosphere(2)
+    V = V * np.array([1.0, 1.0, 0.05])  # flattened: obtuse triangles, negative cotan weights
+    L, M = gd.cotan_laplacian(V, F), gd.lumped_mass(V, F)
+    with pytest.raises(UsageError, match="intrinsic-delaunay"):
+        log_ode_steps(L, M, [0], 0.01)
+
+
+# ---- dispatcher checks -----------------------------------------------------------------------
+
+def test_unreachable_vertices_are_inf(make_fixtures):
+    V1, F1 = make_fixtures.grid(11)
+    V = np.vstack([V1, V1 + [2.0, 0, 0]])
+    F = np.vstack([F1, F1 + len(V1)])
+    for method in ("exact", "heat", "log-ode", "log-heat", "varadhan"):
+        r = gd.geodesic_distance(V, F, [0], method)
+        assert r.stats["unreachable_vertices"] == len(V1)
+        assert np.isinf(r.distance[len(V1):]).all() and np.isfinite(r.distance[:len(V1)]).all()
+
+
+@pytest.mark.parametrize("kwargs,err", [
+    ({"sources": [441]}, InputError),
+    ({"sources": []}, UsageError),
+    ({"time": 0.0}, UsageError),
+    ({"time": float("inf")}, UsageError),
+    ({"time_factor": -1.0}, UsageError),
+    ({"steps": 0}, UsageError),
+    ({"method": "dijkstra"}, UsageError),
+])
+def test_bad_arguments(make_fixtures, kwargs, err):
+    V, F = make_fixtures.grid()
+    args = {"sources": [0]} | kwargs
+    with pytest.raises(err):
+        gd.geodesic_distance(V, F, args.pop("sources"), args.pop("method", "heat"), **args)
+
+
+def test_compare_to_reference_by_hand():
+    ref = np.array([0.0, 1.0, 2.0, 4.0])
+    d = np.array([0.0, 1.4, 2.0, 3.6])
+    c = gd.compare_to_reference(d, ref)
+    assert c["mae"] == pytest.approx(0.8 / 4 / 4)
+    assert c["rmse"] == pytest.approx(np.sqrt((0.1**2 + 0.1**2) / 4))
+    assert c["max_relative_error"] == pytest.approx(0.1)
+    assert c["pearson_r"] == pytest.approx(np.corrcoef(d, ref)[0, 1])
