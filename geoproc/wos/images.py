@@ -21,13 +21,14 @@ def exr_bytes(U: np.ndarray) -> bytes:
     spec = oiio.ImageSpec(W, H, 1, oiio.FLOAT)
     spec.channelnames = ("Y",)
     spec.attribute("compression", "zip")
+    spec.attribute("DateTime", "")  # no capture date: same data, same bytes
     fd, tmp = tempfile.mkstemp(suffix=".exr")
     os.close(fd)
     try:
         out = oiio.ImageOutput.create(tmp)
         if out is None or not out.open(tmp, spec):
             raise RuntimeError(f"OpenImageIO cannot write EXR: {oiio.geterror()}")
-        ok = out.write_image(U)
+        ok = out.write_image(U[:, :, None])
         out.close()
         if not ok:
             raise RuntimeError(f"OpenImageIO failed writing EXR: {out.geterror()}")

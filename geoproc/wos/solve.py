@@ -154,7 +154,10 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     P = gs.points()
     d_all = problem.distance(P)
     d_dir = problem.distance(P, dirichlet_only=True) if problem.mixed else d_all
-    inside = domain.contains(P) | (d_dir < eps)
+    # points on the Dirichlet boundary (up to round-off) count as inside: their walks
+    # stop at once and they take the boundary value
+    lo, hi = domain.bbox
+    inside = domain.contains(P) | (d_dir <= 1e-9 * float(np.linalg.norm(hi - lo)))
     X = np.ascontiguousarray(P[inside])
     if len(X) == 0:
         raise UsageError(f"--grid {grid}: no grid point falls inside the domain; use a finer grid")

@@ -83,6 +83,19 @@ def test_mask_coordinates_are_pixel_units_y_up():
     assert L[:, 1].min() == pytest.approx(7.0, abs=0.5) and L[:, 1].max() == pytest.approx(9.0, abs=0.5)
 
 
+def test_mask_image_round_trip_keeps_orientation(tmp_path):
+    mask = np.zeros((12, 20), bool)
+    mask[2:5, 3:15] = True  # a wide bar near the top
+    path = tmp_path / "bar.png"
+    wf.write_mask(path, mask)
+    assert np.array_equal(read_mask(str(path)), mask)
+    d = load_domain_mask(str(path))
+    lo, hi = d.bbox
+    assert d.area == pytest.approx(36.0, rel=0.02)
+    assert hi[0] - lo[0] > hi[1] - lo[1]  # wider than tall
+    assert lo[1] > 6  # near the top (y up)
+
+
 def test_mask_without_foreground(tmp_path):
     path = tmp_path / "empty.png"
     wf.write_mask(path, np.zeros((16, 16), bool))

@@ -1,0 +1,115 @@
+"""``geoproc wos-solve`` through the real command line."""
+
+import json
+
+import numpy as np
+import pytest
+
+from geoproc.wos.images import read_exr
+from tests.geoproc.wos_helpers import wos_fixtures
+
+wf = wos_fixtures()
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("wos")
+    files = {
+        "disk": wf.disk(128), "rect": wf.rectangle_neumann(), "glyph": wf.glyph("B", 128),
+        "bowtie": {"loops": [[[0, 0], [1, 1], [1, 0], [0, 1]]]},
+        "open": {"loops": [[[0, 0], [1, 0]]]},
+        "flat": {"loops": [[[0, 0], [1, 0], [2, 0]]]},
+    }
+    for name, doc in files.items():
+        (d / f"{name}.json").write_text(json.dumps(doc))
+    (d / "broken.json").write_text("{\"loops\": [[[0, 0], [1, 0]")
+    wf.write_mask(d / "mask.png", wf.disk_mask(64, 24.0, 8.0))
+    wf.write_mask(d / "blank.png", np.zeros((32, 32), bool))
+    return d
+
+
+def test_solve_writes_exr_report_and_images(cli, inputs, tmp_path):
+    out, rep, img, err = (tmp_path / n for n in ("u.exr", "r.json", "u.png", "e.png"))
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x**3 - 3*x*y**2", "--method",
+            "cv-green", "--walks", "32", "--grid", "40", "--kernels", "40", "--exact", "-o", out,
+            "--report", rep, "--image", img, "--error-image", err, "--seed", "3", "--quiet")
+    assert p.returncode == 0, p.stderr
+    U = read_exr(str(out))
+    assert U.shape == (40, 40) and U.dtype == np.float32
+    yy, xx = np.mgrid[0:40, 0:40]
+    X, Y = -1 + (xx + 0.5) / 20, 1 - (yy + 0.5) / 20
+    inside = X**2 + Y**2 < 0.99**2
+    outside = X**2 + Y**2 > 1.0
+    assert np.isfinite(U[inside]).all() and np.isnan(U[outside]).all()
+    exact = X**3 - 3 * X * Y**2
+    m = json.loads(rep.read_text())["metrics"]
+    assert np.sqrt(np.mean((U[inside] - exact[inside]) ** 2)) < 0.02
+    for key in ("rmse", "max_abs_error", "bias", "walks", "total_steps", "steps_per_second",
+                "fit_seconds", "residual_seconds"):
+        assert key in m, key
+    assert m["rmse"] < 0.02 and m["walks"] == 32 and m["total_steps"] > 0
+    assert img.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and err.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_same_seed_same_bytes(cli, inputs, tmp_path):
+    args = ["wos-solve", inputs / "glyph.json", "--boundary", "exp(x)*cos(y)", "--walks", "8",
+            "--grid", "32", "--quiet"]
+    outs = []
+    for k, seed in enumerate(("5", "5", "6")):
+        o, i = tmp_path / f"u{k}.exr", tmp_path / f"u{k}.png"
+        p = cli(*args, "--seed", seed, "-o", o, "--image", i)
+        assert p.returncode == 0, p.stderr
+        outs.append((o.read_bytes(), i.read_bytes()))
+    assert outs[0] == outs[1]
+    assert outs[0][0] != outs[2][0]
+
+
+def test_mask_domain(cli, inputs, tmp_path):
+    out, rep = tmp_path / "m.exr", tmp_path / "m.json"
+    p = cli("wos-solve", inputs / "mask.png", "--boundary", "(x-32)/24", "--walks", "16", "--grid",
+            "32", "--exact", "-o", out, "--report", rep, "--epsilon", "0.01")
+    assert p.returncode == 0, p.stderr
+    assert "traced 2 loop(s)" in p.stderr
+    m = json.loads(rep.read_text())["metrics"]
+    assert m["loops"] == 2
+    assert m["domain_area"] == pytest.approx(np.pi * (24**2 - 8**2), rel=0.03)
+    assert m["rmse"] < 0.1
+
+
+def test_neumann_rectangle(cli, inputs, tmp_path):
+    out, rep = tmp_path / "n.exr", tmp_path / "n.json"
+    p = cli("wos-solve", inputs / "rect.json", "--boundary", "y", "--neumann", "2*y - 1", "--walks",
+            "32", "--grid", "24", "--exact", "--method", "cv-green", "--kernels", "40", "-o", out,
+            "--report", rep, "--quiet")
+    assert p.returncode == 0, p.stderr
+    m = json.loads(rep.read_text())["metrics"]
+    assert m["neumann_segments"] == 2 and m["rmse"] < 0.03
+
+
+@pytest.mark.parametrize("domain,extra,message", [
+    ("bowtie.json", [], "loop 0 intersects itself"),
+    ("open.json", [], "loop 0 is open"),
+    ("flat.json", [], "zero area"),
+    ("broken.json", [], "not valid JSON"),
+    ("blank.png", [], "no foreground"),
+    ("missing.json", [], "no such file"),
+    ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
+    ("disk.json", ["--boundary", "__import__('os')"], "unknown name '__import__'"),
+    ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),
+    ("disk.json", ["--boundary", "x", "--neumann", "0"], "marks no Neumann"),
+    ("disk.json", [], "give --boundary"),
+    ("rect.json", ["--boundary", "x", "--method", "cv-angle"], "cv-angle supports Dirichlet-only"),
+])
+def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, domain, extra, message):
+    out = tmp_path / "u.exr"
+    args = list(extra)
+    if "--boundary" not in args and domain != "disk.json":
+        args += ["--boundary", "x"]
+    args = [a if a != "e.png" else str(tmp_path / "e.png") for a in args]
+    p = cli("wos-solve", inputs / domain, *args, "--grid", "8", "--walks", "2", "-o", out,
+            "--report", tmp_path / "r.json")
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), p.stderr
+    assert message in lines[0], lines[0]
+    assert not out.exists() and not (tmp_path / "r.json").exists() and not (tmp_path / "e.png").exists()
