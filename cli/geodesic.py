@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import re
-from enum import Enum
+from enum import Enum, StrEnum
 from pathlib import Path
 from typing import Annotated
 
@@ -12,8 +12,7 @@ import numpy as np
 import typer
 
 from geoproc.errors import InputError, UsageError
-from geoproc.geodesic import METHODS, compare_to_reference, geodesic_distance
-from geoproc.geodesic.distance import DEFAULT_LAPLACIAN
+from geoproc.geodesic.distance import DEFAULT_LAPLACIAN, METHODS
 from geoproc_cli.common import (
     CheckOpt,
     DebugOpt,
@@ -26,18 +25,18 @@ from geoproc_cli.common import (
 Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
 
 
-class Laplacian(str, Enum):
+class Laplacian(StrEnum):
     cotan = "cotan"
     intrinsic_delaunay = "intrinsic-delaunay"
 
 
-class Solver(str, Enum):
+class Solver(StrEnum):
     lu = "lu"
     newton = "newton"
     cvxpy = "cvxpy"
 
 
-class Reference(str, Enum):
+class Reference(StrEnum):
     exact = "exact"
 
 
@@ -104,6 +103,9 @@ def geodesic(
     unreachable_vertices). Timings: setup (operators, factorizations) and
     solve (the part repeated for each new source set).
     """
+    from geoproc.geodesic.compare import compare_to_reference
+    from geoproc.geodesic.distance import geodesic_distance
+
     m_name = method.value
     params = {
         "mesh": mesh, "output": output, "sources": list(source or []), "sources_file": sources_file,

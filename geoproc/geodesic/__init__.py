@@ -1,47 +1,47 @@
 """Geodesic distance on triangle meshes: exact (MMP), the heat method, Varadhan's
 formula on backward-Euler heat, and three log-domain heat solvers.
 
-The entry point is :func:`geodesic_distance`; each method also has its own module
-(``exact``, ``heat``, ``varadhan``, ``log_ode``, ``log_splitting``, ``log_heat``).
+The entry point is :func:`geodesic_distance` (module ``distance``); each method
+also has its own module (``exact``, ``heat``, ``varadhan``, ``log_ode`` with
+``log_lu`` and ``log_ode_cvxpy``, ``log_splitting``, ``log_heat``), the
+operators are in ``operators`` and the Poisson step in ``poisson``. Names are
+imported lazily so that importing the package stays cheap.
 """
 
-from geoproc.geodesic.compare import compare_to_reference
-from geoproc.geodesic.distance import METHODS, GeodesicResult, geodesic_distance
-from geoproc.geodesic.exact import exact_geodesic_distance
-from geoproc.geodesic.heat import HeatMethodSolver, heat_method_distance
-from geoproc.geodesic.log_heat import LogHeatSolver, log_heat_distance
-from geoproc.geodesic.log_ode import log_ode_step, log_ode_steps
-from geoproc.geodesic.log_splitting import log_splitting_distance
-from geoproc.geodesic.operators import (
-    cotan_laplacian,
-    divergence_matrix,
-    face_gradient_matrix,
-    intrinsic_delaunay_laplacian,
-    laplacian_and_mass,
-    lumped_mass,
-    mean_edge_length,
-)
-from geoproc.geodesic.varadhan import varadhan_distance
+from __future__ import annotations
 
-__all__ = [
-    "METHODS",
-    "GeodesicResult",
-    "HeatMethodSolver",
-    "LogHeatSolver",
-    "compare_to_reference",
-    "cotan_laplacian",
-    "divergence_matrix",
-    "exact_geodesic_distance",
-    "face_gradient_matrix",
-    "geodesic_distance",
-    "heat_method_distance",
-    "intrinsic_delaunay_laplacian",
-    "laplacian_and_mass",
-    "log_heat_distance",
-    "log_ode_step",
-    "log_ode_steps",
-    "log_splitting_distance",
-    "lumped_mass",
-    "mean_edge_length",
-    "varadhan_distance",
-]
+import importlib
+
+_NAMES = {
+    "METHODS": "distance",
+    "GeodesicResult": "distance",
+    "geodesic_distance": "distance",
+    "compare_to_reference": "compare",
+    "exact_geodesic_distance": "exact",
+    "HeatMethodSolver": "heat",
+    "heat_method_distance": "heat",
+    "LogHeatSolver": "log_heat",
+    "log_heat_distance": "log_heat",
+    "LogODESolver": "log_ode",
+    "log_ode_step": "log_ode",
+    "log_ode_steps": "log_ode",
+    "LogSplittingSolver": "log_splitting",
+    "log_splitting_distance": "log_splitting",
+    "varadhan_distance": "varadhan",
+    "render_distance_png": "render",
+    "cotan_laplacian": "operators",
+    "divergence_matrix": "operators",
+    "face_gradient_matrix": "operators",
+    "intrinsic_delaunay_laplacian": "operators",
+    "laplacian_and_mass": "operators",
+    "lumped_mass": "operators",
+    "mean_edge_length": "operators",
+}
+
+__all__ = sorted(_NAMES)
+
+
+def __getattr__(name: str):
+    if name in _NAMES:
+        return getattr(importlib.import_module(f"geoproc.geodesic.{_NAMES[name]}"), name)
+    raise AttributeError(f"module 'geoproc.geodesic' has no attribute {name!r}")

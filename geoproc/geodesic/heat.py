@@ -14,10 +14,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoproc.geodesic.operators import (
-    factor_sparse,
     cotan_laplacian,
     divergence_matrix,
     face_gradient_matrix,
+    factor_sparse,
     laplacian_and_mass,
     normalized_direction,
     per_face_vectors,

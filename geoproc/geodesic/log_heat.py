@@ -21,7 +21,6 @@ import scipy.sparse as sp
 from geoproc.geodesic.heat import boundary_vertices
 from geoproc.geodesic.log_ode import LogODESolver
 from geoproc.geodesic.operators import (
-    cotan_laplacian,
     divergence_matrix,
     face_gradient_matrix,
     laplacian_and_mass,

@@ -1,0 +1,205 @@
+"""``geoproc geodesic`` through the real command line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from geoproc.mesh import Mesh, load_mesh, save_mesh
+
+
+def _report(path):
+    return json.loads(path.read_text())
+
+
+def test_exact_on_grid_writes_euclidean_distance(cli, fixture_dir, tmp_path):
+    out, rep = tmp_path / "d.ply", tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "-m", "exact", "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(out)
+    ref = np.linalg.norm(m.V - m.V[0], axis=1)
+    assert np.abs(m.vertex_fields["distance"] - ref).max() < 1e-12
+    r = _report(rep)
+    assert r["metrics"]["max_distance"] == pytest.approx(np.sqrt(2), rel=1e-12)
+    assert r["metrics"]["unreachable_vertices"] == 0
+
+
+def test_heat_with_reference_on_sphere(cli, fixture_dir, tmp_path):
+    out, rep = tmp_path / "d.ply", tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "icosphere.ply", "-s", "3", "-m", "heat", "--reference", "exact",
+            "-o", out, "--report", rep, "--check", "mean_relative_error<=0.02")
+    assert p.returncode == 0, p.stderr
+    met = _report(rep)["metrics"]
+    assert met["pearson_r"] > 0.999
+    assert met["mae"] == met["mean_relative_error"] < 0.02
+    assert 0 <= met["rmse"] and met["max_relative_error"] < 0.1
+    timings = _report(rep)["timings_s"]
+    assert {"setup", "solve", "reference"} <= set(timings)
+    # independent check of the written field: great-circle distance on the unit sphere
+    m = load_mesh(out)
+    arc = np.arccos(np.clip(m.V @ m.V[3], -1, 1))
+    assert np.abs(m.vertex_fields["distance"] - arc).mean() / np.pi < 0.02
+
+
+def test_input_properties_are_kept_and_field_renamed(cli, make_fixtures, tmp_path):
+    V, F = make_fixtures.grid(11)
+    src = tmp_path / "in.ply"
+    save_mesh(src, Mesh(V, F, vertex_fields={"quality": np.arange(len(V), dtype=float)}))
+    out = tmp_path / "d.ply"
+    p = cli("geodesic", src, "-s", "5", "-m", "log-heat", "--field-name", "geo", "-o", out)
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(out)
+    assert np.array_equal(m.vertex_fields["quality"], np.arange(len(V), dtype=float))
+    assert "distance" not in m.vertex_fields
+    ref = np.linalg.norm(V - V[5], axis=1)
+    assert np.abs(m.vertex_fields["geo"] - ref).mean() / ref.max() < 0.03
+
+
+def test_sources_file_and_stdout(cli, fixture_dir, tmp_path):
+    sf = tmp_path / "s.txt"
+    sf.write_text("# two corners\n0, 440\n")
+    p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", sf, "-m", "exact", "-o", "-")
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.startswith(b"ply")
+    out = tmp_path / "o.ply"
+    out.write_bytes(p.stdout)
+    m = load_mesh(out)
+    ref = np.minimum(np.linalg.norm(m.V - m.V[0], axis=1), np.linalg.norm(m.V - m.V[440], axis=1))
+    assert np.abs(m.vertex_fields["distance"] - ref).max() < 1e-12
+
+
+def test_render_writes_a_png(cli, fixture_dir, tmp_path):
+    out, png = tmp_path / "d.ply", tmp_path / "d.png"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--render", png)
+    assert p.returncode == 0, p.stderr
+    data = png.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10000
+
+
+def test_unreachable_component_is_inf_and_counted(cli, make_fixtures, tmp_path):
+    V1, F1 = make_fixtures.grid(11)
+    src = tmp_path / "two.ply"
+    save_mesh(src, Mesh(np.vstack([V1, V1 + [3.0, 0, 0]]), np.vstack([F1, F1 + len(V1)])))
+    out, rep = tmp_path / "d.ply", tmp_path / "r.json"
+    p = cli("geodesic", src, "-s", "0", "-m", "log-ode", "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    assert _report(rep)["metrics"]["unreachable_vertices"] == len(V1)
+    d = load_mesh(out).vertex_fields["distance"]
+    assert np.isinf(d[len(V1):]).all() and np.isfinite(d[: len(V1)]).all()
+    assert "not connected to a source" in p.stderr
+
+
+def test_log_ode_cvxpy_solver_matches_default(cli, make_fixtures, tmp_path):
+    pytest.importorskip("cvxpy")
+    small = tmp_path / "ico2.ply"
+    save_mesh(small, Mesh(*make_fixtures.icosphere(2)))
+    outs = []
+    for solver in ("lu", "cvxpy"):
+        out = tmp_path / f"{solver}.ply"
+        p = cli("geodesic", small, "-s", "0", "-m", "log-ode", "--steps", "2",
+                "--solver", solver, "-o", out)
+        assert p.returncode == 0, p.stderr
+        outs.append(load_mesh(out).vertex_fields["distance"])
+    assert np.abs(outs[0] - outs[1]).max() < 1e-6
+
+
+def _isolated_vertex_mesh(make_fixtures, tmp_path):
+    V, F = make_fixtures.grid(5)
+    path = tmp_path / "iso.ply"
+    save_mesh(path, Mesh(np.vstack([V, [[5.0, 5.0, 0.0]]]), F))
+    return path, len(V)
+
+
+BAD = [
+    (["-s", "441"], "grid.ply", "source vertex 441 is out of range"),
+    (["-s", "0", "--time", "0"], "grid.ply", "--time must be a positive finite number"),
+    (["-s", "0", "--time", "nan"], "grid.ply", "--time must be a positive finite number"),
+    (["-s", "0", "--time-factor", "-2"], "grid.ply", "--time-factor must be a positive"),
+    (["-s", "0", "-m", "varadhan", "--steps", "0"], "grid.ply", "--steps must be at least 1"),
+    (["-s", "0"], "fin.obj", "non-manifold"),
+    (["-s", "0", "-m", "exact"], "bowtie.obj", "non-manifold"),
+    (["-s", "0"], "points.ply", "point cloud"),
+    (["-s", "0"], "zero_area.off", "zero area"),
+    ([], "grid.ply", "at least one source"),
+]
+
+
+@pytest.mark.parametrize("args,mesh,message", BAD)
+def test_bad_input_exits_2_with_one_line(cli, fixture_dir, tmp_path, args, mesh, message):
+    out = tmp_path / "d.ply"
+    p = cli("geodesic", fixture_dir / mesh, *args, "-o", out)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0]
+    assert not out.exists()
+
+
+def test_source_on_isolated_vertex_exits_2(cli, make_fixtures, tmp_path):
+    path, iso = _isolated_vertex_mesh(make_fixtures, tmp_path)
+    out = tmp_path / "d.ply"
+    p = cli("geodesic", path, "--no-clean", "-s", str(iso), "-o", out)
+    assert p.returncode == 2
+    assert p.stderr.strip() == f"error: {path}: source vertex {iso} is isolated (no face uses it)"
+    assert not out.exists()
+
+
+def test_log_ode_with_negative_cotan_weights_exits_2(cli, make_fixtures, tmp_path):
+    V, F = make_fixtures.icosphere(2)
+    path = tmp_path / "flat.ply"
+    save_mesh(path, Mesh(V * [1.0, 1.0, 0.05], F))
+    out = tmp_path / "d.ply"
+    p = cli("geodesic", path, "-s", "0", "-m", "log-ode", "--laplacian", "cotan", "-o", out)
+    assert p.returncode == 2
+    assert "intrinsic-delaunay" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_non_ply_output_is_refused(cli, fixture_dir, tmp_path):
+    out = tmp_path / "d.obj"
+    p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "-o", out)
+    assert p.returncode == 2 and "only PLY keeps" in p.stderr and not out.exists()
+
+
+def test_tiny_time_on_armadillo(cli, shared_data, tmp_path):
+    """t = 1e-4 h^2: u underflows for heat and varadhan (the report counts it),
+    while log-ode and log-heat stay finite everywhere."""
+    import geoproc.geodesic as gd
+
+    mesh = shared_data / "meshes" / "armadillo.obj"
+    out, rep = tmp_path / "heat.ply", tmp_path / "heat.json"
+    p = cli("geodesic", mesh, "-s", "0", "-m", "heat", "--time-factor", "1e-4", "-o", out,
+            "--report", rep)
+    assert p.returncode == 0, p.stderr
+    met = _report(rep)["metrics"]
+    n = met["vertices"]
+    assert met["zero_heat_vertices"] > n // 2
+    assert f"{met['zero_heat_vertices']} vertices where heat u underflowed to 0" in p.stderr
+    m = load_mesh(mesh)
+    run = {k: gd.geodesic_distance(m.V, m.F, [0], k, time_factor=1e-4)
+           for k in ("varadhan", "log-ode", "log-heat")}
+    assert run["varadhan"].stats["zero_heat_vertices"] > n // 2
+    assert np.isinf(run["varadhan"].distance).sum() >= run["varadhan"].stats["zero_heat_vertices"]
+    for k in ("log-ode", "log-heat"):
+        assert np.isfinite(run[k].distance).all()
+        assert run[k].stats["nonfinite_log_heat"] == 0
+        # finite although exp(w) is below the smallest double on most vertices
+        assert run[k].stats["log_heat_below_double"] > n // 2
+    # log-heat stays meaningful: its distance grows away from the source
+    # (the heat method's normalized gradient is 0/0 where u == 0)
+    euclid = np.linalg.norm(m.V - m.V[0], axis=1)
+    assert np.corrcoef(run["log-heat"].distance, euclid)[0, 1] > 0.9
+    assert np.corrcoef(load_mesh(out).vertex_fields["distance"], euclid)[0, 1] < 0.5
+
+
+@pytest.mark.slow
+def test_log_heat_at_tiny_time_against_exact_on_armadillo(shared_data):
+    import geoproc.geodesic as gd
+
+    m = load_mesh(shared_data / "meshes" / "armadillo.obj")
+    ref = gd.exact_geodesic_distance(m.V, m.F, np.array([0]))
+    d = gd.geodesic_distance(m.V, m.F, [0], "log-heat", time_factor=1e-4).distance
+    c = gd.compare_to_reference(d, ref)
+    # measured r = 0.9965, mean relative error 12 %; the heat method gives r = -0.56 here
+    assert c["pearson_r"] > 0.99 and c["mean_relative_error"] < 0.2
