@@ -8,7 +8,12 @@ nearest segment is within ``d* + h``. The lists are exact, so a query scans
 only its cell's few candidates. Points outside the grid fall back to a scan of
 every segment.
 
-The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids)``
+Each cell also keeps ``d*``: ``d* - |p - c|`` is a lower bound of the distance
+from any point p of the cell to the segments, good for a walk step far from the
+boundary without scanning any segment (:func:`safe_radius`).
+
+The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids,
+dcell, cs, fast_min)``
 accepted by :func:`closest_point`; ``coords`` (k, 5) repeats each candidate's
 start, direction and inverse squared length (``ax, ay, ex, ey, 1/|e|^2``) so a
 query reads one contiguous block and divides nothing.
@@ -21,6 +26,8 @@ import math
 import numba
 import numpy as np
 from numba import prange
+
+FAST_CELLS = 12.0  # safe_radius is used when it is at least this many cell sizes
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -42,7 +49,7 @@ def point_segment_d2(px, py, ax, ay, bx, by):
 
 
 @numba.njit(cache=True, parallel=True)
-def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items):
+def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items, dcell):
     half = 0.5 * cs * math.sqrt(2.0)
     n_cells = nx * ny
     counts = np.zeros(n_cells, dtype=np.int64)
@@ -59,6 +66,7 @@ def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items
             d[k] = math.sqrt(d2)
             if d[k] < best:
                 best = d[k]
+        dcell[c] = best
         lim = best + 2.0 * half + 1e-12 * (1.0 + best)
         n = 0
         for k in range(seg_ids.shape[0]):
@@ -86,7 +94,8 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     Returns
     -------
     tuple
-        ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids)`` for :func:`closest_point`.
+        ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, dcell, cs, fast_min)`` for
+        :func:`closest_point` and :func:`safe_radius`.
     """
     A = np.ascontiguousarray(A, dtype=np.float64)
     B = np.ascontiguousarray(B, dtype=np.float64)
@@ -98,21 +107,23 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     lo = lo - 1e-6 * span
     span *= 1 + 2e-6
     k = len(seg_ids)
-    n = resolution or int(np.clip(min(16 * np.sqrt(k), np.sqrt(4e7 / k)), 32, 512))
+    n = resolution or int(np.clip(min(8 * np.sqrt(k), np.sqrt(4e7 / k)), 32, 512))
     cs = span / n
     nx = max(1, int(np.ceil((hi[0] - lo[0]) / cs + 1e-9)))
     ny = max(1, int(np.ceil((hi[1] - lo[1]) / cs + 1e-9)))
     empty = np.zeros(1, dtype=np.int64)
-    counts = _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, True, empty, empty)
+    dcell = np.empty(nx * ny)
+    counts = _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, True, empty, empty, dcell)
     start = np.zeros(nx * ny + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
     items = np.empty(int(start[-1]), dtype=np.int64)
-    _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, False, start, items)
+    _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, False, start, items, dcell)
     E = B[items] - A[items]
     ee = (E**2).sum(axis=1)
     inv = np.divide(1.0, ee, out=np.zeros_like(ee), where=ee > 0)
     coords = np.ascontiguousarray(np.hstack([A[items], E, inv[:, None]]))
-    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, seg_ids)
+    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, seg_ids, dcell,
+            float(cs), FAST_CELLS * float(cs))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -128,7 +139,7 @@ def closest_point(px, py, A, B, grid):
     t : float
         Parameter of the closest point on the segment, in [0, 1].
     """
-    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids = grid
+    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, dcell, cs, fast_min = grid
     fi = (px - ox) * inv_cs
     fj = (py - oy) * inv_cs
     best = np.inf
@@ -159,6 +170,27 @@ def closest_point(px, py, A, B, grid):
                 best_s = s
                 best_t = t
     return best, best_s, best_t
+
+
+@numba.njit(cache=True, nogil=True)
+def safe_radius(px, py, grid):
+    """A radius r with the disk (p, r) free of segments, from the cell bound alone.
+
+    Returns ``d*(c) - |p - c|`` (c the center of p's cell) when that is at least
+    ``fast_min``, else -1 (then query :func:`closest_point`).
+    """
+    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, dcell, cs, fast_min = grid
+    fi = (px - ox) * inv_cs
+    fj = (py - oy) * inv_cs
+    if 0.0 <= fi < nx and 0.0 <= fj < ny:
+        i = int(fi)
+        j = int(fj)
+        dx = px - (ox + (i + 0.5) * cs)
+        dy = py - (oy + (j + 0.5) * cs)
+        r = dcell[j * nx + i] - math.sqrt(dx * dx + dy * dy)
+        if r >= fast_min:
+            return r
+    return -1.0
 
 
 @numba.njit(cache=True, parallel=True)

@@ -1,7 +1,9 @@
 """Walk on Spheres (Muller 1956) for the Dirichlet Laplace problem, in numba.
 
 From ``x`` jump to a uniform point on the largest empty circle (radius = the
-distance to the boundary) until within ``eps`` of the boundary, then score the
+distance to the boundary; far from the boundary a cheaper lower bound, which
+keeps the estimator unbiased since any circle inside the domain has the mean
+value property) until within ``eps`` of the boundary, then score the
 boundary data at the closest boundary point. With a harmonic control variate
 ``c`` the walk scores the residual ``g(y) - c(p)`` (``p`` the last position,
 ``y`` its closest boundary point) and ``c(x)`` is added back: unbiased, lower
@@ -19,7 +21,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from geoproc.wos.closest import closest_point
+from geoproc.wos.closest import closest_point, safe_radius
 from geoproc.wos.expression import eval_program
 from geoproc.wos.kernels import cv_value
 from geoproc.wos.rng import next_uniform, stream_state
@@ -85,10 +87,13 @@ def wos_dirichlet(X, index0, walks, eps, max_steps, stream_seed, A, B, grid,
             py = y0
             taken = 0
             while True:
-                d2, seg, t = closest_point(px, py, A, B, grid)
-                d = math.sqrt(d2)
-                if d < eps or taken >= max_steps:
-                    break
+                # far from the boundary the cell bound is a valid (slightly smaller) sphere
+                d = safe_radius(px, py, grid)
+                if d < 0.0 or taken >= max_steps:
+                    d2, seg, t = closest_point(px, py, A, B, grid)
+                    d = math.sqrt(d2)
+                    if d < eps or taken >= max_steps:
+                        break
                 state, u = next_uniform(state)
                 th = TWO_PI * u
                 px += d * math.cos(th)
