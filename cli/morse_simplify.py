@@ -13,13 +13,8 @@ import typer
 
 from geoproc.errors import UsageError
 from geoproc.mesh.validate import require_manifold, require_triangle_mesh
-from geoproc.morse import (
-    discrete_gradient,
-    find_closed_vpath,
-    lower_star_persistence,
-    simplify_function,
-    surface_complex,
-)
+from geoproc.morse import find_closed_vpath, lower_star_persistence
+from geoproc.morse import morse_simplify as morse_simplify_field
 from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
 from geoproc.morse.diagram_plot import persistence_diagram_png
 from geoproc.morse.fields import field_name, vertex_field
@@ -79,7 +74,9 @@ def morse_simplify(
     vertices are counted in vertices_beyond_half_threshold.
 
     Metrics: minima/saddles/maxima before and after, euler_characteristic,
-    betti_0/1/2, pairs_removed, pairs_kept, max_abs_change, threshold.
+    betti_0/1/2, pairs_removed, pairs_kept, max_abs_change, threshold,
+    vertices_beyond_half_threshold. Timings: field, simplify (gradient, pairs
+    and simplification), after (pairs of g), diagram.
     """
     params = {"mesh": mesh, "field": field, "persistence": persistence, "relative": relative,
               "output": output, "critical": str(critical) if critical else None,
@@ -98,21 +95,16 @@ def morse_simplify(
         if field.lower().endswith(".npy"):
             run.add_input(field)
         name = field_name(field)
-        with run.timer("gradient"):
-            cx = surface_complex(m.F, m.n_vertices, m.log.path or None)
-            grad = discrete_gradient(cx, f)
+        span = float(f.max() - f.min()) if len(f) else 0.0
+        threshold = float(persistence) * span if relative else float(persistence)
+        with run.timer("simplify"):  # gradient, pairs and simplification
+            res = morse_simplify_field(m.F, f, threshold, m.log.path or None)
+        cx, grad, before, simp, g = res.cx, res.gradient, res.pairs, res.simplification, res.g
         cycle = find_closed_vpath(cx, grad)
         if cycle is not None:
             raise RuntimeError(f"the discrete gradient has a closed V-path of dimension {cycle[0]}")
-        with run.timer("persistence"):
-            before = lower_star_persistence(cx, f)
-        span = float(f.max() - f.min()) if len(f) else 0.0
-        threshold = float(persistence) * span if relative else float(persistence)
-        with run.timer("simplify"):
-            simp = simplify_function(cx, f, threshold)
-            g = simp.g
         with run.timer("after"):
-            after = lower_star_persistence(cx, g)
+            after = lower_star_persistence(cx, simp.g)
         chi = cx.euler_characteristic
         c_before = critical_counts(before)
         c_after = critical_counts(after)
@@ -149,7 +141,8 @@ def morse_simplify(
         run.write_mesh(output, out)
         if critical is not None:
             doc = {"field": name, "threshold": threshold, "euler_characteristic": chi,
-                   "before": critical_cells_table(cx, before), "after": critical_cells_table(cx, after)}
+                   "before": critical_cells_table(cx, before, res.order),
+                   "after": critical_cells_table(cx, after, res.order)}
             run.write_bytes(critical, json.dumps(json_safe(doc)).encode())
         if diagram is not None:
             with run.timer("diagram"):

@@ -11,17 +11,20 @@ from geoproc.morse.complex import SurfaceComplex, surface_complex
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.order import vertex_order
 from geoproc.morse.persistence import PersistencePairs, lower_star_persistence
+from geoproc.morse.pipeline import MorseSimplification, morse_simplify
 from geoproc.morse.simplify import Simplification, simplify_function
 from geoproc.morse.vpath import find_closed_vpath
 
 __all__ = [
     "DiscreteGradient",
+    "MorseSimplification",
     "PersistencePairs",
     "Simplification",
     "SurfaceComplex",
     "discrete_gradient",
     "find_closed_vpath",
     "lower_star_persistence",
+    "morse_simplify",
     "simplify_function",
     "surface_complex",
     "vertex_order",

@@ -8,15 +8,8 @@ from geoproc.morse.complex import SurfaceComplex
 from geoproc.morse.persistence import PersistencePairs
 
 
-def _simplex(cx: SurfaceComplex, dim: int, idx: int) -> list[int]:
-    if dim == 0:
-        return [int(idx)]
-    if dim == 1:
-        return [int(x) for x in cx.E[idx]]
-    return [int(x) for x in cx.F[idx]]
-
-
-def critical_cells_table(cx: SurfaceComplex, pp: PersistencePairs) -> list[dict]:
+def critical_cells_table(cx: SurfaceComplex, pp: PersistencePairs,
+                         vertex_ids: np.ndarray | None = None) -> list[dict]:
     """One record per critical cell of the lower-star gradient.
 
     Parameters
@@ -25,6 +18,10 @@ def critical_cells_table(cx: SurfaceComplex, pp: PersistencePairs) -> list[dict]
         The mesh's cells.
     pp : PersistencePairs
         Its persistence pairs (:func:`geoproc.morse.lower_star_persistence`).
+    vertex_ids : (n,) int array, optional
+        Vertex ids to report for the complex's vertices (``order`` of a
+        :class:`~geoproc.morse.MorseSimplification` maps relabelled vertices
+        back to the input's).
 
     Returns
     -------
@@ -37,6 +34,11 @@ def critical_cells_table(cx: SurfaceComplex, pp: PersistencePairs) -> list[dict]
         dimension, then value, then vertex.
     """
     f = pp.f
+    ids = np.arange(cx.n) if vertex_ids is None else np.asarray(vertex_ids)
+
+    def _simplex(cx, dim, idx):
+        cell = [idx] if dim == 0 else cx.E[idx] if dim == 1 else cx.F[idx]
+        return sorted(int(ids[x]) for x in cell)
 
     def top(d, i):
         return int(i) if d == 0 else int(pp.edge_top[i]) if d == 1 else int(pp.triangle_top[i])
@@ -45,13 +47,13 @@ def critical_cells_table(cx: SurfaceComplex, pp: PersistencePairs) -> list[dict]
 
     def add(d, i, pd, pi):
         v = top(d, i)
-        rec = {"dimension": d, "simplex": _simplex(cx, d, i), "vertex": v, "value": float(f[v])}
+        rec = {"dimension": d, "simplex": _simplex(cx, d, i), "vertex": int(ids[v]), "value": float(f[v])}
         if pd is None:
             rec["paired_with"] = None
             rec["persistence"] = None
         else:
             w = top(pd, pi)
-            rec["paired_with"] = {"dimension": pd, "simplex": _simplex(cx, pd, pi), "vertex": w}
+            rec["paired_with"] = {"dimension": pd, "simplex": _simplex(cx, pd, pi), "vertex": int(ids[w])}
             rec["persistence"] = float(abs(f[w] - f[v]))
         rows.append(rec)
 

@@ -276,6 +276,28 @@ def _fheap_pop(keys, items, size):
 
 
 @numba.njit(cache=True)
+def _wrong_extrema(g, keep_min, keep_max, boundary, adj_ptr, adj_nbr):
+    """Number of vertices whose min/max status under (g, index) differs from
+    the wanted one (maxima: interior vertices only)."""
+    n = g.shape[0]
+    bad = 0
+    for v in range(n):
+        lower = False
+        higher = False
+        for j in range(adj_ptr[v], adj_ptr[v + 1]):
+            w = adj_nbr[j]
+            if g[w] < g[v] or (g[w] == g[v] and w < v):
+                lower = True
+            else:
+                higher = True
+        if lower == keep_min[v]:
+            bad += 1
+        if adj_ptr[v + 1] > adj_ptr[v] and not boundary[v] and higher == keep_max[v]:
+            bad += 1
+    return bad
+
+
+@numba.njit(cache=True)
 def _make_strict(g, order):
     out = g.copy()
     for i in range(1, order.shape[0]):
@@ -379,11 +401,10 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float) -> Si
         # could not be kept; normally changes nothing.
         seeds_max = keep_max | cx.boundary | (degree == 0)
         for _ in range(50):
-            a = _flood_from(g, keep_min, cx.adj_ptr, cx.adj_nbr, 1.0)
-            b = _flood_from(g, seeds_max, cx.adj_ptr, cx.adj_nbr, -1.0)
-            if a == 0 and b == 0:
+            if _wrong_extrema(g, keep_min, keep_max, cx.boundary, cx.adj_ptr, cx.adj_nbr) == 0:
                 break
-            repaired += a + b
+            repaired += _flood_from(g, keep_min, cx.adj_ptr, cx.adj_nbr, 1.0)
+            repaired += _flood_from(g, seeds_max, cx.adj_ptr, cx.adj_nbr, -1.0)
         g = _make_strict(g, np.lexsort((np.arange(n), g)))
     return Simplification(
         g=g,

@@ -1,0 +1,69 @@
+"""The whole morse-simplify computation on a mesh, with vertices relabelled by
+value first (memory locality: every sweep then walks the arrays in order)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from geoproc.morse.complex import SurfaceComplex, surface_complex
+from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
+from geoproc.morse.order import vertex_order
+from geoproc.morse.persistence import PersistencePairs, lower_star_persistence
+from geoproc.morse.simplify import Simplification, simplify_function
+
+
+@dataclass
+class MorseSimplification:
+    """Everything morse-simplify computes, in the relabelled vertex numbering.
+
+    Attributes
+    ----------
+    order : (n,) int64 array
+        ``order[i]`` is the input vertex with relabelled index i (vertices
+        sorted by (value, index)); map a relabelled vertex id back with it.
+    cx : SurfaceComplex
+        The complex of the relabelled mesh (faces ``rank[F]``).
+    gradient, pairs : DiscreteGradient, PersistencePairs
+        Of the input field (relabelled: ``f[order]``).
+    simplification : Simplification
+        Its ``g`` is in the relabelled numbering; use ``g`` below for the input's.
+    g : (n,) float64 array
+        The simplified field, indexed like the input vertices.
+    """
+
+    order: np.ndarray
+    cx: SurfaceComplex
+    gradient: DiscreteGradient
+    pairs: PersistencePairs
+    simplification: Simplification
+    g: np.ndarray
+
+
+def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | None = None
+                   ) -> MorseSimplification:
+    """Gradient, persistence pairs and simplification of f on the mesh F.
+
+    Parameters
+    ----------
+    F : (m, 3) int array
+        Triangles of a 2-manifold mesh.
+    f : (n,) float array
+        Vertex values.
+    threshold : float
+        Absolute persistence threshold P >= 0.
+    path : str, optional
+        File name for error messages.
+    """
+    f = np.asarray(f, dtype=np.float64)
+    n = len(f)
+    order, rank = vertex_order(f)
+    cx = surface_complex(rank[np.asarray(F, dtype=np.int64)], n, path)
+    fr = f[order]
+    grad = discrete_gradient(cx, fr)
+    pairs = lower_star_persistence(cx, fr)
+    simp = simplify_function(cx, fr, threshold)
+    g = np.empty(n)
+    g[order] = simp.g
+    return MorseSimplification(order, cx, grad, pairs, simp, g)
