@@ -45,7 +45,7 @@ def morse_simplify(
     output: Annotated[str, typer.Option(
         "--output", "-o",
         help="Output .ply (or - for binary PLY on stdout): the simplified field under the field's name, "
-        "the input field as <name>_original.", metavar="OUT.ply", show_default=False)],
+        "the input field as NAME_original.", metavar="OUT.ply", show_default=False)],
     relative: Annotated[bool, typer.Option(
         "--relative", help="Read P as a fraction of the field's range (max - min).")] = False,
     critical: Annotated[Path | None, typer.Option(
