@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
@@ -14,7 +14,7 @@ from geoproc.errors import UsageError
 from geoproc_cli.common import CheckOpt, DebugOpt, QuietOpt, ReportOpt, command_run
 
 
-class Method(str, Enum):
+class Method(StrEnum):
     naive = "naive"
     cv_green = "cv-green"
     cv_angle = "cv-angle"
