@@ -8,12 +8,12 @@ nearest segment is within ``d* + h``. The lists are exact, so a query scans
 only its cell's few candidates. Points outside the grid fall back to a scan of
 every segment.
 
-Each cell also keeps ``d*``: ``d* - |p - c|`` is a lower bound of the distance
-from any point p of the cell to the segments, good for a walk step far from the
-boundary without scanning any segment (:func:`safe_radius`).
+A single-precision copy of the candidates (relative to the grid origin) serves
+:func:`distance_lower_bound`, the cheap query walks use for steps that do not
+end the walk.
 
 The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids,
-dcell, cs, fast_min)``
+coords32, margin)``
 accepted by :func:`closest_point`; ``coords`` (k, 5) repeats each candidate's
 start, direction and inverse squared length (``ax, ay, ex, ey, 1/|e|^2``) so a
 query reads one contiguous block and divides nothing.
@@ -26,8 +26,6 @@ import math
 import numba
 import numpy as np
 from numba import prange
-
-FAST_CELLS = 12.0  # safe_radius is used when it is at least this many cell sizes
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -49,7 +47,7 @@ def point_segment_d2(px, py, ax, ay, bx, by):
 
 
 @numba.njit(cache=True, parallel=True)
-def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items, dcell):
+def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items):
     half = 0.5 * cs * math.sqrt(2.0)
     n_cells = nx * ny
     counts = np.zeros(n_cells, dtype=np.int64)
@@ -66,7 +64,6 @@ def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items
             d[k] = math.sqrt(d2)
             if d[k] < best:
                 best = d[k]
-        dcell[c] = best
         lim = best + 2.0 * half + 1e-12 * (1.0 + best)
         n = 0
         for k in range(seg_ids.shape[0]):
@@ -94,8 +91,8 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     Returns
     -------
     tuple
-        ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, dcell, cs, fast_min)`` for
-        :func:`closest_point` and :func:`safe_radius`.
+        ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin)`` for
+        :func:`closest_point` and :func:`distance_lower_bound`.
     """
     A = np.ascontiguousarray(A, dtype=np.float64)
     B = np.ascontiguousarray(B, dtype=np.float64)
@@ -112,18 +109,22 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     nx = max(1, int(np.ceil((hi[0] - lo[0]) / cs + 1e-9)))
     ny = max(1, int(np.ceil((hi[1] - lo[1]) / cs + 1e-9)))
     empty = np.zeros(1, dtype=np.int64)
-    dcell = np.empty(nx * ny)
-    counts = _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, True, empty, empty, dcell)
+    counts = _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, True, empty, empty)
     start = np.zeros(nx * ny + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
     items = np.empty(int(start[-1]), dtype=np.int64)
-    _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, False, start, items, dcell)
+    _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, False, start, items)
     E = B[items] - A[items]
     ee = (E**2).sum(axis=1)
     inv = np.divide(1.0, ee, out=np.zeros_like(ee), where=ee > 0)
     coords = np.ascontiguousarray(np.hstack([A[items], E, inv[:, None]]))
-    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, seg_ids, dcell,
-            float(cs), FAST_CELLS * float(cs))
+    rel = coords.copy()
+    rel[:, 0] -= lo[0]
+    rel[:, 1] -= lo[1]
+    coords32 = np.ascontiguousarray(rel.astype(np.float32))
+    margin = 1e-6 * (span + float(np.abs(lo).max()) * 1e-3)
+    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, seg_ids, coords32,
+            margin)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -139,7 +140,7 @@ def closest_point(px, py, A, B, grid):
     t : float
         Parameter of the closest point on the segment, in [0, 1].
     """
-    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, dcell, cs, fast_min = grid
+    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin = grid
     fi = (px - ox) * inv_cs
     fj = (py - oy) * inv_cs
     best = np.inf
@@ -173,24 +174,38 @@ def closest_point(px, py, A, B, grid):
 
 
 @numba.njit(cache=True, nogil=True)
-def safe_radius(px, py, grid):
-    """A radius r with the disk (p, r) free of segments, from the cell bound alone.
+def distance_lower_bound(px, py, grid):
+    """A lower bound of the distance from p to the segments, in float32 arithmetic.
 
-    Returns ``d*(c) - |p - c|`` (c the center of p's cell) when that is at least
-    ``fast_min``, else -1 (then query :func:`closest_point`).
+    Scans the cell's candidates in single precision (coordinates relative to the
+    grid origin) and subtracts ``margin``, which exceeds the rounding error, so
+    the disk (p, result) is free of segments. Returns -1 outside the grid. Walks
+    use it for every step that does not end the walk; :func:`closest_point` gives
+    the exact (double precision) closest point.
     """
-    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, dcell, cs, fast_min = grid
+    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin = grid
     fi = (px - ox) * inv_cs
     fj = (py - oy) * inv_cs
-    if 0.0 <= fi < nx and 0.0 <= fj < ny:
-        i = int(fi)
-        j = int(fj)
-        dx = px - (ox + (i + 0.5) * cs)
-        dy = py - (oy + (j + 0.5) * cs)
-        r = dcell[j * nx + i] - math.sqrt(dx * dx + dy * dy)
-        if r >= fast_min:
-            return r
-    return -1.0
+    if not (0.0 <= fi < nx and 0.0 <= fj < ny):
+        return -1.0
+    c = int(fj) * nx + int(fi)
+    x = np.float32(px - ox)
+    y = np.float32(py - oy)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    best = np.float32(np.inf)
+    for k in range(start[c], start[c + 1]):
+        wx = x - coords32[k, 0]
+        wy = y - coords32[k, 1]
+        ex = coords32[k, 2]
+        ey = coords32[k, 3]
+        t = min(max((wx * ex + wy * ey) * coords32[k, 4], zero), one)
+        dx = wx - t * ex
+        dy = wy - t * ey
+        d2 = dx * dx + dy * dy
+        if d2 < best:
+            best = d2
+    return math.sqrt(np.float64(best)) - margin
 
 
 @numba.njit(cache=True, parallel=True)

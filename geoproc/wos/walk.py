@@ -1,9 +1,9 @@
 """Walk on Spheres (Muller 1956) for the Dirichlet Laplace problem, in numba.
 
 From ``x`` jump to a uniform point on the largest empty circle (radius = the
-distance to the boundary; far from the boundary a cheaper lower bound, which
-keeps the estimator unbiased since any circle inside the domain has the mean
-value property) until within ``eps`` of the boundary, then score the
+distance to the boundary; for steps that cannot end the walk a cheaper
+single-precision lower bound, which keeps the estimator unbiased since any
+circle inside the domain has the mean value property) until within ``eps`` of the boundary, then score the
 boundary data at the closest boundary point. With a harmonic control variate
 ``c`` the walk scores the residual ``g(y) - c(p)`` (``p`` the last position,
 ``y`` its closest boundary point) and ``c(x)`` is added back: unbiased, lower
@@ -21,7 +21,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from geoproc.wos.closest import closest_point, safe_radius
+from geoproc.wos.closest import closest_point, distance_lower_bound
 from geoproc.wos.expression import eval_program
 from geoproc.wos.kernels import cv_value
 from geoproc.wos.rng import next_uniform, stream_state
@@ -75,6 +75,7 @@ def wos_dirichlet(X, index0, walks, eps, max_steps, stream_seed, A, B, grid,
     mean = np.empty(n)
     var = np.empty(n)
     steps = np.zeros(n, dtype=np.int64)
+    eps_hi = eps + 4.0 * grid[10]
     for k in prange(n):
         state = stream_state(stream_seed, index0 + k)
         x0 = X[k, 0]
@@ -87,9 +88,11 @@ def wos_dirichlet(X, index0, walks, eps, max_steps, stream_seed, A, B, grid,
             py = y0
             taken = 0
             while True:
-                # far from the boundary the cell bound is a valid (slightly smaller) sphere
-                d = safe_radius(px, py, grid)
-                if d < 0.0 or taken >= max_steps:
+                # a single-precision lower bound sizes every step that cannot end the
+                # walk (a slightly smaller sphere is still a valid one); near the
+                # boundary the exact query decides and gives the exit point
+                d = distance_lower_bound(px, py, grid)
+                if d < eps_hi or taken >= max_steps:
                     d2, seg, t = closest_point(px, py, A, B, grid)
                     d = math.sqrt(d2)
                     if d < eps or taken >= max_steps:
