@@ -61,11 +61,11 @@ def geoproc_run(V, F, f, P):
     cx = surface_complex(rank[F], len(V))
     fr = f[order]
     t.append(time.perf_counter())
-    discrete_gradient(cx, fr)
+    grad = discrete_gradient(cx, fr)
     t.append(time.perf_counter())
     pp = lower_star_persistence(cx, fr)
     t.append(time.perf_counter())
-    s = simplify_function(cx, fr, P)
+    s = simplify_function(cx, fr, P, grad)
     g = np.empty(len(f))
     g[order] = s.g
     t.append(time.perf_counter())

@@ -63,7 +63,7 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
     fr = f[order]
     grad = discrete_gradient(cx, fr)
     pairs = lower_star_persistence(cx, fr)
-    simp = simplify_function(cx, fr, threshold)
+    simp = simplify_function(cx, fr, threshold, grad)
     g = np.empty(n)
     g[order] = simp.g
     return MorseSimplification(order, cx, grad, pairs, simp, g)

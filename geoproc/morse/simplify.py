@@ -29,6 +29,9 @@ How g is built
    ascents agree with the flooding), peaks that go have their ascent path
    reversed across their saddle, and both forests plus "every neighbour is
    below" for each maximum that stays are assigned in one pass as in 2.
+   Saddle vertices none of whose pairs is cancelled also keep every edge of
+   their link oriented as in f, so they stay saddles of the same multiplicity
+   at the same vertex.
 4. Where P/2 cannot be met. For piecewise-linear vertex functions the bound
    P/2 (optimal for Forman's discrete Morse functions, where every cell has
    its own value) is not always reachable: if a cancelled minimum m and a
@@ -58,6 +61,7 @@ import numba
 import numpy as np
 
 from geoproc.morse.complex import SurfaceComplex
+from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.merge_forest import cone_adjacency, merge_forest
 from geoproc.morse.order import vertex_order
 
@@ -96,7 +100,7 @@ class Simplification:
 
 
 @numba.njit(cache=True)
-def _assign_values(f, half, down, up, keep_min, keep_max, adj_ptr, adj_nbr):
+def _assign_values(f, half, down, up, keep_min, keep_max, pin, adj_ptr, adj_nbr):
     """Backward and forward passes of step 3; returns (g, half-width used per
     vertex, stuck) where ``stuck`` marks vertices on a cycle of the relation
     (none when it is acyclic)."""
@@ -108,7 +112,7 @@ def _assign_values(f, half, down, up, keep_min, keep_max, adj_ptr, adj_nbr):
             cnt += 1
         if up[v] >= 0 and up[v] < n:
             cnt += 1
-        if keep_min[v] or keep_max[v]:
+        if keep_min[v] or keep_max[v] or pin[v]:
             cnt += adj_ptr[v + 1] - adj_ptr[v]
     A = np.empty(cnt, np.int64)
     B = np.empty(cnt, np.int64)
@@ -132,6 +136,19 @@ def _assign_values(f, half, down, up, keep_min, keep_max, adj_ptr, adj_nbr):
                 A[c] = adj_nbr[j]
                 B[c] = v
                 c += 1
+        elif pin[v] and not keep_min[v]:  # a kept saddle keeps its link as in f
+            for j in range(adj_ptr[v], adj_ptr[v + 1]):
+                w = adj_nbr[j]
+                if f[w] < f[v] or (f[w] == f[v] and w < v):
+                    A[c] = w
+                    B[c] = v
+                else:
+                    A[c] = v
+                    B[c] = w
+                c += 1
+    A = A[:c]
+    B = B[:c]
+    cnt = c
     ptr = np.zeros(n + 1, np.int64)
     indeg = np.zeros(n, np.int64)
     for i in range(cnt):
@@ -328,6 +345,20 @@ def _lowest_neighbour(g, adj_ptr, adj_nbr, keep_min, fallback):
     return out
 
 
+def _kept_saddles(cx: SurfaceComplex, f: np.ndarray, cancelled: np.ndarray,
+                  grad: DiscreteGradient | None) -> np.ndarray:
+    """Saddle vertices of f none of whose pairs is cancelled."""
+    if grad is None:
+        grad = discrete_gradient(cx, f)
+    E = cx.E[grad.critical_edges]
+    _, rank = vertex_order(f)
+    top = np.where(rank[E[:, 0]] > rank[E[:, 1]], E[:, 0], E[:, 1])
+    pin = np.zeros(len(f), dtype=bool)
+    pin[top] = True
+    pin[cancelled] = False
+    return pin
+
+
 def _ascent_forest(ptr, nbr, eid, f, threshold, keep):
     """merge_forest on -f over the coned adjacency (cone vertex = index n, above all)."""
     n = len(f)
@@ -340,7 +371,8 @@ def _ascent_forest(ptr, nbr, eid, f, threshold, keep):
     return b, d, up
 
 
-def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float) -> Simplification:
+def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
+                      gradient: DiscreteGradient | None = None) -> Simplification:
     """Remove every persistence pair of f with persistence < threshold.
 
     Parameters
@@ -353,6 +385,9 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float) -> Si
         Absolute persistence threshold P >= 0 (in f's units). With P = 0
         nothing is removed and g = f (ties, if any, stay and are broken by
         vertex index).
+    gradient : DiscreteGradient, optional
+        f's gradient, when already computed (its critical edges locate the
+        saddles to keep in place).
 
     Returns
     -------
@@ -382,18 +417,21 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float) -> Si
     else:
         no = np.zeros(n, dtype=bool)
         none = np.full(n, -1, dtype=np.int64)
+        cancelled = np.concatenate([d0[f[d0] - f[b0] < P], d1[f[b1] - f[d1] < P]])
+        pin = _kept_saddles(cx, f, cancelled, gradient)
         # minima first: descent forest of f with cancelled basins flooded
-        g_min, _, _ = _assign_values(f, P / 2.0, down, none, keep_min, no, cx.adj_ptr, cx.adj_nbr)
+        g_min, _, _ = _assign_values(f, P / 2.0, down, none, keep_min, no, no, cx.adj_ptr, cx.adj_nbr)
         # then the ascent witnesses are read on the flooded function, peaks carved
         keep_up = np.concatenate([keep_max, [False]])
         _, _, up = _ascent_forest(ptr, nbr, eid, g_min, np.inf, keep_up)
         up = up[:n].copy()
         for _ in range(8):
-            g, half_v, stuck = _assign_values(f, P / 2.0, down, up, keep_min, keep_max,
+            g, half_v, stuck = _assign_values(f, P / 2.0, down, up, keep_min, keep_max, pin,
                                               cx.adj_ptr, cx.adj_nbr)
             if not stuck.any():
                 break
             up[stuck] = -1  # conflicting ascent witnesses: left to the sweeps below
+            pin[stuck] = False
         else:
             raise RuntimeError("cancellation relation keeps a cycle")
         widened = half_v > P / 2.0

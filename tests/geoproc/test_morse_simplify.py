@@ -60,6 +60,14 @@ def test_noisy_sphere_within_half_threshold(make_fixtures, P):
     s = check_simplification(V, F, f, P)
     assert s.max_abs_change <= P / 2 * (1 + 1e-12)
     assert len(s.widened_vertices) == 0
+    # here every kept saddle also stays at its vertex, with its multiplicity
+    cx = surface_complex(F, len(V))
+    pf, pg = lower_star_persistence(cx, f), lower_star_persistence(cx, s.g)
+    pers0 = f[pf.edge_top[pf.min_saddle_edge]] - f[pf.min_vertex]
+    pers1 = f[pf.triangle_top[pf.max_triangle]] - f[pf.edge_top[pf.saddle_edge]]
+    kept = np.concatenate([pf.min_saddle_edge[pers0 >= P], pf.saddle_edge[pers1 >= P], pf.essential_edges])
+    gg = discrete_gradient(cx, s.g)
+    assert sorted(pf.edge_top[kept].tolist()) == sorted(pg.edge_top[gg.critical_edges].tolist())
 
 
 def test_noisy_sphere_down_to_one_minimum_one_maximum(make_fixtures):
