@@ -8,7 +8,7 @@ import numpy as np
 
 
 @numba.njit(parallel=True, cache=True)
-def _bilateral_kernel(indptr, indices, N, G, C, A, sigma_s, sigma_r, out):
+def _bilateral_kernel(indptr, indices, N, G, C, A, sigma_s, sigma_r, radius2, out):
     m = N.shape[0]
     inv_s = -0.5 / (sigma_s * sigma_s)
     inv_r = -0.5 / (sigma_r * sigma_r)
@@ -21,10 +21,13 @@ def _bilateral_kernel(indptr, indices, N, G, C, A, sigma_s, sigma_r, out):
             dx = C[i, 0] - C[j, 0]
             dy = C[i, 1] - C[j, 1]
             dz = C[i, 2] - C[j, 2]
+            d2 = dx * dx + dy * dy + dz * dz
+            if d2 > radius2:
+                continue
             gx = G[i, 0] - G[j, 0]
             gy = G[i, 1] - G[j, 1]
             gz = G[i, 2] - G[j, 2]
-            w = A[j] * np.exp(inv_s * (dx * dx + dy * dy + dz * dz) + inv_r * (gx * gx + gy * gy + gz * gz))
+            w = A[j] * np.exp(inv_s * d2 + inv_r * (gx * gx + gy * gy + gz * gz))
             ax += w * N[j, 0]
             ay += w * N[j, 1]
             az += w * N[j, 2]
@@ -47,6 +50,7 @@ def bilateral_normal_filter(
     sigma_s: float,
     sigma_r: float,
     guidance: np.ndarray | None = None,
+    radius: float = np.inf,
 ) -> np.ndarray:
     """One pass of the (joint) bilateral filter on face normals.
 
@@ -71,6 +75,9 @@ def bilateral_normal_filter(
     guidance : (m, 3) float64, optional
         Guidance normals for the range kernel; the normals themselves when None
         (the plain bilateral normal filter).
+    radius : float
+        Only neighbours whose centroid lies within this distance count (a
+        geometric ball inside the combinatorial neighbourhood).
 
     Returns
     -------
@@ -82,5 +89,5 @@ def bilateral_normal_filter(
     indptr, indices = neighbors
     _bilateral_kernel(indptr, indices, np.ascontiguousarray(N), np.ascontiguousarray(G),
                       np.ascontiguousarray(C), np.ascontiguousarray(A, dtype=np.float64),
-                      float(sigma_s), float(sigma_r), out)
+                      float(sigma_s), float(sigma_r), float(radius) ** 2, out)
     return out

@@ -5,18 +5,29 @@ from __future__ import annotations
 import numpy as np
 
 
+def _raw_normals(X: np.ndarray, F: np.ndarray) -> np.ndarray:
+    return np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
+
+
 def update_vertices(
     V: np.ndarray,
     F: np.ndarray,
     normals: np.ndarray,
     iterations: int = 20,
     fixed: np.ndarray | None = None,
+    prevent_flips: bool = True,
+    keep_orientation: np.ndarray | None = None,
 ) -> np.ndarray:
     """Move vertices so that faces become orthogonal to the target normals.
 
     Each iteration applies ``x_i += 1/|F_i| sum_{f in F_i} n_f (n_f . (c_f - x_i))``
     with the face centroids ``c_f`` of the current positions (a gradient step on
     ``sum_f sum_{(i,j) in f} (n_f . (x_j - x_i))^2``).
+
+    With ``prevent_flips`` a step is withheld from the vertices of any face that
+    the step would turn to face away from its target normal (while it faced
+    along it before), so the update never creates a fold-over; faces that start
+    out folded are free to unfold.
 
     Parameters
     ----------
@@ -27,6 +38,13 @@ def update_vertices(
         Number of update sweeps.
     fixed : (n,) bool, optional
         Vertices that must not move (e.g. the boundary).
+    prevent_flips : bool
+        Withhold steps that would fold a face over (see above).
+    keep_orientation : (m, 3) float64, optional
+        Normals of the input: with ``prevent_flips``, a face that agrees with
+        its target is also kept within 90 degrees of this normal (a wrong target
+        at a sharp feature then cannot fold the face over); faces that start
+        against their target are exempt, so flipped input faces can unfold.
 
     Returns
     -------
@@ -46,5 +64,19 @@ def update_vertices(
         delta /= valence[:, None]
         if fixed is not None:
             delta[fixed] = 0.0
+        if prevent_flips:
+            R0 = _raw_normals(X, F)
+            before = np.einsum("ij,ij->i", R0, normals) > 0
+            if keep_orientation is not None:
+                before_k = before & (np.einsum("ij,ij->i", R0, keep_orientation) > 0)
+            for _ in range(10):
+                R1 = _raw_normals(X + delta, F)
+                after = np.einsum("ij,ij->i", R1, normals) > 0
+                bad = before & ~after
+                if keep_orientation is not None:
+                    bad |= before_k & ~(np.einsum("ij,ij->i", R1, keep_orientation) > 0)
+                if not bad.any():
+                    break
+                delta[F[bad].reshape(-1)] = 0.0
         X += delta
     return X

@@ -1,0 +1,211 @@
+"""``geoproc denoise``: feature-preserving mesh denoising, point-cloud outlier
+removal, and animation denoising."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from geoproc.animation import Animation, animation_to_bytes, is_animation_path, load_animation
+from geoproc.denoise import (
+    DEFAULT_METHOD,
+    METHODS,
+    DenoiseParams,
+    denoise_errors,
+    denoise_mesh,
+    detection_scores,
+    rpca_outliers,
+)
+from geoproc.denoise.dynamic import denoise_animation
+from geoproc.denoise.metrics import flipped_faces
+from geoproc.denoise.validate import require_edge_manifold, require_same_connectivity
+from geoproc.errors import InputError, UsageError
+from geoproc.mesh import Mesh, load_mesh
+from geoproc.mesh.validate import require_triangle_mesh
+from geoproc_cli.common import (
+    CheckOpt,
+    DebugOpt,
+    NoCleanOpt,
+    QuietOpt,
+    ReportOpt,
+    command_run,
+)
+
+
+def denoise(
+    input: Annotated[str, typer.Argument(help="Noisy mesh (.obj, .ply, .off, .stl, - for stdin); a point "
+                                         "cloud with --outliers; an animation (.npz or folder of frames) "
+                                         "with --dynamic.", metavar="INPUT")],
+    output: Annotated[str, typer.Option("--output", "-o", help="Output: a mesh (.ply keeps the per-face "
+                                        "'feature' property; - is binary PLY on stdout), the inlier cloud "
+                                        "with --outliers, .npz with --dynamic.", metavar="OUT")],
+    method: Annotated[str, typer.Option("--method", help=f"Normal filter: {', '.join(METHODS)}.")]
+    = DEFAULT_METHOD,
+    reference: Annotated[str | None, typer.Option("--reference", help="Clean version with the same "
+                                                  "connectivity (mesh, or .npz with --dynamic): report "
+                                                  "the error metrics.", metavar="CLEAN")] = None,
+    rounds: Annotated[int | None, typer.Option("--rounds", help="Rounds of normal filtering + vertex "
+                                               "update (default: from the estimated noise level).",
+                                               show_default=False)] = None,
+    normal_iterations: Annotated[int | None, typer.Option("--normal-iterations", help="Filter passes per "
+                                                          "round (default: from the noise level).",
+                                                          show_default=False)] = None,
+    vertex_iterations: Annotated[int, typer.Option("--vertex-iterations", help="Vertex-update sweeps "
+                                                   "per round.")] = 10,
+    sigma_r: Annotated[float | None, typer.Option("--sigma-r", help="Range kernel width on normal "
+                                                  "differences (default: from the noise level).",
+                                                  show_default=False)] = None,
+    sigma_s: Annotated[float, typer.Option("--sigma-s", help="Spatial kernel width, in mean distances "
+                                           "between adjacent face centroids.")] = 1.0,
+    pin_boundary: Annotated[bool, typer.Option("--pin-boundary", help="Keep boundary vertices fixed.")]
+    = False,
+    outliers: Annotated[bool, typer.Option("--outliers", help="Point-cloud outlier removal by RPCA on "
+                                           "k-nearest-neighbour matrices.")] = False,
+    k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers.")] = 16,
+    threshold: Annotated[float, typer.Option("--threshold", help="--outliers cut on the score, in median "
+                                             "point spacings.")] = 0.5,
+    keep_all: Annotated[bool, typer.Option("--keep-all", help="--outliers: write every point with "
+                                           "'outlier_score' and 'outlier_detected' properties.")] = False,
+    dynamic: Annotated[bool, typer.Option("--dynamic", help="Animation denoising with RPCA on the "
+                                          "stacked per-frame normals (Algorithm 4).")] = False,
+    no_clean: NoCleanOpt = False,
+    report: ReportOpt = None,
+    check: CheckOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Denoise a mesh while keeping its sharp features (bilateral, guided or RPCA-guided
+    normal filtering, then the vertex update); with --outliers remove point-cloud
+    outliers; with --dynamic denoise an animation.
+
+    Examples: geoproc denoise noisy.ply -o clean.ply --reference original.ply --report r.json;
+    geoproc denoise cloud.ply --outliers -o inliers.ply
+    """
+    params = {"input": input, "method": method, "reference": reference, "rounds": rounds,
+              "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
+              "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "outliers": outliers,
+              "k": k, "threshold": threshold, "keep_all": keep_all, "dynamic": dynamic,
+              "clean": not no_clean}
+    with command_run("denoise", params, report=Path(report) if report else None, checks=check,
+                     quiet=quiet, debug=debug) as run:
+        if method not in METHODS:
+            raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
+        if outliers and dynamic:
+            raise UsageError("--outliers and --dynamic cannot be combined")
+        for name, v in (("--rounds", rounds), ("--normal-iterations", normal_iterations),
+                        ("--vertex-iterations", vertex_iterations)):
+            if v is not None and v < 0:
+                raise UsageError(f"{name} {v}: must be >= 0")
+        if (sigma_r is not None and sigma_r <= 0) or sigma_s <= 0:
+            raise UsageError("--sigma-r and --sigma-s must be > 0")
+        dp = DenoiseParams(outer_iterations=rounds, normal_iterations=normal_iterations,
+                           vertex_iterations=vertex_iterations, sigma_r=sigma_r, sigma_s_scale=sigma_s,
+                           pin_boundary=pin_boundary)
+        if dynamic:
+            _dynamic(run, input, output, reference, method, dp)
+        elif outliers:
+            _outliers(run, input, output, k, threshold, keep_all, no_clean)
+        else:
+            _mesh(run, input, output, reference, method, dp, no_clean)
+
+
+def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
+    mesh = run.load_mesh(input, clean=not no_clean)
+    path = mesh.log.path or None
+    if mesh.is_point_cloud:
+        raise InputError(path, "is a point cloud (no faces); use --outliers for point clouds")
+    require_triangle_mesh(mesh)
+    require_edge_manifold(mesh.F, path)
+    ref = None
+    if reference is not None:
+        ref = load_mesh(reference, clean=not no_clean)
+        run.add_input(reference)
+        require_same_connectivity(mesh.F, len(mesh.V), ref.F, len(ref.V), reference)
+    with run.timer("denoise"), run.progress(f"denoise ({method})") as update:
+        res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
+    out = Mesh(res.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields))
+    out.face_fields["feature"] = res.feature
+    run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
+                        "feature_faces": int(res.feature.sum())})
+    run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
+    if ref is not None:
+        with run.timer("metrics"):
+            run.metrics.update(denoise_errors(res.V, mesh.F, ref.V))
+            before = set(flipped_faces(mesh.V, mesh.F, ref.V).tolist())
+            after = flipped_faces(res.V, mesh.F, ref.V)
+            run.metrics["input_mean_normal_angle_deg"] = denoise_errors(mesh.V, mesh.F, ref.V)[
+                "mean_normal_angle_deg"]
+            run.metrics["input_flipped_faces"] = len(before)
+            run.metrics["new_flipped_faces"] = int(sum(1 for f in after.tolist() if f not in before))
+    run.write_mesh(output, out)
+
+
+def _outliers(run, input, output, k, threshold, keep_all, no_clean) -> None:
+    if k < 4:
+        raise UsageError(f"--k {k}: must be at least 4")
+    cloud = run.load_mesh(input, clean=not no_clean)
+    path = cloud.log.path or None
+    with run.timer("outliers"):
+        res = rpca_outliers(cloud.V, k=k, threshold=threshold, path=path)
+    run.metrics.update({"points": len(cloud.V), "detected_outliers": int(res.outlier.sum()),
+                        "threshold": res.threshold})
+    if "outlier" in cloud.vertex_fields:
+        truth = np.asarray(cloud.vertex_fields["outlier"]).reshape(len(cloud.V), -1)[:, 0] > 0.5
+        run.metrics["true_outliers"] = int(truth.sum())
+        run.metrics.update(detection_scores(res.outlier, truth))
+    if keep_all:
+        out = Mesh(cloud.V, np.zeros((0, 3), dtype=np.int64), dict(cloud.vertex_fields))
+        out.vertex_fields["outlier_score"] = res.score
+        out.vertex_fields["outlier_detected"] = res.outlier.astype(np.float64)
+    else:
+        keep = ~res.outlier
+        out = Mesh(cloud.V[keep], np.zeros((0, 3), dtype=np.int64),
+                   {name: v[keep] for name, v in cloud.vertex_fields.items()})
+    run.write_mesh(output, out)
+
+
+def _dynamic(run, input, output, reference, method, dp) -> None:
+    if input == "-" or not is_animation_path(input):
+        raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
+    if not output.lower().endswith(".npz"):
+        raise UsageError(f"{output}: an animation is written as .npz")
+    with run.timer("load"):
+        anim = load_animation(input)
+        if Path(input).is_file():
+            run.add_input(input)
+    require_triangle_mesh(Mesh(anim.V[0], anim.F, log=_log(anim.path)))
+    require_edge_manifold(anim.F, anim.path)
+    ref = None
+    if reference is not None:
+        ref = load_animation(reference)
+        run.add_input(reference) if Path(reference).is_file() else None
+        if ref.V.shape != anim.V.shape:
+            raise InputError(reference, f"reference has {ref.V.shape[0]} frames of {ref.V.shape[1]} "
+                             f"vertices; the input {anim.V.shape[0]} of {anim.V.shape[1]}")
+        require_same_connectivity(anim.F, anim.V.shape[1], ref.F, ref.V.shape[1], reference)
+    with run.timer("denoise"), run.progress("denoise (dynamic)") as update:
+        V, info = denoise_animation(anim.V, anim.F, method, dp, progress=update)
+    run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]), "faces": len(anim.F)})
+    run.metrics.update({k: v for k, v in info.items() if np.isscalar(v)})
+    if ref is not None:
+        with run.timer("metrics"):
+            per = [denoise_errors(V[t], anim.F, ref.V[t]) for t in range(anim.n_frames)]
+            for key in ("mean_normal_angle_deg", "hausdorff", "vertex_rmse"):
+                run.metrics[key] = float(np.mean([p[key] for p in per]))
+            run.metrics["max_normal_angle_deg"] = float(max(p["max_normal_angle_deg"] for p in per))
+            run.metrics["flipped_faces"] = int(sum(p["flipped_faces"] for p in per))
+    run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, dict(anim.fields), output)))
+
+
+def _log(path: str):
+    from geoproc.mesh.mesh import LoadLog
+
+    return LoadLog(path=path)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``denoise`` to the application."""
+    app.command("denoise")(denoise)

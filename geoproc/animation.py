@@ -1,0 +1,129 @@
+"""Animations (dynamic meshes): frames sharing one connectivity.
+
+Stored as ``.npz`` with ``vertices`` (frames, n, 3) and ``faces`` (m, 3), plus
+optional per-vertex-per-frame fields (frames, n); or read from a folder of frame
+meshes (sorted by name) that all have the same faces.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import zipfile
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geoproc.errors import InputError
+
+
+@dataclass
+class Animation:
+    """Frames of a mesh with fixed connectivity.
+
+    Attributes
+    ----------
+    V : (T, n, 3) float64 vertex positions per frame.
+    F : (m, 3) int64 triangles shared by every frame.
+    fields : dict of str to (T, n) float64 per-vertex values per frame.
+    path : str, the file or folder read.
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    fields: dict[str, np.ndarray] = field(default_factory=dict)
+    path: str = ""
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.V.shape[0])
+
+
+def is_animation_path(path: str) -> bool:
+    """True for a ``.npz`` file or a folder (of frame meshes)."""
+    return str(path).lower().endswith(".npz") or os.path.isdir(str(path))
+
+
+def load_animation(path: str | os.PathLike) -> Animation:
+    """Read an animation from ``.npz`` or a folder of frame meshes.
+
+    Raises
+    ------
+    InputError
+        Missing file, missing or misshapen arrays, non-finite positions, face
+        indices out of range, or frames whose connectivity differs.
+    """
+    name = os.fspath(path)
+    if os.path.isdir(name):
+        return _load_frame_folder(name)
+    if not os.path.exists(name):
+        raise InputError(name, "no such file")
+    try:
+        with np.load(name, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except Exception as exc:  # zip or array format errors
+        raise InputError(name, f"not a readable .npz animation ({type(exc).__name__})") from None
+    for key in ("vertices", "faces"):
+        if key not in data:
+            raise InputError(name, f"missing array '{key}' (an animation needs 'vertices' (frames, n, 3) and 'faces')")
+    V = np.asarray(data.pop("vertices"), dtype=np.float64)
+    F = np.asarray(data.pop("faces"))
+    if V.ndim != 3 or V.shape[2] != 3 or V.shape[0] < 1:
+        raise InputError(name, f"'vertices' has shape {V.shape}; expected (frames, n, 3)")
+    if F.ndim == 3:
+        if (F != F[:1]).any():
+            bad = int(np.flatnonzero((F != F[:1]).reshape(len(F), -1).any(axis=1))[0])
+            raise InputError(name, f"frame {bad} has a different connectivity from frame 0")
+        F = F[0]
+    if F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer):
+        raise InputError(name, f"'faces' has shape {F.shape} ({F.dtype}); expected (m, 3) integers")
+    _validate(V, F, name)
+    fields = {}
+    for k, v in data.items():
+        v = np.asarray(v, dtype=np.float64)
+        if v.shape == V.shape[:2]:
+            fields[k] = v
+    return Animation(V, F.astype(np.int64), fields, name)
+
+
+def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
+    if not np.isfinite(V).all():
+        t, i = (int(x) for x in np.argwhere(~np.isfinite(V).all(axis=2))[0])
+        raise InputError(name, f"non-finite position (frame {t}, vertex {i})")
+    if len(F) and (F.min() < 0 or F.max() >= V.shape[1]):
+        raise InputError(name, f"face index out of range (valid 0..{V.shape[1] - 1})")
+
+
+def _load_frame_folder(name: str) -> Animation:
+    from geoproc.mesh import load_mesh
+    from geoproc.mesh.read import MESH_FORMATS
+
+    files = sorted(f for f in os.listdir(name) if f.lower().rsplit(".", 1)[-1] in MESH_FORMATS)
+    if not files:
+        raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
+    frames = []
+    F0 = None
+    for f in files:
+        mesh = load_mesh(os.path.join(name, f), clean=False)
+        if F0 is None:
+            F0 = mesh.F
+        elif mesh.F.shape != F0.shape or (mesh.F != F0).any() or len(mesh.V) != len(frames[0]):
+            raise InputError(os.path.join(name, f), f"different connectivity from the first frame {files[0]}")
+        frames.append(mesh.V)
+    V = np.stack(frames)
+    return Animation(V, F0, {}, name)
+
+
+def animation_to_bytes(anim: Animation) -> bytes:
+    """``.npz`` bytes with fixed zip timestamps, so equal data give equal bytes."""
+    buf = io.BytesIO()
+    arrays = {"vertices": np.ascontiguousarray(anim.V, dtype=np.float64),
+              "faces": np.ascontiguousarray(anim.F, dtype=np.int64)}
+    arrays.update({k: np.ascontiguousarray(v, dtype=np.float64) for k, v in sorted(anim.fields.items())})
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
+        for key, arr in arrays.items():
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            body = io.BytesIO()
+            np.lib.format.write_array(body, arr, allow_pickle=False)
+            zf.writestr(info, body.getvalue())
+    return buf.getvalue()

@@ -1,0 +1,250 @@
+"""Feature-preserving mesh denoising: filter face normals, then fit the vertices.
+
+Three ways to filter the normals share one pipeline (:func:`denoise_mesh`):
+
+``bilateral``
+    Bilateral normal filter, range kernel on the normals themselves (Zheng et al. 2011).
+``guided``
+    Joint bilateral filter whose range kernel uses guidance normals from the most
+    consistent patch containing each face (Zhang et al. 2015).
+``rpca``
+    Once per round, the guidance normals of every face's patch are stacked in a
+    matrix and split by RPCA into a low-rank part (the piecewise-smooth normal
+    field, used as the round's fixed guidance) and a sparse part (features and
+    impulsive outliers).
+
+Each outer iteration filters the normals ``normal_iterations`` times, then moves
+the vertices to fit them (Sun et al. 2007) and recomputes the normals.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geoproc.denoise.bilateral import bilateral_normal_filter
+from geoproc.denoise.face_geometry import (
+    face_centroids,
+    face_edge_neighbors,
+    face_normals_and_areas,
+    face_ring_csr,
+)
+from geoproc.denoise.guidance import guidance_normals
+from geoproc.denoise.patches import nearest_faces_in_ring
+from geoproc.denoise.rpca import rpca
+from geoproc.denoise.vertex_update import update_vertices
+from geoproc.mesh.topology import boundary_edges
+
+METHODS = ("bilateral", "guided", "rpca")
+DEFAULT_METHOD = "guided"
+
+
+def median_dihedral_deg(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> float:
+    """Median angle in degrees between the normals of edge-adjacent faces.
+
+    On a clean, reasonably fine mesh this is a few degrees; noise of
+    ``sigma`` mean edge lengths along the normals raises it to about
+    ``19 deg at sigma=0.2`` and ``26 deg at sigma=0.3``: a noise-level estimate
+    read from the mesh itself.
+    """
+    N, _ = face_normals_and_areas(V, F)
+    enb = face_edge_neighbors(F) if edge_nb is None else edge_nb
+    i, k = np.nonzero(enb >= 0)
+    if len(i) == 0:
+        return 0.0
+    cos = np.clip(np.einsum("ij,ij->i", N[i], N[enb[i, k]]), -1.0, 1.0)
+    return float(np.degrees(np.median(np.arccos(cos))))
+
+
+@dataclass
+class DenoiseParams:
+    """Parameters of :func:`denoise_mesh` (None: chosen from the mesh).
+
+    Attributes
+    ----------
+    outer_iterations : int
+        Rounds of (normal filtering, vertex update).
+    normal_iterations : int
+        Filter passes per round.
+    vertex_iterations : int
+        Vertex-update sweeps per round.
+    sigma_r : float
+        Range kernel width on normal differences (chord length, 0..2).
+    sigma_s_scale : float
+        Spatial kernel width as a multiple of the mean distance between the
+        centroids of edge-adjacent faces.
+    pin_boundary : bool
+        Keep boundary vertices fixed.
+    patch_size : int
+        Faces per patch in the RPCA matrices (``rpca`` only).
+    """
+
+    outer_iterations: int | None = None
+    normal_iterations: int | None = None
+    vertex_iterations: int = 10
+    sigma_r: float | None = None
+    sigma_s_scale: float = 1.0
+    pin_boundary: bool = False
+    patch_size: int = 10
+
+
+def default_schedule(noise_deg: float) -> dict:
+    """Iteration counts and range width from the estimated noise level.
+
+    ``noise_deg`` is :func:`median_dihedral_deg` of the input. The strength
+    ``t = clip((noise_deg - 19) / 6, 0, 1)`` goes from light (about 0.2 mean edge
+    lengths of noise: 2 rounds of 2 passes, sigma_r 0.5) to strong (0.3 and more:
+    5 rounds of 10 passes, sigma_r 0.3).
+    """
+    t = float(np.clip((noise_deg - 19.0) / 6.0, 0.0, 1.0))
+    return {
+        "outer_iterations": int(round(2 + 3 * t)),
+        "normal_iterations": int(round(2 + 8 * t)),
+        "sigma_r": 0.5 - 0.2 * t,
+    }
+
+
+@dataclass
+class DenoiseResult:
+    """Output of :func:`denoise_mesh`.
+
+    Attributes
+    ----------
+    V : (n, 3) float64 denoised positions.
+    normals : (m, 3) float64 filtered face normals of the last round.
+    feature : (m,) float64 1.0 on feature faces, else 0.0.
+    info : dict of scalars (noise estimate, parameters used).
+    """
+
+    V: np.ndarray
+    normals: np.ndarray
+    feature: np.ndarray
+    info: dict = field(default_factory=dict)
+
+
+def rpca_guidance(G: np.ndarray, patch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Clean guidance normals with RPCA on the patch matrices.
+
+    For every face, the (k, 3) matrix of the guidance normals of its k nearest
+    patch faces (itself first) is split into ``P + S``; the face's row of P is
+    its new guidance, and the norm of its row of S its sparse (feature/outlier)
+    residual.
+
+    Parameters
+    ----------
+    G : (m, 3) unit guidance normals; patch : (m, k) face indices, column 0 the face.
+
+    Returns
+    -------
+    guidance : (m, 3) unit normals; sparse : (m,) norm of the face's row of S.
+    """
+    D = G[patch]  # (m, k, 3)
+    res = rpca(D, tol=1e-7, max_iter=200)
+    row = res.P[:, 0, :]
+    norm = np.linalg.norm(row, axis=1)
+    ok = norm > 1e-12
+    out = G.copy()
+    out[ok] = row[ok] / norm[ok, None]
+    return out, np.linalg.norm(res.S[:, 0, :], axis=1)
+
+
+def feature_faces(N: np.ndarray, edge_nb: np.ndarray, angle_deg: float = 30.0) -> np.ndarray:
+    """(m,) 0/1 float: faces whose normal differs from an edge-adjacent face's
+    normal by more than ``angle_deg``."""
+    m = len(N)
+    i, k = np.nonzero(edge_nb >= 0)
+    cos = np.einsum("ij,ij->i", N[i], N[edge_nb[i, k]])
+    out = np.zeros(m)
+    out[i[cos < np.cos(np.radians(angle_deg))]] = 1.0
+    return out
+
+
+def denoise_mesh(
+    V: np.ndarray,
+    F: np.ndarray,
+    method: str = DEFAULT_METHOD,
+    params: DenoiseParams | None = None,
+    progress: Callable[[float], None] | None = None,
+    initial_normals: np.ndarray | None = None,
+) -> DenoiseResult:
+    """Denoise a triangle mesh while keeping its sharp features.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 noisy positions; F : (m, 3) int64 triangles (edge-manifold).
+    method : {"bilateral", "guided", "rpca"}
+    params : DenoiseParams, optional
+        Unset entries are chosen from the estimated noise level
+        (:func:`median_dihedral_deg`, :func:`default_schedule`).
+    progress : callable, optional
+        Called with the fraction done after every filter pass.
+    initial_normals : (m, 3) float64, optional
+        Start the first round from these unit normals instead of the input's
+        face normals (the dynamic method passes its temporally coherent normals).
+
+    Returns
+    -------
+    DenoiseResult
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}")
+    p = DenoiseParams() if params is None else params
+    n = len(V)
+    edge_nb = face_edge_neighbors(F)
+    noise_deg = median_dihedral_deg(V, F, edge_nb)
+    sched = default_schedule(noise_deg)
+    outer = sched["outer_iterations"] if p.outer_iterations is None else p.outer_iterations
+    inner = sched["normal_iterations"] if p.normal_iterations is None else p.normal_iterations
+    sigma_r = sched["sigma_r"] if p.sigma_r is None else p.sigma_r
+    ring = face_ring_csr(F, n, 1)
+    fixed = None
+    if p.pin_boundary:
+        B = boundary_edges(F)
+        if len(B):
+            fixed = np.zeros(n, dtype=bool)
+            fixed[B.reshape(-1)] = True
+    X = np.array(V, dtype=np.float64, copy=True)
+    N, A = face_normals_and_areas(X, F)
+    N_input = N.copy()
+    if initial_normals is not None:
+        N = np.asarray(initial_normals, dtype=np.float64)
+    C = face_centroids(X, F)
+    i, k = np.nonzero(edge_nb >= 0)
+    spacing = float(np.linalg.norm(C[i] - C[edge_nb[i, k]], axis=1).mean()) if len(i) else 1.0
+    sigma_s = p.sigma_s_scale * spacing
+    patch = nearest_faces_in_ring(C, ring, p.patch_size) if method == "rpca" else None
+    total = max(outer * inner, 1)
+    done = 0
+    sparse = np.zeros(len(F))
+    for o in range(outer):
+        if o:
+            N, A = face_normals_and_areas(X, F)
+            C = face_centroids(X, F)
+        if method == "rpca":
+            G_round, sparse = rpca_guidance(guidance_normals(N, A, ring, edge_nb), patch)
+        for _ in range(inner):
+            if method == "bilateral":
+                G = None
+            elif method == "rpca":
+                G = G_round
+            else:
+                G = guidance_normals(N, A, ring, edge_nb)
+            N = bilateral_normal_filter(N, C, A, ring, sigma_s, sigma_r, G)
+            done += 1
+            if progress is not None:
+                progress(done / total)
+        X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input)
+    info = {
+        "noise_median_dihedral_deg": noise_deg,
+        "outer_iterations": outer,
+        "normal_iterations": inner,
+        "vertex_iterations": p.vertex_iterations,
+        "sigma_r": sigma_r,
+        "sigma_s": sigma_s,
+    }
+    feature = feature_faces(N, edge_nb)
+    if method == "rpca":
+        info["rpca_sparse_faces"] = int((sparse > 1e-3).sum())
+    return DenoiseResult(V=X, normals=N, feature=feature, info=info)

@@ -1,0 +1,12 @@
+"""Reproducible synthetic noise for meshes, point clouds and animations
+(the standard denoising benchmark protocol)."""
+
+from geoproc.perturb.noise import (
+    NoiseSpec,
+    noise_scale,
+    perturb_positions,
+    point_cloud_normals,
+    vertex_normals,
+)
+
+__all__ = ["NoiseSpec", "noise_scale", "perturb_positions", "point_cloud_normals", "vertex_normals"]
