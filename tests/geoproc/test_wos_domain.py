@@ -9,9 +9,20 @@ from geoproc.errors import InputError
 from geoproc.wos.domain import build_domain, load_domain_json, loop_signed_area
 from geoproc.wos.mask import load_domain_mask, read_mask, trace_mask
 
-from .wos_helpers import wos_fixtures
 
-wf = wos_fixtures()
+def _load_wos_fixtures():
+    """fixtures/wos_fixtures.py, loaded the way conftest loads make_fixtures."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "fixtures" / "wos_fixtures.py"
+    spec = importlib.util.spec_from_file_location("wos_fixtures", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+wf = _load_wos_fixtures()
 
 
 def test_orientation_outer_ccw_holes_cw_and_area():

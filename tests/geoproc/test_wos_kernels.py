@@ -17,9 +17,20 @@ from geoproc.wos.kernels import (
 )
 from geoproc.wos.problem import WalkProblem
 
-from .wos_helpers import wos_fixtures
 
-wf = wos_fixtures()
+def _load_wos_fixtures():
+    """fixtures/wos_fixtures.py, loaded the way conftest loads make_fixtures."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "fixtures" / "wos_fixtures.py"
+    spec = importlib.util.spec_from_file_location("wos_fixtures", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+wf = _load_wos_fixtures()
 # step of the 5-point Laplacian: truncation ~ h^2 |d4 phi| / 6, round-off ~ 4 eps |phi| / h^2
 H = 1e-4
 

@@ -10,9 +10,20 @@ from geoproc.wos.expression import evaluate, parse_expression
 from geoproc.wos.problem import WalkProblem, pass_seed
 from geoproc.wos.solve import solve_laplace
 
-from .wos_helpers import wos_fixtures
 
-wf = wos_fixtures()
+def _load_wos_fixtures():
+    """fixtures/wos_fixtures.py, loaded the way conftest loads make_fixtures."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "fixtures" / "wos_fixtures.py"
+    spec = importlib.util.spec_from_file_location("wos_fixtures", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+wf = _load_wos_fixtures()
 RE_Z3 = parse_expression("x**3 - 3*x*y**2")
 DISK = build_domain(wf.disk(256)["loops"])
 POINTS = np.array([[0.0, 0.0], [0.5, 0.2], [-0.3, -0.6], [0.85, -0.1], [-0.2, 0.93]])
