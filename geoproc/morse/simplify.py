@@ -371,6 +371,40 @@ def _ascent_forest(ptr, nbr, eid, f, threshold, keep):
     return b, d, up
 
 
+def _cancel(cx, f, P, down, up, keep_min, keep_max, seeds_max, pin):
+    """Steps 3-5 for given witnesses; returns (g, widened mask, repaired count)."""
+    up = up.copy()
+    pin = pin.copy()
+    for _ in range(4):
+        for _ in range(8):
+            g, half_v, stuck = _assign_values(f, P / 2.0, down, up, keep_min, keep_max, pin,
+                                              cx.adj_ptr, cx.adj_nbr)
+            if not stuck.any():
+                break
+            up[stuck] = -1  # conflicting ascent witnesses: left to the sweeps below
+            pin[stuck] = False
+        else:
+            raise RuntimeError("cancellation relation keeps a cycle")
+        # a pinned saddle whose link needs a wider box is let go
+        wide = half_v > P / 2.0
+        near = wide.copy()
+        near[cx.E[:, 0]] |= wide[cx.E[:, 1]]
+        near[cx.E[:, 1]] |= wide[cx.E[:, 0]]
+        loosen = pin & near
+        if not loosen.any():
+            break
+        pin &= ~loosen
+    # Repair (Tierny-Pascucci sweeps): only acts where the relation above
+    # could not be kept; normally changes nothing.
+    repaired = 0
+    for _ in range(50):
+        if _wrong_extrema(g, keep_min, keep_max, cx.boundary, cx.adj_ptr, cx.adj_nbr) == 0:
+            break
+        repaired += _flood_from(g, keep_min, cx.adj_ptr, cx.adj_nbr, 1.0)
+        repaired += _flood_from(g, seeds_max, cx.adj_ptr, cx.adj_nbr, -1.0)
+    return g, half_v > P / 2.0, repaired
+
+
 def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
                       gradient: DiscreteGradient | None = None) -> Simplification:
     """Remove every persistence pair of f with persistence < threshold.
@@ -424,25 +458,14 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
         # then the ascent witnesses are read on the flooded function, peaks carved
         keep_up = np.concatenate([keep_max, [False]])
         _, _, up = _ascent_forest(ptr, nbr, eid, g_min, np.inf, keep_up)
-        up = up[:n].copy()
-        for _ in range(8):
-            g, half_v, stuck = _assign_values(f, P / 2.0, down, up, keep_min, keep_max, pin,
-                                              cx.adj_ptr, cx.adj_nbr)
-            if not stuck.any():
-                break
-            up[stuck] = -1  # conflicting ascent witnesses: left to the sweeps below
-            pin[stuck] = False
-        else:
-            raise RuntimeError("cancellation relation keeps a cycle")
-        widened = half_v > P / 2.0
-        # Repair (Tierny-Pascucci sweeps): only acts where the relation above
-        # could not be kept; normally changes nothing.
         seeds_max = keep_max | cx.boundary | (degree == 0)
-        for _ in range(50):
-            if _wrong_extrema(g, keep_min, keep_max, cx.boundary, cx.adj_ptr, cx.adj_nbr) == 0:
-                break
-            repaired += _flood_from(g, keep_min, cx.adj_ptr, cx.adj_nbr, 1.0)
-            repaired += _flood_from(g, seeds_max, cx.adj_ptr, cx.adj_nbr, -1.0)
+        args = (cx, f, P, down, up[:n], keep_min, keep_max, seeds_max)
+        g, widened, repaired = _cancel(*args, pin)
+        if pin.any() and (repaired or widened.any()):
+            # kept saddles held in place cost a wider box here: the bound comes first
+            g2, widened2, repaired2 = _cancel(*args, no)
+            if np.abs(g2 - f).max() < np.abs(g - f).max():
+                g, widened, repaired = g2, widened2, repaired2
         g = _make_strict(g, np.lexsort((np.arange(n), g)))
     return Simplification(
         g=g,
