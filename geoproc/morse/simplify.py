@@ -31,7 +31,9 @@ How g is built
    below" for each maximum that stays are assigned in one pass as in 2.
    Saddle vertices none of whose pairs is cancelled also keep every edge of
    their link oriented as in f, so they stay saddles of the same multiplicity
-   at the same vertex.
+   at the same vertex; when that makes the box wider or needs the repair of
+   step 5, the construction is redone without it and the result with the
+   smaller max |f - g| is kept (the bound comes first).
 4. Where P/2 cannot be met. For piecewise-linear vertex functions the bound
    P/2 (optimal for Forman's discrete Morse functions, where every cell has
    its own value) is not always reachable: if a cancelled minimum m and a
