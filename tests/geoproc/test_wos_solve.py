@@ -173,3 +173,22 @@ def test_control_variate_on_mixed_problem():
     cv = solve_laplace(RECT, g, method="cv-green", **kw).metrics
     assert cv["rmse"] < 0.3 * naive["rmse"], (cv["rmse"], naive["rmse"])
     assert abs(cv["bias"]) < 3 * cv["rmse"] / np.sqrt(cv["error_points"]) + 2e-3
+
+
+def test_problem_level_usage_errors(tmp_path):
+    from geoproc.errors import InputError, UsageError
+    from geoproc.wos.domain import load_domain_json
+
+    with pytest.raises(UsageError, match="marks no Neumann"):
+        WalkProblem(DISK, RE_Z3, parse_expression("0"), 1e-3)
+    with pytest.raises(UsageError, match="give --boundary"):
+        WalkProblem(DISK, None, None, 1e-3)
+    all_neumann = build_domain(wf.disk(16)["loops"], neumann_segments=[np.ones(16, bool)])
+    with pytest.raises(InputError, match="every boundary segment is Neumann"):
+        WalkProblem(all_neumann, RE_Z3, None, 1e-3)
+    broken = tmp_path / "b.json"
+    broken.write_text('{"loops": [[[0, 0], [1, 0]')
+    with pytest.raises(InputError, match="not valid JSON"):
+        load_domain_json(str(broken))
+    with pytest.raises(UsageError, match="--method"):
+        solve_laplace(DISK, RE_Z3, method="fast")
