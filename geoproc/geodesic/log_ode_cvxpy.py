@@ -26,7 +26,8 @@ def _cvxpy():
     return cp
 
 
-def log_ode_step_cvxpy(system: LogStepSystem, w_prev: np.ndarray, tol: float = 1e-10) -> np.ndarray:
+def log_ode_step_cvxpy(system: LogStepSystem, w_prev: np.ndarray, tol: float = 1e-10,
+                       objective: str = "mass") -> np.ndarray:
     """One log-ODE step (see :func:`geoproc.geodesic.log_ode.log_ode_step`) by Clarabel."""
     cp = _cvxpy()
     n = system.n
@@ -43,7 +44,8 @@ def log_ode_step_cvxpy(system: LogStepSystem, w_prev: np.ndarray, tol: float = 1
     edge = cp.exp(De @ w + (system.a - system.c[system.rows]))
     src = cp.exp((b[fin] - system.c[fin]) - w[fin])
     M = np.exp(system.logM)
-    prob = cp.Problem(cp.Minimize(M @ w / M.sum()), [Re @ edge + Sf @ src <= 1])
+    weights = M / M.sum() if objective == "mass" else np.full(n, 1.0 / n)
+    prob = cp.Problem(cp.Minimize(weights @ w), [Re @ edge + Sf @ src <= 1])
     prob.solve(solver="CLARABEL", tol_gap_abs=tol, tol_gap_rel=tol, tol_feas=tol, tol_ktratio=1e-8,
                max_iter=500)
     if w.value is None:
