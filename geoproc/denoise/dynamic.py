@@ -47,7 +47,7 @@ def coherent_normals(V: np.ndarray, F: np.ndarray, lam: float | None = None) -> 
     out = np.where(norm > 1e-12, P / np.maximum(norm, 1e-300), D.T.reshape(T, m, 3))
     sv = np.linalg.svd(res.P, compute_uv=False)
     info = {"rpca_iterations": res.iterations, "rpca_converged": bool(res.converged),
-            "low_rank": int((sv > 1e-8 * max(sv[0], 1e-300)).sum())}
+            "low_rank": int((sv > 1e-6 * max(sv[0], 1e-300)).sum())}
     return out, info
 
 

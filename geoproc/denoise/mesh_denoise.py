@@ -32,6 +32,7 @@ from geoproc.denoise.face_geometry import (
     face_ring_csr,
 )
 from geoproc.denoise.guidance import guidance_normals
+from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import update_vertices
@@ -90,15 +91,22 @@ class DenoiseParams:
     patch_size: int = 10
 
 
-def default_schedule(noise_deg: float) -> dict:
+def default_schedule(rough: float) -> dict:
     """Iteration counts and range width from the estimated noise level.
 
-    ``noise_deg`` is :func:`median_dihedral_deg` of the input. The strength
-    ``t = clip((noise_deg - 19) / 6, 0, 1)`` goes from light (about 0.2 mean edge
-    lengths of noise: 2 rounds of 2 passes, sigma_r 0.5) to strong (0.3 and more:
-    5 rounds of 10 passes, sigma_r 0.3).
+    ``rough`` is :func:`geoproc.denoise.noise_level.roughness` of the input
+    (about 0.1, 0.18, 0.25 and 0.35 for Gaussian noise of 0.1, 0.2, 0.3 and 0.5
+    mean edge lengths; below 0.05 on clean meshes). From 0.18 to 0.21 the
+    strength ``t = (rough - 0.18) / 0.025`` goes from light (2 rounds of 2 passes, sigma_r 0.5: smooth
+    organic surfaces at low noise lose detail under stronger filtering) to
+    strong at 0.205 and above (5 rounds of 10 passes, sigma_r 0.3). Below 0.18 the filter fades
+    out (``s = (rough - 0.03) / 0.15``) to nothing at all on a clean mesh.
     """
-    t = float(np.clip((noise_deg - 19.0) / 6.0, 0.0, 1.0))
+    if rough < 0.18:
+        s = float(np.clip((rough - 0.03) / 0.15, 0.0, 1.0))
+        return {"outer_iterations": int(round(2 * s)), "normal_iterations": int(round(2 * s)),
+                "sigma_r": 0.1 + 0.4 * s}
+    t = float(np.clip((rough - 0.18) / 0.025, 0.0, 1.0))
     return {
         "outer_iterations": int(round(2 + 3 * t)),
         "normal_iterations": int(round(2 + 8 * t)),
@@ -177,7 +185,7 @@ def denoise_mesh(
     method : {"bilateral", "guided", "rpca"}
     params : DenoiseParams, optional
         Unset entries are chosen from the estimated noise level
-        (:func:`median_dihedral_deg`, :func:`default_schedule`).
+        (:func:`geoproc.denoise.noise_level.roughness`, :func:`default_schedule`).
     progress : callable, optional
         Called with the fraction done after every filter pass.
     initial_normals : (m, 3) float64, optional
@@ -194,7 +202,8 @@ def denoise_mesh(
     n = len(V)
     edge_nb = face_edge_neighbors(F)
     noise_deg = median_dihedral_deg(V, F, edge_nb)
-    sched = default_schedule(noise_deg)
+    rough = roughness(V, F)
+    sched = default_schedule(rough)
     outer = sched["outer_iterations"] if p.outer_iterations is None else p.outer_iterations
     inner = sched["normal_iterations"] if p.normal_iterations is None else p.normal_iterations
     sigma_r = sched["sigma_r"] if p.sigma_r is None else p.sigma_r
@@ -238,6 +247,7 @@ def denoise_mesh(
         X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input)
     info = {
         "noise_median_dihedral_deg": noise_deg,
+        "noise_roughness": rough,
         "outer_iterations": outer,
         "normal_iterations": inner,
         "vertex_iterations": p.vertex_iterations,

@@ -1,0 +1,90 @@
+"""perturb's noise: requested sigma (checked on the displacements against the
+definition), reproducibility, impulsive fractions and outlier ranges."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoproc.errors import InputError
+from geoproc.perturb import NoiseSpec, noise_scale, perturb_positions, point_cloud_normals, vertex_normals
+
+
+@pytest.fixture(scope="module")
+def sphere(make_fixtures):
+    return make_fixtures.icosphere(5)  # 10,242 vertices: the sample std is within ~0.7 %
+
+
+@pytest.mark.parametrize("sigma", [0.2, 0.5])
+def test_normal_noise_has_requested_sigma(sphere, sigma):
+    V, F = sphere
+    Vn, flag = perturb_positions(V, F, NoiseSpec(sigma=sigma), np.random.default_rng(0))
+    d = Vn - V
+    le = noise_scale(V, F)
+    N = V / np.linalg.norm(V, axis=1, keepdims=True)  # exact sphere normals
+    along = np.einsum("ij,ij->i", d, N)
+    assert abs(along.std() / le - sigma) < 0.05 * sigma
+    # displacements are along the normal: no tangential part beyond discretization
+    tangential = np.linalg.norm(d - along[:, None] * N, axis=1)
+    assert tangential.max() < 0.01 * np.abs(along).max()
+    assert not flag.any()
+
+
+def test_random_direction_noise_has_requested_sigma(sphere):
+    V, F = sphere
+    Vn, _ = perturb_positions(V, F, NoiseSpec(sigma=0.3, direction="random"), np.random.default_rng(1))
+    rms = np.sqrt(np.mean(np.sum((Vn - V) ** 2, axis=1))) / noise_scale(V, F)
+    assert abs(rms - 0.3) < 0.05 * 0.3
+    # directions are isotropic: the mean normal component is small compared with sigma
+    N = V / np.linalg.norm(V, axis=1, keepdims=True)
+    along = np.einsum("ij,ij->i", Vn - V, N) / noise_scale(V, F)
+    assert abs(np.sqrt(np.mean(along**2)) - 0.3 / np.sqrt(3)) < 0.05 * 0.3
+
+
+def test_same_seed_same_output_other_seed_differs(sphere):
+    V, F = sphere
+    spec = NoiseSpec(sigma=0.3, impulsive=0.3, outliers=0.1)
+    a = perturb_positions(V, F, spec, np.random.default_rng(9))
+    b = perturb_positions(V, F, spec, np.random.default_rng(9))
+    c = perturb_positions(V, F, spec, np.random.default_rng(10))
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_impulsive_moves_exactly_the_fraction(sphere):
+    V, F = sphere
+    Vn, _ = perturb_positions(V, F, NoiseSpec(sigma=0.5, impulsive=0.25), np.random.default_rng(2))
+    moved = np.linalg.norm(Vn - V, axis=1) > 0
+    assert moved.sum() == round(0.25 * len(V))
+
+
+def test_outliers_flagged_and_within_range(sphere):
+    V, F = sphere
+    Vn, flag = perturb_positions(V, F, NoiseSpec(outliers=0.2, outlier_range=0.02), np.random.default_rng(3))
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    d = np.linalg.norm(Vn - V, axis=1)
+    assert flag.sum() == round(0.2 * len(V))
+    assert np.all(d[flag == 0] == 0)
+    assert d[flag == 1].max() <= 0.02 * diag
+    # uniform in the ball: the median radius is 2^(-1/3) of the range
+    assert abs(np.median(d[flag == 1]) / (0.02 * diag) - 2 ** (-1 / 3)) < 0.03
+
+
+def test_point_cloud_noise_uses_estimated_normals(make_fixtures):
+    V, F = make_fixtures.icosphere(4)
+    N = point_cloud_normals(V)
+    assert np.abs(np.einsum("ij,ij->i", N, V)).min() > 0.99  # PCA normals of a sphere are radial
+    P, _ = perturb_positions(V, np.zeros((0, 3), int), NoiseSpec(sigma=0.3), np.random.default_rng(4))
+    along = np.einsum("ij,ij->i", P - V, V)
+    assert abs(along.std() / noise_scale(V, np.zeros((0, 3), int)) - 0.3) < 0.05 * 0.3
+
+
+def test_vertex_normals_of_sphere_are_radial(make_fixtures):
+    V, F = make_fixtures.icosphere(3)
+    assert np.einsum("ij,ij->i", vertex_normals(V, F), V).min() > 0.999
+
+
+def test_unknown_direction_is_refused(sphere):
+    V, F = sphere
+    with pytest.raises(InputError):
+        perturb_positions(V, F, NoiseSpec(sigma=0.1, direction="sideways"), np.random.default_rng(0))

@@ -1,0 +1,73 @@
+"""RPCA (inexact ALM) against exactly known low-rank + sparse decompositions and
+numpy's SVD."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoproc.denoise.rpca import randomized_svd, rpca, shrink, svt
+
+
+def _low_rank_plus_sparse(n, rank, density, seed, magnitude=5.0, shape=None):
+    rng = np.random.default_rng(seed)
+    p, q = shape or (n, n)
+    L = rng.standard_normal((p, rank)) @ rng.standard_normal((rank, q))
+    S = np.zeros((p, q))
+    mask = rng.random((p, q)) < density
+    S[mask] = rng.choice([-1.0, 1.0], mask.sum()) * magnitude
+    return L, S
+
+
+@pytest.mark.parametrize("n,rank", [(100, 5), (200, 10)])
+def test_recovers_synthetic_low_rank_plus_sparse(n, rank):
+    # the regime of exact recovery (Candes et al. 2011): rank << n, 5 % sparse corruption
+    L, S = _low_rank_plus_sparse(n, rank, 0.05, seed=n)
+    res = rpca(L + S)
+    assert res.converged
+    assert np.linalg.norm(res.P - L) / np.linalg.norm(L) < 1e-6
+    assert np.linalg.norm(res.S - S) / np.linalg.norm(S) < 1e-6
+    assert np.linalg.matrix_rank(res.P, tol=1e-6 * np.linalg.norm(L, 2)) == rank
+
+
+def test_partial_svd_path_recovers_too():
+    L, S = _low_rank_plus_sparse(300, 5, 0.05, seed=7)
+    res = rpca(L + S, partial_svd_above=50)  # randomized partial SVD with adaptive rank
+    assert np.linalg.norm(res.P - L) / np.linalg.norm(L) < 1e-6
+
+
+def test_stopping_rule_residual():
+    L, S = _low_rank_plus_sparse(80, 3, 0.05, seed=2)
+    D = L + S
+    res = rpca(D, tol=1e-7)
+    assert np.linalg.norm(D - res.P - res.S) <= 1e-7 * np.linalg.norm(D)
+
+
+def test_batched_thin_matches_single_matrix_solves():
+    rng = np.random.default_rng(0)
+    D = rng.standard_normal((40, 12, 3)) + 3.0 * rng.standard_normal((40, 1, 3))
+    batch = rpca(D)
+    for i in range(0, 40, 7):
+        one = rpca(D[i])  # the generic numpy path
+        assert np.allclose(batch.P[i], one.P, atol=1e-9)
+        assert np.allclose(batch.S[i], one.S, atol=1e-9)
+    wide = rpca(np.swapaxes(D, 1, 2))
+    assert np.allclose(np.swapaxes(wide.P, 1, 2), batch.P, atol=1e-9)
+
+
+def test_svt_matches_svd_formula():
+    rng = np.random.default_rng(1)
+    for shape in [(50, 10, 3), (50, 6, 6), (1, 400, 12)]:
+        X = rng.standard_normal(shape)
+        tau = rng.random(shape[0]) * 2
+        U, s, Vt = np.linalg.svd(X, full_matrices=False)
+        ref = (U * np.maximum(s - tau[:, None], 0.0)[:, None, :]) @ Vt
+        assert np.allclose(svt(X, tau), ref, atol=1e-10)
+
+
+def test_shrink_and_randomized_svd():
+    assert np.allclose(shrink(np.array([-3.0, -0.5, 0.2, 2.0]), 1.0), [-2.0, 0.0, 0.0, 1.0])
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((300, 8)) @ rng.standard_normal((8, 200))
+    _, s, _ = randomized_svd(X, 8)
+    assert np.allclose(s, np.linalg.svd(X, compute_uv=False)[:8], rtol=1e-8)
