@@ -31,9 +31,8 @@ How g is built
    below" for each maximum that stays are assigned in one pass as in 2.
    Saddle vertices none of whose pairs is cancelled also keep every edge of
    their link oriented as in f, so they stay saddles of the same multiplicity
-   at the same vertex; when that makes the box wider or needs the repair of
-   step 5, the construction is redone without it and the result with the
-   smaller max |f - g| is kept (the bound comes first).
+   at the same vertex; a held saddle whose link takes part in a cycle of the
+   relation or needs a wider box is let go (the bound comes first).
 4. Where P/2 cannot be met. For piecewise-linear vertex functions the bound
    P/2 (optimal for Forman's discrete Morse functions, where every cell has
    its own value) is not always reachable: if a cancelled minimum m and a
@@ -378,13 +377,18 @@ def _cancel(cx, f, P, down, up, keep_min, keep_max, seeds_max, pin):
     up = up.copy()
     pin = pin.copy()
     for _ in range(4):
-        for _ in range(8):
+        for _ in range(16):
             g, half_v, stuck = _assign_values(f, P / 2.0, down, up, keep_min, keep_max, pin,
                                               cx.adj_ptr, cx.adj_nbr)
             if not stuck.any():
                 break
+            around = stuck.copy()
+            around[cx.E[:, 0]] |= stuck[cx.E[:, 1]]
+            around[cx.E[:, 1]] |= stuck[cx.E[:, 0]]
+            if (pin & around).any():  # first let go of held saddles near the cycle
+                pin &= ~around
+                continue
             up[stuck] = -1  # conflicting ascent witnesses: left to the sweeps below
-            pin[stuck] = False
         else:
             raise RuntimeError("cancellation relation keeps a cycle")
         # a pinned saddle whose link needs a wider box is let go
@@ -463,11 +467,6 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
         seeds_max = keep_max | cx.boundary | (degree == 0)
         args = (cx, f, P, down, up[:n], keep_min, keep_max, seeds_max)
         g, widened, repaired = _cancel(*args, pin)
-        if pin.any() and (repaired or widened.any()):
-            # kept saddles held in place cost a wider box here: the bound comes first
-            g2, widened2, repaired2 = _cancel(*args, no)
-            if np.abs(g2 - f).max() < np.abs(g - f).max():
-                g, widened, repaired = g2, widened2, repaired2
         g = _make_strict(g, np.lexsort((np.arange(n), g)))
     return Simplification(
         g=g,
