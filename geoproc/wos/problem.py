@@ -16,10 +16,11 @@ from geoproc.wos.domain import Domain
 from geoproc.wos.expression import Expression
 from geoproc.wos.kernels import KernelSet
 from geoproc.wos.rng import stream_state
-from geoproc.wos.walk import wos_dirichlet
-from geoproc.wos.wost import silhouette_candidates, wost_mixed
+from geoproc.wos.walk import wos_dirichlet, wos_dirichlet_serial
+from geoproc.wos.wost import silhouette_candidates, wost_mixed, wost_mixed_serial
 
 MAX_STEPS = 10_000
+SERIAL_WALKS = 1024
 _EMPTY2 = np.zeros((0, 2))
 _EMPTY1 = np.zeros(0)
 _NO_CODE = np.zeros(0, dtype=np.int64)
@@ -99,14 +100,19 @@ class WalkProblem:
             ARC, BOX = kernels.arcs, kernels.boxes
         if len(X) == 0:
             return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
+        # small batches (npass steps) run on one thread: thread start-up would dominate;
+        # the numbers are the same either way (per-point random streams)
+        small = len(X) * walks <= SERIAL_WALKS
+        dirichlet = wos_dirichlet_serial if small else wos_dirichlet
+        mixed = wost_mixed_serial if small else wost_mixed
         old = numba.get_parallel_chunksize()
         numba.set_parallel_chunksize(16)
         try:
             if not self.mixed:
-                return wos_dirichlet(X, index0, int(walks), self.eps, MAX_STEPS, stream_seed,
+                return dirichlet(X, index0, int(walks), self.eps, MAX_STEPS, stream_seed,
                                      self.A, self.B, self.grid_all, self.bkind, self.code,
                                      self.consts, self.V, ckind, KP, KQ, W, ARC, BOX)
-            return wost_mixed(X, index0, int(walks), self.eps, MAX_STEPS, stream_seed, self.A,
+            return mixed(X, index0, int(walks), self.eps, MAX_STEPS, stream_seed, self.A,
                               self.B, self.grid_dir, self.nseg, self.U, self.Vs, self.Wn,
                               self.bkind, self.code, self.consts, self.V, self.hkind, self.hcode,
                               self.hconsts, ckind, KP, KQ, W, ARC, BOX)

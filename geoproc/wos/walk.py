@@ -37,6 +37,47 @@ def boundary_value(seg, t, qx, qy, bkind, code, consts, V):
     return (1.0 - t) * V[seg, 0] + t * V[seg, 1]
 
 
+@numba.njit(cache=True, nogil=True)
+def wos_point(x0, y0, state, walks, eps, eps_hi, max_steps, A, B, grid,
+              bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX):
+    """Walks from one point: (mean score + c(x0), sample variance, steps)."""
+    s1 = 0.0
+    s2 = 0.0
+    nsteps = 0
+    for _w in range(walks):
+        px = x0
+        py = y0
+        taken = 0
+        while True:
+            # a single-precision lower bound sizes every step that cannot end the
+            # walk (a slightly smaller sphere is still a valid one); near the
+            # boundary the exact query decides and gives the exit point
+            d = distance_lower_bound(px, py, grid)
+            if d < eps_hi or taken >= max_steps:
+                d2, seg, t = closest_point(px, py, A, B, grid)
+                d = math.sqrt(d2)
+                if d < eps or taken >= max_steps:
+                    break
+            state, u = next_uniform(state)
+            th = TWO_PI * u
+            px += d * math.cos(th)
+            py += d * math.sin(th)
+            taken += 1
+        nsteps += taken
+        qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
+        qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
+        score = boundary_value(seg, t, qx, qy, bkind, code, consts, V)
+        if ckind != 0:
+            score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
+        s1 += score
+        s2 += score * score
+    m = s1 / walks
+    var = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
+    if ckind != 0:
+        m += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+    return m, var, nsteps
+
+
 @numba.njit(cache=True, parallel=True)
 def wos_dirichlet(X, index0, walks, eps, max_steps, stream_seed, A, B, grid,
                   bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX):
@@ -77,43 +118,23 @@ def wos_dirichlet(X, index0, walks, eps, max_steps, stream_seed, A, B, grid,
     steps = np.zeros(n, dtype=np.int64)
     eps_hi = eps + 4.0 * grid[10]
     for k in prange(n):
-        state = stream_state(stream_seed, index0 + k)
-        x0 = X[k, 0]
-        y0 = X[k, 1]
-        s1 = 0.0
-        s2 = 0.0
-        nsteps = 0
-        for _w in range(walks):
-            px = x0
-            py = y0
-            taken = 0
-            while True:
-                # a single-precision lower bound sizes every step that cannot end the
-                # walk (a slightly smaller sphere is still a valid one); near the
-                # boundary the exact query decides and gives the exit point
-                d = distance_lower_bound(px, py, grid)
-                if d < eps_hi or taken >= max_steps:
-                    d2, seg, t = closest_point(px, py, A, B, grid)
-                    d = math.sqrt(d2)
-                    if d < eps or taken >= max_steps:
-                        break
-                state, u = next_uniform(state)
-                th = TWO_PI * u
-                px += d * math.cos(th)
-                py += d * math.sin(th)
-                taken += 1
-            nsteps += taken
-            qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
-            qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
-            score = boundary_value(seg, t, qx, qy, bkind, code, consts, V)
-            if ckind != 0:
-                score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
-            s1 += score
-            s2 += score * score
-        m = s1 / walks
-        mean[k] = m
-        var[k] = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
-        steps[k] = nsteps
-        if ckind != 0:
-            mean[k] += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+        mean[k], var[k], steps[k] = wos_point(
+            X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, eps_hi, max_steps,
+            A, B, grid, bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX)
+    return mean, var, steps
+
+
+@numba.njit(cache=True)
+def wos_dirichlet_serial(X, index0, walks, eps, max_steps, stream_seed, A, B, grid,
+                         bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX):
+    """:func:`wos_dirichlet` on one thread (same numbers; for small batches)."""
+    n = X.shape[0]
+    mean = np.empty(n)
+    var = np.empty(n)
+    steps = np.zeros(n, dtype=np.int64)
+    eps_hi = eps + 4.0 * grid[10]
+    for k in range(n):
+        mean[k], var[k], steps[k] = wos_point(
+            X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, eps_hi, max_steps,
+            A, B, grid, bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX)
     return mean, var, steps

@@ -167,6 +167,67 @@ def _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts, ckind, KP, KQ, W, A
     return 0.0, state
 
 
+@numba.njit(cache=True, nogil=True)
+def wost_point(x0, y0, state, walks, eps, max_steps, A, B, dgrid, nseg, U, V, Wn,
+               bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, BOX):
+    """Walks on stars from one point: (mean score + c(x0), sample variance, steps)."""
+    use_flux = hkind == 0 or ckind != 0
+    s1 = 0.0
+    s2 = 0.0
+    nsteps = 0
+    for _w in range(walks):
+        px = x0
+        py = y0
+        on_seg = -1
+        nxn = 0.0
+        nyn = 0.0
+        score = 0.0
+        taken = 0
+        while True:
+            d2, seg, t = closest_point(px, py, A, B, dgrid)
+            d = math.sqrt(d2)
+            if d < eps or taken >= max_steps:
+                break
+            R2 = closest_silhouette_d2(px, py, U, V, Wn, d2)
+            R = max(math.sqrt(R2), 1e-3 * eps)
+            if use_flux:
+                f, state = _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts,
+                                      ckind, KP, KQ, W, ARC, state)
+                score += (2.0 if on_seg >= 0 else 1.0) * f
+            state, u = next_uniform(state)
+            if on_seg >= 0:
+                # uniform direction in the half plane around the inward normal
+                th = math.atan2(nyn, nxn) + math.pi * (u - 0.5)
+            else:
+                th = TWO_PI * u
+            dx = math.cos(th)
+            dy = math.sin(th)
+            s, hit = ray_hit(px, py, dx, dy, R, A, B, nseg, on_seg)
+            px += s * dx
+            py += s * dy
+            if hit >= 0:
+                on_seg = hit
+                ln = math.sqrt((B[hit, 0] - A[hit, 0]) ** 2 + (B[hit, 1] - A[hit, 1]) ** 2)
+                nxn = -(B[hit, 1] - A[hit, 1]) / ln
+                nyn = (B[hit, 0] - A[hit, 0]) / ln
+            else:
+                on_seg = -1
+            taken += 1
+        nsteps += taken
+        qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
+        qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
+        score += boundary_value(seg, t, qx, qy, bkind, code, consts, Vals)
+        if ckind != 0:
+            score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
+        s1 += score
+        s2 += score * score
+    m = s1 / walks
+    var = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
+    if ckind != 0:
+        m += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+    return m, var, nsteps
+
+
 @numba.njit(cache=True, parallel=True)
 def wost_mixed(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid, nseg, U, V, Wn,
                bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, BOX):
@@ -186,64 +247,25 @@ def wost_mixed(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid, nseg,
     mean = np.empty(n)
     var = np.empty(n)
     steps = np.zeros(n, dtype=np.int64)
-    use_flux = hkind == 0 or ckind != 0
     for k in prange(n):
-        state = stream_state(stream_seed, index0 + k)
-        x0 = X[k, 0]
-        y0 = X[k, 1]
-        s1 = 0.0
-        s2 = 0.0
-        nsteps = 0
-        for _w in range(walks):
-            px = x0
-            py = y0
-            on_seg = -1
-            nxn = 0.0
-            nyn = 0.0
-            score = 0.0
-            taken = 0
-            while True:
-                d2, seg, t = closest_point(px, py, A, B, dgrid)
-                d = math.sqrt(d2)
-                if d < eps or taken >= max_steps:
-                    break
-                R2 = closest_silhouette_d2(px, py, U, V, Wn, d2)
-                R = max(math.sqrt(R2), 1e-3 * eps)
-                if use_flux:
-                    f, state = _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts,
-                                          ckind, KP, KQ, W, ARC, state)
-                    score += (2.0 if on_seg >= 0 else 1.0) * f
-                state, u = next_uniform(state)
-                if on_seg >= 0:
-                    # uniform direction in the half plane around the inward normal
-                    th = math.atan2(nyn, nxn) + math.pi * (u - 0.5)
-                else:
-                    th = TWO_PI * u
-                dx = math.cos(th)
-                dy = math.sin(th)
-                s, hit = ray_hit(px, py, dx, dy, R, A, B, nseg, on_seg)
-                px += s * dx
-                py += s * dy
-                if hit >= 0:
-                    on_seg = hit
-                    ln = math.sqrt((B[hit, 0] - A[hit, 0]) ** 2 + (B[hit, 1] - A[hit, 1]) ** 2)
-                    nxn = -(B[hit, 1] - A[hit, 1]) / ln
-                    nyn = (B[hit, 0] - A[hit, 0]) / ln
-                else:
-                    on_seg = -1
-                taken += 1
-            nsteps += taken
-            qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
-            qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
-            score += boundary_value(seg, t, qx, qy, bkind, code, consts, Vals)
-            if ckind != 0:
-                score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
-            s1 += score
-            s2 += score * score
-        m = s1 / walks
-        mean[k] = m
-        var[k] = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
-        steps[k] = nsteps
-        if ckind != 0:
-            mean[k] += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+        mean[k], var[k], steps[k] = wost_point(
+            X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, max_steps, A, B,
+            dgrid, nseg, U, V, Wn, bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ,
+            W, ARC, BOX)
+    return mean, var, steps
+
+
+@numba.njit(cache=True)
+def wost_mixed_serial(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid, nseg, U, V, Wn,
+                      bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, BOX):
+    """:func:`wost_mixed` on one thread (same numbers; for small batches)."""
+    n = X.shape[0]
+    mean = np.empty(n)
+    var = np.empty(n)
+    steps = np.zeros(n, dtype=np.int64)
+    for k in range(n):
+        mean[k], var[k], steps[k] = wost_point(
+            X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, max_steps, A, B,
+            dgrid, nseg, U, V, Wn, bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ,
+            W, ARC, BOX)
     return mean, var, steps
