@@ -1,8 +1,8 @@
 """Solve ``A x = b`` for an M-matrix ``A`` and ``b >= 0`` entirely in log space.
 
-An M-matrix (positive diagonal, non-positive off-diagonal entries, here
-``A = M - dt L`` with ``L_ij >= 0``) has an LU factorization without row
-interchanges whose factors keep that sign pattern. Forward and back
+A symmetric M-matrix (positive diagonal, non-positive off-diagonal entries,
+here ``A = M - dt L`` with ``L_ij >= 0``) has an LDL^T factorization (any
+symmetric ordering, no pivoting) whose factors keep that sign pattern. Forward and back
 substitution then only ever add non-negative terms:
 
     y_i = b_i + sum_{j<i} |L_ij| y_j,      x_i = (y_i + sum_{j>i} |U_ij| x_j) / U_ii,
@@ -19,8 +19,6 @@ from __future__ import annotations
 import numba
 import numpy as np
 import scipy.sparse as sp
-
-from geoproc.geodesic.operators import factor_sparse
 
 
 @numba.njit(cache=True)
@@ -66,35 +64,44 @@ def _log_backward(indptr, indices, logabs, logdiag, beta):
 
 
 class LogMMatrixSolver:
-    """Factor an M-matrix once; solve with right-hand sides given by their logs.
+    """Factor a symmetric M-matrix once; solve with right-hand sides given by their logs.
+
+    ``A = M - dt L`` is symmetric positive definite with non-positive
+    off-diagonal entries. QDLDL gives ``A[P][:, P] = (I + L) D (I + L)^T`` with
+    ``L`` strictly lower triangular and non-positive, ``D > 0``; the upper factor
+    is ``U = D (I + L)^T``.
 
     Parameters
     ----------
     A : (n, n) sparse
-        Non-singular M-matrix with a symmetric sparsity pattern (e.g. ``M - dt L``).
+        Symmetric non-singular M-matrix (e.g. ``M - dt L`` with ``L_ij >= 0``).
     """
 
     def __init__(self, A: sp.spmatrix):
-        lu = factor_sparse(A)
-        self.perm_r, self.perm_c = lu.perm_r, lu.perm_c
-        Lf = sp.tril(lu.L, -1, format="csr")
-        Uf = sp.triu(lu.U, 1, format="csr")
-        d = lu.U.diagonal()
-        if (d <= 0).any() or (Lf.data > 0).any() or (Uf.data > 0).any():
-            raise ValueError("matrix is not an M-matrix (LU factors lost the sign pattern)")
-        Lf.sort_indices()
-        Uf.sort_indices()
-        with np.errstate(divide="ignore"):
-            self._L = (Lf.indptr, Lf.indices, np.log(-Lf.data))
-            self._U = (Uf.indptr, Uf.indices, np.log(-Uf.data), np.log(d))
+        import qdldl
+
+        Lf, D, P = qdldl.Solver(sp.csc_matrix(A)).factors()
+        Lf = sp.csc_matrix(Lf)
+        Lf.eliminate_zeros()
+        if (D <= 0).any() or (Lf.data > 0).any():
+            raise ValueError("matrix is not an M-matrix (LDL^T factors lost the sign pattern)")
+        self.perm = np.asarray(P, dtype=np.int64)
+        logD = np.log(D)
+        Lr = Lf.tocsr()
+        Lr.sort_indices()
+        Ut = Lf.T.tocsr()  # row i holds L_ji for j > i
+        Ut.sort_indices()
+        rows = np.repeat(np.arange(len(D)), np.diff(Ut.indptr))
+        self._L = (Lr.indptr, Lr.indices, np.log(-Lr.data))
+        self._U = (Ut.indptr, Ut.indices, np.log(-Ut.data) + logD[rows], logD)
         self.n = A.shape[0]
-        self.factor_nnz = int(lu.L.nnz + lu.U.nnz)
+        self.factor_nnz = int(Lf.nnz)
 
     def solve_log(self, log_b: np.ndarray) -> np.ndarray:
         """``log x`` for ``A x = exp(log_b)`` (entries of ``log_b`` may be -inf)."""
         log_b = np.asarray(log_b, dtype=np.float64)
-        bp = np.empty(self.n)
-        bp[self.perm_r] = log_b
-        y = _log_forward(*self._L, bp)
+        y = _log_forward(*self._L, log_b[self.perm])
         z = _log_backward(*self._U, y)
-        return z[self.perm_c]
+        x = np.empty(self.n)
+        x[self.perm] = z
+        return x

@@ -31,7 +31,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from geoproc.errors import UsageError
 from geoproc.geodesic.log_lu import LogMMatrixSolver
-from geoproc.geodesic.operators import factor_sparse, negative_offdiagonal_count
+from geoproc.geodesic.operators import factor_sparse_lu, negative_offdiagonal_count
 
 
 class LogStepSystem:
@@ -131,7 +131,7 @@ def log_ode_step(system: LogStepSystem, w_prev: np.ndarray, w_start: np.ndarray 
         g = w + system.c - val
         P = sp.csr_matrix((share, system.cols, system.indptr), shape=(n, n))
         J = (eye - P).tocsc()
-        step = -factor_sparse(J).solve(g)
+        step = -factor_sparse_lu(J).solve(g)
         w = w + step
         if np.all(np.abs(step) <= rtol * np.maximum(1.0, np.abs(w))):
             return w, it

@@ -42,37 +42,61 @@ def lumped_mass(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return np.asarray(M.diagonal(), dtype=np.float64)
 
 
+def is_edge_manifold_nondegenerate(V: np.ndarray, F: np.ndarray) -> bool:
+    """True when no edge has more than two faces and every face has positive area."""
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(E[:, 0] * len(V) + E[:, 1], return_counts=True)
+    return bool(counts.max() <= 2 and (face_double_areas(V, F) > 0).all())
+
+
 def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
                                  mollify_factor: float = 1e-5) -> tuple[sp.csr_matrix, np.ndarray]:
     """Laplacian of the intrinsic Delaunay triangulation and its lumped mass.
 
-    From ``robust_laplacian.mesh_laplacian`` (Sharp & Crane 2020), whose L is
-    positive semi-definite: it is negated here to the convention of
-    :func:`cotan_laplacian`. Off-diagonal weights are non-negative (rounding
-    noise below 1e-14 of the largest weight is set to zero).
+    On an edge-manifold mesh without zero-area faces: libigl's
+    ``intrinsic_delaunay_cotmatrix`` (edge flips on intrinsic lengths) and the
+    barycentric mass of that triangulation (``massmatrix_intrinsic``).
+    Otherwise, or if that gives a negative weight: ``robust_laplacian.mesh_laplacian``
+    (Sharp & Crane 2020: tufted cover and mollification, for non-manifold and
+    degenerate input), whose L is positive semi-definite and is negated here.
+    Both agree to rounding on ordinary meshes. Off-diagonal weights are
+    non-negative (rounding noise below 1e-14 of the largest weight is set to zero).
 
     Returns
     -------
     L : (n, n) csr_matrix
+        Negative semi-definite, rows sum to zero (the convention of
+        :func:`cotan_laplacian`).
     M : (n,) float array
     """
+    L = None
+    if is_edge_manifold_nondegenerate(V, F):
+        import igl
+
+        Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
+        L = _drop_rounding_negatives(sp.csr_matrix(Li))
+        if negative_offdiagonal_count(L) == 0 and np.isfinite(L.data).all():
+            Mi = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
+            return L, np.asarray(Mi.diagonal(), dtype=np.float64)
     import robust_laplacian
 
     Lp, Mp = robust_laplacian.mesh_laplacian(np.ascontiguousarray(V), np.ascontiguousarray(F),
                                              mollify_factor=mollify_factor)
-    L = -sp.csr_matrix(Lp)
+    return _drop_rounding_negatives(-sp.csr_matrix(Lp)), np.asarray(Mp.diagonal(), dtype=np.float64)
+
+
+def _drop_rounding_negatives(L: sp.csr_matrix) -> sp.csr_matrix:
+    """Zero off-diagonal weights in (-1e-14 max|L|, 0), moving them onto the diagonal."""
     off = sp.triu(L, 1, format="coo")
     tiny = (off.data < 0) & (off.data > -1e-14 * max(1.0, float(np.abs(L.data).max())))
     if tiny.any():
-        L = L.tolil()
-        for i, j in zip(off.row[tiny], off.col[tiny], strict=True):
-            L[i, i] += L[i, j]
-            L[j, j] += L[j, i]
-            L[i, j] = 0.0
-            L[j, i] = 0.0
-        L = L.tocsr()
+        i, j, v = off.row[tiny], off.col[tiny], off.data[tiny]
+        n = L.shape[0]
+        fix = sp.coo_matrix((np.concatenate([-v, -v, v, v]),
+                             (np.concatenate([i, j, i, j]), np.concatenate([j, i, i, j]))), shape=(n, n))
+        L = (L + fix).tocsr()
     L.eliminate_zeros()
-    return L, np.asarray(Mp.diagonal(), dtype=np.float64)
+    return L
 
 
 def laplacian_and_mass(V: np.ndarray, F: np.ndarray, kind: str) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -139,12 +163,22 @@ def normalized_direction(X: np.ndarray) -> np.ndarray:
 
 
 def factor_sparse(A: sp.spmatrix):
-    """Sparse LU of a matrix with symmetric sparsity and a safe diagonal.
+    """Sparse factorization of a symmetric positive definite matrix, for repeated solves.
 
-    For the M-matrices and SPD matrices used here (``M - t L``, pinned ``-L``,
-    the log-ODE Jacobian ``I - P``): SuperLU with a symmetric fill-reducing
-    ordering and diagonal pivots (no row interchanges), an order of magnitude
-    faster than the default partial pivoting. Returns an object with ``solve``.
+    ``M - t L``, the pinned ``-L`` of the Poisson step and their submatrices
+    are symmetric positive definite: QDLDL's LDL^T with an AMD ordering
+    (``qdldl.Solver``). Returns an object with ``solve(b)``.
+    """
+    import qdldl
+
+    return qdldl.Solver(sp.csc_matrix(A))
+
+
+def factor_sparse_lu(A: sp.spmatrix):
+    """Sparse LU of a non-symmetric matrix with symmetric sparsity and a safe
+    diagonal (the Newton Jacobian ``I - P``, an M-matrix): SuperLU with a
+    symmetric fill-reducing ordering and diagonal pivots. Returns an object
+    with ``solve(b)``.
     """
     from scipy.sparse.linalg import splu
 

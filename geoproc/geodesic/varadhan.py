@@ -15,7 +15,7 @@ def backward_euler_heat(L: sp.spmatrix, M: np.ndarray, u0: np.ndarray, dt: float
     ----------
     L : (n, n) sparse Laplacian (negative semi-definite convention)
     M : (n,) lumped mass
-    u0 : (n,) or (n, k) initial heat
+    u0 : (n,) initial heat
     dt : float
         Step (area unit).
     steps : int
@@ -24,7 +24,7 @@ def backward_euler_heat(L: sp.spmatrix, M: np.ndarray, u0: np.ndarray, dt: float
     lu = factor_sparse((sp.diags(M) - dt * L).tocsc())
     u = np.asarray(u0, dtype=np.float64)
     for _ in range(steps):
-        u = lu.solve(M[:, None] * u if u.ndim == 2 else M * u)
+        u = lu.solve(M * u)
     return u
 
 

@@ -241,3 +241,13 @@ def test_compare_to_reference_by_hand():
     assert c["rmse"] == pytest.approx(np.sqrt((0.1**2 + 0.1**2) / 4))
     assert c["max_relative_error"] == pytest.approx(0.1)
     assert c["pearson_r"] == pytest.approx(np.corrcoef(d, ref)[0, 1])
+
+
+def test_intrinsic_delaunay_laplacian_matches_robust_laplacian(shared_data):
+    import robust_laplacian
+
+    m = load_mesh(shared_data / "meshes" / "bunny.off")
+    L, M = gd.intrinsic_delaunay_laplacian(m.V, m.F)
+    Lr, Mr = robust_laplacian.mesh_laplacian(m.V, m.F, mollify_factor=0.0)
+    assert abs(L + Lr).max() < 1e-9 * abs(Lr).max()
+    assert np.abs(M - Mr.diagonal()).max() < 1e-12 * M.max()
