@@ -167,3 +167,14 @@ def test_pipeline_relabelled_matches_direct(shared_data):
     # equal up to the last-place steps that separate ties (index order differs)
     np.testing.assert_allclose(r.g, direct.g, rtol=0, atol=1e-12 * (f.max() - f.min()))
     np.testing.assert_array_equal(np.sort(r.order[r.simplification.kept_minima]), direct.kept_minima)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rel", [0.01, 0.05])
+def test_armadillo_noisy_height(shared_data, rel):
+    mesh = load_mesh(shared_data / "meshes" / "armadillo.obj")
+    f = mfx.noisy_height(mesh.V, axis=1, noise=0.02, seed=0)
+    P = rel * (f.max() - f.min())
+    s = check_simplification(mesh.V, mesh.F, f, P)
+    assert s.max_abs_change <= P * (1 + 1e-12)
+    assert len(s.widened_vertices) <= 0.03 * len(f)
