@@ -29,6 +29,7 @@ def _theta(V, F, V_ref):
     return float(np.mean([denoise_errors(V[t], F, V_ref[t])["mean_normal_angle_deg"] for t in range(len(V))]))
 
 
+@pytest.mark.slow
 def test_dynamic_beats_frame_by_frame(dfx):
     Vn, F, V = dfx.noisy_wave(frames=6)
     static = np.stack([denoise_mesh(Vn[t], F).V for t in range(len(Vn))])

@@ -1,0 +1,173 @@
+"""``geoproc denoise`` through the real command line: outputs, report metrics
+against ground truth, and one-line exit-2 refusals that leave no output."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from geoproc.animation import Animation, animation_to_bytes, load_animation
+from geoproc.denoise import denoise_errors
+from geoproc.mesh import Mesh, load_mesh, save_mesh
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def dfx():
+    spec = importlib.util.spec_from_file_location("denoise_fixtures", ROOT / "fixtures" / "denoise_fixtures.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def cube_pair(dfx, tmp_path_factory):
+    d = tmp_path_factory.mktemp("cube")
+    Vn, F, V = dfx.noisy_cube(n=12, sigma=0.3, seed=2)
+    save_mesh(d / "noisy.ply", Mesh(Vn, F))
+    save_mesh(d / "clean.ply", Mesh(V, F))
+    return d / "noisy.ply", d / "clean.ply"
+
+
+def _metrics(path):
+    return json.loads(Path(path).read_text())["metrics"]
+
+
+def _one_line_error(p):
+    return p.returncode == 2 and p.stderr.startswith("error:") and len(p.stderr.strip().splitlines()) == 1
+
+
+def test_denoise_with_reference_report(cli, cube_pair, tmp_path):
+    noisy, clean = cube_pair
+    out, rep = tmp_path / "d.ply", tmp_path / "r.json"
+    p = cli("denoise", noisy, "--reference", clean, "-o", out, "--report", rep,
+            "--check", "mean_normal_angle_deg<=3")
+    assert p.returncode == 0, p.stderr
+    met = _metrics(rep)
+    m = load_mesh(out)
+    ref = load_mesh(clean)
+    # the report's numbers are those of the written mesh
+    independent = denoise_errors(m.V, m.F, ref.V)
+    assert met["mean_normal_angle_deg"] == pytest.approx(independent["mean_normal_angle_deg"], rel=1e-6)
+    assert met["mean_normal_angle_deg"] < 0.15 * met["input_mean_normal_angle_deg"]
+    assert met["new_flipped_faces"] == 0
+    assert {"max_normal_angle_deg", "flipped_faces", "hausdorff", "vertex_rmse"} <= set(met)
+    assert set(np.unique(m.face_fields["feature"])) <= {0.0, 1.0} and m.face_fields["feature"].sum() > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["bilateral", "rpca"])
+def test_methods(cli, cube_pair, tmp_path, method):
+    noisy, clean = cube_pair
+    rep = tmp_path / "r.json"
+    p = cli("denoise", noisy, "--method", method, "--reference", clean, "-o", tmp_path / "d.ply",
+            "--report", rep)
+    assert p.returncode == 0, p.stderr
+    assert _metrics(rep)["mean_normal_angle_deg"] < 4.0
+
+
+def test_stdout_pipe_is_binary_ply(cli, cube_pair):
+    noisy, _ = cube_pair
+    p = cli("denoise", noisy, "-o", "-", "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.startswith(b"ply\nformat binary_little_endian")
+
+
+def test_outliers_f1_and_outputs(cli, dfx, tmp_path):
+    P, flag = dfx.cloud_with_outliers(8000, 0.2, 0.05)
+    src = tmp_path / "cloud.ply"
+    save_mesh(src, Mesh(P, np.zeros((0, 3), int), {"outlier": flag}))
+    out, rep = tmp_path / "in.ply", tmp_path / "r.json"
+    p = cli("denoise", src, "--outliers", "--k", "16", "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    met = _metrics(rep)
+    kept = load_mesh(out)
+    assert len(kept.V) == met["points"] - met["detected_outliers"]
+    # precision and recall recomputed from the written inliers and perturb's flags
+    removed_true = flag.sum() - kept.vertex_fields["outlier"].sum()
+    assert met["recall"] == pytest.approx(removed_true / flag.sum())
+    assert met["f1"] > 0.85
+    p = cli("denoise", src, "--outliers", "--keep-all", "-o", out)
+    assert p.returncode == 0, p.stderr
+    allp = load_mesh(out)
+    assert len(allp.V) == len(P) and {"outlier_score", "outlier_detected"} <= set(allp.vertex_fields)
+
+
+def test_dynamic_npz(cli, dfx, tmp_path):
+    Vn, F, V = dfx.noisy_wave(frames=3)
+    src, ref = tmp_path / "noisy.npz", tmp_path / "clean.npz"
+    src.write_bytes(animation_to_bytes(Animation(Vn, F)))
+    ref.write_bytes(animation_to_bytes(Animation(V, F)))
+    out, rep = tmp_path / "d.npz", tmp_path / "r.json"
+    p = cli("denoise", src, "--dynamic", "--reference", ref, "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    a = load_animation(out)
+    theta = np.mean([denoise_errors(a.V[t], F, V[t])["mean_normal_angle_deg"] for t in range(3)])
+    assert _metrics(rep)["mean_normal_angle_deg"] == pytest.approx(theta, rel=1e-9)
+    assert theta < 0.5 * np.mean([denoise_errors(Vn[t], F, V[t])["mean_normal_angle_deg"] for t in range(3)])
+
+
+# ---- bad input: one line, exit 2, nothing written --------------------------------------------
+
+def test_nonmanifold_edge_is_refused(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "fin.obj", "-o", out)
+    assert _one_line_error(p) and "non-manifold" in p.stderr and not out.exists()
+
+
+def test_zero_area_faces_are_handled(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "zero_area.off", "--no-clean", "--rounds", "1", "--normal-iterations", "2",
+            "-o", out)
+    assert p.returncode == 0, p.stderr
+    assert np.isfinite(load_mesh(out, clean=False).V).all()
+
+
+def test_open_boundary_is_handled(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "grid.ply", "--rounds", "1", "--pin-boundary", "-o", out)
+    assert p.returncode == 0, p.stderr
+    assert np.allclose(load_mesh(out).V, load_mesh(fixture_dir / "grid.ply").V)  # flat stays flat
+
+
+def test_cloud_with_fewer_than_k_points(cli, tmp_path):
+    src, out = tmp_path / "tiny.ply", tmp_path / "o.ply"
+    save_mesh(src, Mesh(np.random.default_rng(0).standard_normal((10, 3)), np.zeros((0, 3), int)))
+    p = cli("denoise", src, "--outliers", "--k", "16", "-o", out)
+    assert _one_line_error(p) and "fewer than" in p.stderr and not out.exists()
+
+
+def test_point_cloud_without_outliers_flag(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "points.ply", "-o", out)
+    assert _one_line_error(p) and "--outliers" in p.stderr and not out.exists()
+
+
+def test_animation_with_differing_connectivity(cli, make_fixtures, tmp_path):
+    V, F = make_fixtures.icosphere(1)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    save_mesh(frames / "f0.ply", Mesh(V, F))
+    save_mesh(frames / "f1.ply", Mesh(V, F[:, [0, 2, 1]]))
+    out = tmp_path / "o.npz"
+    p = cli("denoise", frames, "--dynamic", "-o", out)
+    assert _one_line_error(p) and "connectivity" in p.stderr and not out.exists()
+
+
+def test_reference_with_other_connectivity(cli, cube_pair, fixture_dir, tmp_path):
+    noisy, _ = cube_pair
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = cli("denoise", noisy, "--reference", fixture_dir / "icosphere.ply", "-o", out, "--report", rep)
+    assert _one_line_error(p) and "connectivity" in p.stderr and not out.exists() and not rep.exists()
+
+
+@pytest.mark.slow
+def test_bad_method(cli, cube_pair, tmp_path):
+    noisy, _ = cube_pair
+    p = cli("denoise", noisy, "--method", "median", "-o", tmp_path / "o.ply")
+    assert _one_line_error(p)

@@ -1,0 +1,79 @@
+"""``geoproc perturb`` through the real command line."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+
+from geoproc.animation import load_animation
+from geoproc.mesh import load_mesh
+from geoproc.perturb import noise_scale
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def denoise_fixtures():
+    spec = importlib.util.spec_from_file_location("denoise_fixtures", ROOT / "fixtures" / "denoise_fixtures.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_same_seed_same_bytes_and_requested_sigma(cli, fixture_dir, tmp_path):
+    a, b = tmp_path / "a.ply", tmp_path / "b.ply"
+    for out in (a, b):
+        p = cli("perturb", fixture_dir / "icosphere.ply", "--noise", "0.3", "--seed", "7", "-o", out)
+        assert p.returncode == 0, p.stderr
+    assert a.read_bytes() == b.read_bytes()
+    clean = load_mesh(fixture_dir / "icosphere.ply")
+    noisy = load_mesh(a)
+    along = np.einsum("ij,ij->i", noisy.V - clean.V, clean.V)  # unit sphere: the normal is the position
+    # 642 vertices: the sample std is within ~3 % of sigma (one standard error); allow 10 %
+    assert abs(along.std() / noise_scale(clean.V, clean.F) - 0.3) < 0.1 * 0.3
+
+
+def test_outliers_property_and_report(cli, fixture_dir, tmp_path):
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = cli("perturb", fixture_dir / "points.ply", "--noise", "0", "--outliers", "0.25", "--outlier-range",
+            "0.05", "--seed", "1", "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(out)
+    assert m.is_point_cloud and m.vertex_fields["outlier"].sum() == 50
+    assert json.loads(rep.read_text())["metrics"]["outlier_vertices"] == 50
+
+
+def test_animation_npz(cli, tmp_path):
+    dfx = denoise_fixtures()
+    V, F = dfx.wave_animation(3)
+    from geoproc.animation import Animation, animation_to_bytes
+
+    src = tmp_path / "wave.npz"
+    src.write_bytes(animation_to_bytes(Animation(V, F)))
+    outs = [tmp_path / "n1.npz", tmp_path / "n2.npz"]
+    for out in outs:
+        p = cli("perturb", src, "--noise", "0.3", "--seed", "3", "-o", out)
+        assert p.returncode == 0, p.stderr
+    assert outs[0].read_bytes() == outs[1].read_bytes()
+    a = load_animation(outs[0])
+    assert a.V.shape == V.shape and np.array_equal(a.F, F)
+    assert not np.allclose(a.V[0], V[0]) and not np.allclose(a.V[0] - V[0], a.V[1] - V[1])
+
+
+def test_bad_options_exit_2_without_output(cli, fixture_dir, tmp_path):
+    out = tmp_path / "x.ply"
+    for args in (["--outliers", "1.5"],):
+        p = cli("perturb", fixture_dir / "icosphere.ply", "--seed", "1", "-o", out, *args)
+        assert p.returncode == 2 and p.stderr.startswith("error:") and len(p.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+    p = cli("perturb", fixture_dir / "nan.ply", "--seed", "1", "-o", out)
+    assert p.returncode == 2 and not out.exists()
+
+
+def test_animation_with_differing_connectivity_exit_2(cli, tmp_path):
+    np.savez(tmp_path / "bad.npz", vertices=np.zeros((2, 3, 3)), faces=np.array([[[0, 1, 2]], [[0, 2, 1]]]))
+    out = tmp_path / "o.npz"
+    p = cli("perturb", tmp_path / "bad.npz", "--seed", "1", "-o", out)
+    assert p.returncode == 2 and "connectivity" in p.stderr and not out.exists()
