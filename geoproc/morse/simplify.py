@@ -360,6 +360,22 @@ def _kept_saddles(cx: SurfaceComplex, f: np.ndarray, cancelled: np.ndarray,
     return pin
 
 
+@numba.njit(cache=True)
+def _highest_neighbour(g, adj_ptr, adj_nbr):
+    """Each vertex's highest neighbour under (g, index) when above it, else -1."""
+    n = g.shape[0]
+    out = np.full(n, -1, np.int64)
+    for v in range(n):
+        best = -1
+        for j in range(adj_ptr[v], adj_ptr[v + 1]):
+            w = adj_nbr[j]
+            if best == -1 or g[w] > g[best] or (g[w] == g[best] and w > best):
+                best = w
+        if best >= 0 and (g[best] > g[v] or (g[best] == g[v] and best > v)):
+            out[v] = best
+    return out
+
+
 def _ascent_forest(ptr, nbr, eid, f, threshold, keep):
     """merge_forest on -f over the coned adjacency (cone vertex = index n, above all)."""
     n = len(f)
@@ -408,7 +424,22 @@ def _cancel(cx, f, P, down, up, keep_min, keep_max, seeds_max, pin):
             break
         repaired += _flood_from(g, keep_min, cx.adj_ptr, cx.adj_nbr, 1.0)
         repaired += _flood_from(g, seeds_max, cx.adj_ptr, cx.adj_nbr, -1.0)
-    return g, half_v > P / 2.0, repaired
+    wide = half_v > P / 2.0
+    for _ in range(3 if (repaired or wide.any()) else 0):
+        # Refit: g has the right extrema; read its steepest descent and ascent
+        # witnesses (consistent with g, so acyclic) and assign values again as
+        # close to f as they allow; kept while it lowers max |f - g|.
+        none = np.full(len(f), -1, np.int64)
+        down_r = _lowest_neighbour(g, cx.adj_ptr, cx.adj_nbr, keep_min, none)
+        up_r = _highest_neighbour(g, cx.adj_ptr, cx.adj_nbr)
+        up_r[keep_max | cx.boundary] = -1
+        g_r, half_r, stuck = _assign_values(f, P / 2.0, down_r, up_r, keep_min, keep_max,
+                                            np.zeros(len(f), np.bool_), cx.adj_ptr, cx.adj_nbr)
+        if (stuck.any() or np.abs(g_r - f).max() >= np.abs(g - f).max()
+                or _wrong_extrema(g_r, keep_min, keep_max, cx.boundary, cx.adj_ptr, cx.adj_nbr)):
+            break
+        g, wide = g_r, half_r > P / 2.0
+    return g, wide, repaired
 
 
 def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
