@@ -44,9 +44,13 @@ How g is built
    disagree (a cycle of the relation) loses its ascent witness.
 5. Exact critical points. Monotone sweeps (Tierny and Pascucci 2012) from the
    minima that stay (raising) and from the maxima that stay and the boundary
-   (lowering) are repeated until neither changes anything; they leave g alone
-   when steps 2-3 already produced the right extrema, and otherwise repair
-   them. The vertices where |f - g| > P/2 are reported.
+   (lowering) are repeated until every vertex has the wanted status; they are
+   skipped when steps 2-3 already produced the right extrema. After a repair
+   (or a widening) the values are refitted: the steepest descent and ascent
+   neighbours of the current g become the witnesses (consistent with g, so
+   the relation is acyclic and the extrema stay right) and step 2's passes
+   assign values again as close to f as they allow, kept while this lowers
+   max |f - g|. The vertices where |f - g| > P/2 are reported.
 6. Made strict: vertices are sorted by (g, index) and equal values are moved
    up by one unit in the last place, so g has no ties; sorting its vertices by
    (value, index) gives exactly the kept minima and maxima and, by
