@@ -89,8 +89,10 @@ class Simplification:
     max_abs_change : float
         ``max |f - g|``.
     widened_vertices : int64 array
-        Vertices where P/2 could not be met (see "Where P/2 cannot be met" in
-        the module docstring); empty in the common case.
+        Vertices with |f - g| > P/2 (see step 4 of the module docstring).
+    repaired_vertices : int
+        Value changes made by the repair sweeps of step 5 (0 when the
+        cancellation relation alone gave the right extrema).
     """
 
     g: np.ndarray
