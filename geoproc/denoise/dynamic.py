@@ -51,6 +51,27 @@ def coherent_normals(V: np.ndarray, F: np.ndarray, lam: float | None = None) -> 
     return out, info
 
 
+def coherent_refinement(
+    V: np.ndarray, F: np.ndarray, iterations: int = 10, fixed: np.ndarray | None = None,
+) -> tuple[np.ndarray, dict]:
+    """Steps 2 and 3: RPCA on the stacked face normals of the (per-frame
+    denoised) frames, then ``iterations`` vertex-update sweeps of every frame
+    towards its coherent normals.
+
+    Parameters
+    ----------
+    V : (T, n, 3) float64 frames; F : (m, 3) triangles; fixed : (n,) bool, optional
+        vertices that must not move.
+
+    Returns
+    -------
+    V_out : (T, n, 3) float64; info : dict (RPCA iterations, convergence, rank).
+    """
+    N, info = coherent_normals(V, F)
+    out = np.stack([update_vertices(V[t], F, N[t], iterations, fixed=fixed) for t in range(len(V))])
+    return out, info
+
+
 def denoise_animation(
     V: np.ndarray,
     F: np.ndarray,
@@ -77,20 +98,18 @@ def denoise_animation(
     T = len(V)
     p = DenoiseParams() if params is None else params
     static = np.empty_like(V, dtype=np.float64)
-    fixed = None
     for t in range(T):
-        r = denoise_mesh(V[t], F, method, p)
-        static[t] = r.V
+        static[t] = denoise_mesh(V[t], F, method, p).V
         if progress is not None:
             progress(0.9 * (t + 1) / T)
+    fixed = None
     if p.pin_boundary:
         from geoproc.mesh.topology import boundary_edges
 
         B = boundary_edges(F)
         fixed = np.zeros(V.shape[1], dtype=bool)
         fixed[B.reshape(-1)] = True
-    N, info = coherent_normals(static, F)
-    out = np.stack([update_vertices(static[t], F, N[t], coherent_iterations, fixed=fixed) for t in range(T)])
+    out, info = coherent_refinement(static, F, coherent_iterations, fixed)
     if progress is not None:
         progress(1.0)
     info.update({"frames": T})

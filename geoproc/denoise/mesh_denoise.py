@@ -91,27 +91,43 @@ class DenoiseParams:
     patch_size: int = 10
 
 
-def default_schedule(rough: float) -> dict:
+def default_schedule(rough: float, coarseness_deg: float = 0.0) -> dict:
     """Iteration counts and range width from the estimated noise level.
 
     ``rough`` is :func:`geoproc.denoise.noise_level.roughness` of the input
     (about 0.1, 0.18, 0.25 and 0.35 for Gaussian noise of 0.1, 0.2, 0.3 and 0.5
-    mean edge lengths; below 0.05 on clean meshes). From 0.18 to 0.21 the
-    strength ``t = (rough - 0.18) / 0.025`` goes from light (2 rounds of 2 passes, sigma_r 0.5: smooth
-    organic surfaces at low noise lose detail under stronger filtering) to
-    strong at 0.205 and above (5 rounds of 10 passes, sigma_r 0.3). Below 0.18 the filter fades
-    out (``s = (rough - 0.03) / 0.15``) to nothing at all on a clean mesh.
+    mean edge lengths; below 0.05 on clean meshes). From 0.18 to 0.205 the
+    strength ``t = (rough - 0.18) / 0.025`` goes from light (2 rounds of 2
+    passes, sigma_r 0.5: smooth organic surfaces at low noise lose detail under
+    stronger filtering) to strong (5 rounds of 10 passes, sigma_r 0.3). Below
+    0.18 the filter fades out (``s = (rough - 0.03) / 0.15``) to nothing at all
+    on a clean mesh.
+
+    ``coarseness_deg`` (:func:`coarseness_deg`) is the median dihedral angle
+    left after a plain smoothing: about 2-3 degrees on finely meshed surfaces,
+    5-7 on coarse curved ones, where a narrow range kernel and many passes
+    carve false creases. From 3.5 to 5 degrees the schedule moves to broad and
+    short (2 + t rounds of 2 + t passes, sigma_r 0.8 - 0.1 t).
     """
     if rough < 0.18:
         s = float(np.clip((rough - 0.03) / 0.15, 0.0, 1.0))
         return {"outer_iterations": int(round(2 * s)), "normal_iterations": int(round(2 * s)),
                 "sigma_r": 0.1 + 0.4 * s}
     t = float(np.clip((rough - 0.18) / 0.025, 0.0, 1.0))
-    return {
-        "outer_iterations": int(round(2 + 3 * t)),
-        "normal_iterations": int(round(2 + 8 * t)),
-        "sigma_r": 0.5 - 0.2 * t,
-    }
+    w = float(np.clip((coarseness_deg - 3.5) / 1.5, 0.0, 1.0))
+    fine = (2 + 3 * t, 2 + 8 * t, 0.5 - 0.2 * t)
+    coarse = (2 + t, 2 + t, 0.8 - 0.1 * t)
+    mix = [(1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True)]
+    return {"outer_iterations": int(round(mix[0])), "normal_iterations": int(round(mix[1])),
+            "sigma_r": mix[2]}
+
+
+def coarseness_deg(V: np.ndarray, F: np.ndarray) -> float:
+    """Median dihedral angle (degrees) after a plain smoothing (bilateral normal
+    filter with a broad range kernel, 2 rounds of 3 passes): the curvature per
+    edge that the mesh keeps once the noise is gone."""
+    r = denoise_mesh(V, F, "bilateral", DenoiseParams(outer_iterations=2, normal_iterations=3, sigma_r=1.0))
+    return median_dihedral_deg(r.V, F)
 
 
 @dataclass
@@ -203,7 +219,9 @@ def denoise_mesh(
     edge_nb = face_edge_neighbors(F)
     noise_deg = median_dihedral_deg(V, F, edge_nb)
     rough = roughness(V, F)
-    sched = default_schedule(rough)
+    needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
+    coarse = coarseness_deg(V, F) if needs_schedule and rough >= 0.18 else 0.0
+    sched = default_schedule(rough, coarse)
     outer = sched["outer_iterations"] if p.outer_iterations is None else p.outer_iterations
     inner = sched["normal_iterations"] if p.normal_iterations is None else p.normal_iterations
     sigma_r = sched["sigma_r"] if p.sigma_r is None else p.sigma_r
@@ -248,6 +266,7 @@ def denoise_mesh(
     info = {
         "noise_median_dihedral_deg": noise_deg,
         "noise_roughness": rough,
+        "coarseness_deg": coarse,
         "outer_iterations": outer,
         "normal_iterations": inner,
         "vertex_iterations": p.vertex_iterations,
