@@ -192,3 +192,14 @@ def test_problem_level_usage_errors(tmp_path):
         load_domain_json(str(broken))
     with pytest.raises(UsageError, match="--method"):
         solve_laplace(DISK, RE_Z3, method="fast")
+
+
+@pytest.mark.slow
+def test_cv_green_beats_naive_on_every_generated_domain():
+    for name, doc, fns in wf.domains(256):
+        d = build_domain(doc["loops"])
+        g = parse_expression(fns[0])
+        kw = dict(walks=32, grid=24, exact=True, seed=4, kernels=40)
+        naive = solve_laplace(d, g, **kw).metrics["rmse"]
+        green = solve_laplace(d, g, method="cv-green", **kw).metrics["rmse"]
+        assert green < 0.5 * naive, (name, green, naive)
