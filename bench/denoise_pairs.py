@@ -116,12 +116,12 @@ def mesh_table(quick: bool) -> str:
             "|---|---:|---:|---:|---:|---|---:|---:|---|---:|---:|---:|"]
     for name, Vn, F, V in inputs(quick):
         noisy_flips = set(flipped_faces(Vn, F, V).tolist())
-        res, t_ours = timed(lambda: denoise_mesh(Vn, F))
+        res, t_ours = timed(lambda Vn=Vn, F=F: denoise_mesh(Vn, F))
         e = denoise_errors(res.V, F, V)
         new = sum(1 for f in flipped_faces(res.V, F, V).tolist() if f not in noisy_flips)
         peer = {}
         for pname, fn in peer_fns.items():
-            Vp, tp = timed(lambda fn=fn: fn(Vn, F))
+            Vp, tp = timed(lambda fn=fn, Vn=Vn, F=F: fn(Vn, F))
             peer[pname] = (denoise_errors(Vp, F, V)["mean_normal_angle_deg"], tp)
         best = min(peer, key=lambda k: peer[k][0])
         ratio = e["mean_normal_angle_deg"] / peer[best][0]

@@ -151,9 +151,13 @@ def rpca(
         lam = 1.0 / np.sqrt(max(p, q))
     normD = np.linalg.norm(Db, axis=(1, 2))
     safe = np.where(normD > 0, normD, 1.0)
-    two = np.sqrt(np.linalg.eigvalsh(Db[0].T @ Db[0] if p >= q else Db[0] @ Db[0].T)[-1:]) \
-        if (not batched and max(p, q) >= 20 * min(p, q)) else np.linalg.norm(Db, ord=2, axis=(1, 2)) if (batched or min(p, q) <= partial_svd_above) \
-        else randomized_svd(Db[0], 1)[1][:1]
+    if not batched and max(p, q) >= 20 * min(p, q):
+        X0 = Db[0]
+        two = np.sqrt(np.linalg.eigvalsh(X0.T @ X0 if p >= q else X0 @ X0.T)[-1:])
+    elif batched or min(p, q) <= partial_svd_above:
+        two = np.linalg.norm(Db, ord=2, axis=(1, 2))
+    else:
+        two = randomized_svd(Db[0], 1)[1][:1]
     two = np.where(two > 0, two, 1.0)
     inf = np.abs(Db).max(axis=(1, 2)) / lam
     Y = Db / np.maximum(two, inf)[:, None, None]
