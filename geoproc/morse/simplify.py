@@ -487,7 +487,6 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
     degree = np.diff(cx.adj_ptr)
     keep_min = down == -1
     keep_max = (up_f[:n] == -1) & ~cx.boundary & (degree > 0)
-    widened = np.zeros(n, dtype=bool)
     repaired = 0
     if P == 0.0:
         g = f.copy()
@@ -503,7 +502,7 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
         _, _, up = _ascent_forest(ptr, nbr, eid, g_min, np.inf, keep_up)
         seeds_max = keep_max | cx.boundary | (degree == 0)
         args = (cx, f, P, down, up[:n], keep_min, keep_max, seeds_max)
-        g, widened, repaired = _cancel(*args, pin)
+        g, _, repaired = _cancel(*args, pin)
         g = _make_strict(g, np.lexsort((np.arange(n), g)))
     return Simplification(
         g=g,
@@ -513,6 +512,6 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
         pairs_removed=removed,
         pairs_kept=int(len(pers) - removed),
         max_abs_change=float(np.max(np.abs(g - f))) if n else 0.0,
-        widened_vertices=np.flatnonzero(widened | (np.abs(g - f) > P / 2.0 * (1 + 1e-12))),
+        widened_vertices=np.flatnonzero(np.abs(g - f) > P / 2.0 * (1 + 1e-12)),
         repaired_vertices=repaired,
     )

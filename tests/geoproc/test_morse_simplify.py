@@ -119,11 +119,11 @@ def test_shared_meshes_noisy_height(shared_data, name, axis, rel):
     f = mfx.noisy_height(mesh.V, axis=axis, noise=0.02, seed=10)
     P = rel * (f.max() - f.min())
     s = check_simplification(mesh.V, mesh.F, f, P)
-    # sup-norm: within P/2 away from the reported vertices, and within P there
-    # (the piecewise-linear limit where a cancelled basin and peak meet)
-    inside = np.ones(len(f), dtype=bool)
-    inside[s.widened_vertices] = False
-    assert np.abs(s.g - f)[inside].max() <= P / 2 * (1 + 1e-12)
+    # sup-norm: P/2 except at a few vertices (where a cancelled basin and peak
+    # meet, see the README), and within P everywhere
+    beyond = np.abs(s.g - f) > P / 2 * (1 + 1e-12)
+    assert np.array_equal(np.flatnonzero(beyond), s.widened_vertices)
+    assert beyond.sum() <= 0.01 * len(f)
     assert s.max_abs_change <= P * (1 + 1e-12)
 
 
