@@ -52,7 +52,7 @@ def coherent_normals(V: np.ndarray, F: np.ndarray, lam: float | None = None) -> 
 
 
 def coherent_refinement(
-    V: np.ndarray, F: np.ndarray, iterations: int = 10, fixed: np.ndarray | None = None,
+    V: np.ndarray, F: np.ndarray, iterations: int = 3, fixed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Steps 2 and 3: RPCA on the stacked face normals of the (per-frame
     denoised) frames, then ``iterations`` vertex-update sweeps of every frame
@@ -78,7 +78,7 @@ def denoise_animation(
     method: str = DEFAULT_METHOD,
     params: DenoiseParams | None = None,
     progress: Callable[[float], None] | None = None,
-    coherent_iterations: int = 10,
+    coherent_iterations: int = 3,
 ) -> tuple[np.ndarray, dict]:
     """Denoise every frame of an animation, using its temporal coherence.
 
