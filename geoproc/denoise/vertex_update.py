@@ -9,6 +9,10 @@ def _raw_normals(X: np.ndarray, F: np.ndarray) -> np.ndarray:
     return np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
 
 
+def _unit(R: np.ndarray) -> np.ndarray:
+    return R / np.maximum(np.linalg.norm(R, axis=1, keepdims=True), 1e-300)
+
+
 def update_vertices(
     V: np.ndarray,
     F: np.ndarray,
@@ -17,6 +21,7 @@ def update_vertices(
     fixed: np.ndarray | None = None,
     prevent_flips: bool = True,
     keep_orientation: np.ndarray | None = None,
+    margin: float = 0.0,
 ) -> np.ndarray:
     """Move vertices so that faces become orthogonal to the target normals.
 
@@ -40,6 +45,9 @@ def update_vertices(
         Vertices that must not move (e.g. the boundary).
     prevent_flips : bool
         Withhold steps that would fold a face over (see above).
+    margin : float
+        Cosine the guard keeps: 0 forbids turning past 90 degrees; larger values
+        keep faces closer to their target and input normals.
     keep_orientation : (m, 3) float64, optional
         Normals of the input: with ``prevent_flips``, a face that agrees with
         its target is also kept within 90 degrees of this normal (a wrong target
@@ -65,16 +73,16 @@ def update_vertices(
         if fixed is not None:
             delta[fixed] = 0.0
         if prevent_flips:
-            R0 = _raw_normals(X, F)
-            before = np.einsum("ij,ij->i", R0, normals) > 0
+            R0 = _unit(_raw_normals(X, F))
+            before = np.einsum("ij,ij->i", R0, normals) > margin
             if keep_orientation is not None:
-                before_k = before & (np.einsum("ij,ij->i", R0, keep_orientation) > 0)
-            for _ in range(10):
-                R1 = _raw_normals(X + delta, F)
-                after = np.einsum("ij,ij->i", R1, normals) > 0
+                before_k = before & (np.einsum("ij,ij->i", R0, keep_orientation) > margin)
+            while True:  # ends: every pass freezes at least one more vertex
+                R1 = _unit(_raw_normals(X + delta, F))
+                after = np.einsum("ij,ij->i", R1, normals) > margin
                 bad = before & ~after
                 if keep_orientation is not None:
-                    bad |= before_k & ~(np.einsum("ij,ij->i", R1, keep_orientation) > 0)
+                    bad |= before_k & ~(np.einsum("ij,ij->i", R1, keep_orientation) > margin)
                 if not bad.any():
                     break
                 delta[F[bad].reshape(-1)] = 0.0
