@@ -10,7 +10,7 @@ import numpy as np
 
 from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass, mean_edge_length
-from geoproc.mesh.topology import face_areas, vertex_components
+from geoproc.mesh.topology import face_areas, nonmanifold_edges, vertex_components
 from geoproc.mesh.validate import require_manifold
 
 METHODS = ("exact", "heat", "varadhan", "log-splitting", "log-ode", "log-heat")
@@ -24,8 +24,11 @@ DEFAULT_LAPLACIAN = {
     "log-ode": "intrinsic-delaunay",
     "log-heat": "intrinsic-delaunay",
 }
-#: Methods that need an edge- and vertex-manifold mesh.
-NEEDS_MANIFOLD = ("exact", "heat", "log-splitting", "log-heat")
+#: Methods that need an edge- and vertex-manifold mesh (MMP walks vertex fans).
+NEEDS_MANIFOLD = ("exact",)
+#: Methods that need every edge to have at most two faces (boundary detection,
+#: per-face gradients); a vertex joining separate fans is fine for them.
+NEEDS_EDGE_MANIFOLD = ("heat", "log-splitting", "log-heat")
 #: exp(w) is 0 in double precision below this log value (smallest subnormal).
 LOG_TINIEST = math.log(5e-324)
 
@@ -157,6 +160,12 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         from geoproc.mesh.mesh import LoadLog
 
         require_manifold(Mesh(V, F, log=LoadLog(path=path or "")))
+    if method in NEEDS_EDGE_MANIFOLD:
+        bad = nonmanifold_edges(F)
+        if len(bad):
+            a, b = (int(x) for x in bad[0])
+            raise InputError(path, f"non-manifold: {len(bad)} edges have more than two faces "
+                                   f"(first: edge {a}-{b}); method '{method}' needs an edge-manifold mesh")
     area = face_areas(V, F)
     if (area <= 0).any() and (method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"):
         k = int(np.flatnonzero(area <= 0)[0])
