@@ -28,7 +28,7 @@ SHARED = ROOT.parent / "shared" / "data" / "meshes"
 MESHES = ["armadillo.obj", "bunny.off", "fertility.off", "camelhead.off"]
 
 
-def best_of(fn, repeat=3):
+def best_of(fn, repeat=5):
     """(result, best wall time over ``repeat`` runs)."""
     best, out = np.inf, None
     for _ in range(repeat):
