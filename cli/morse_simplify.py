@@ -13,11 +13,6 @@ import typer
 
 from geoproc.errors import UsageError
 from geoproc.mesh.validate import require_manifold, require_triangle_mesh
-from geoproc.morse import find_closed_vpath, lower_star_persistence
-from geoproc.morse import morse_simplify as morse_simplify_field
-from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
-from geoproc.morse.diagram_plot import persistence_diagram_png
-from geoproc.morse.fields import field_name, vertex_field
 from geoproc.report import json_safe
 from geoproc_cli.common import (
     CheckOpt,
@@ -83,6 +78,13 @@ def morse_simplify(
               "diagram": str(diagram) if diagram else None, "clean": not no_clean}
     with command_run("morse-simplify", params, report=Path(report) if report else None, checks=check,
                      quiet=quiet, debug=debug) as run:
+        # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
+        from geoproc.morse import find_closed_vpath, lower_star_persistence
+        from geoproc.morse import morse_simplify as morse_simplify_field
+        from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
+        from geoproc.morse.diagram_plot import persistence_diagram_png
+        from geoproc.morse.fields import field_name, vertex_field
+
         if not np.isfinite(persistence) or persistence < 0:
             raise UsageError(f"--persistence must be a finite number >= 0, got {persistence:g}")
         if output != "-" and os.path.splitext(output)[1].lower() != ".ply":
