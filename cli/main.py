@@ -7,7 +7,10 @@ from typing import Annotated
 import typer
 
 import geoproc
-from geoproc_cli import info
+from geoproc_cli import geodesic, info
+from geoproc_cli import wos_solve
+from geoproc_cli import morse_simplify
+from geoproc_cli import denoise, perturb
 
 app = typer.Typer(
     name="geoproc",
@@ -21,6 +24,11 @@ app = typer.Typer(
 )
 
 info.register(app)
+geodesic.register(app)
+wos_solve.register(app)
+morse_simplify.register(app)
+denoise.register(app)
+perturb.register(app)
 
 
 def _version(value: bool) -> None:
