@@ -7,10 +7,7 @@ from typing import Annotated
 import typer
 
 import geoproc
-from geoproc_cli import geodesic, info
-from geoproc_cli import wos_solve
-from geoproc_cli import morse_simplify
-from geoproc_cli import denoise, perturb
+from geoproc_cli import denoise, geodesic, info, morse_simplify, perturb, wos_solve
 
 app = typer.Typer(
     name="geoproc",
