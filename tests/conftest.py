@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 from pathlib import Path
 
@@ -11,11 +12,17 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / "shared" / "data"
 
 
-def _load_fixture_module():
-    spec = importlib.util.spec_from_file_location("make_fixtures", ROOT / "fixtures" / "make_fixtures.py")
+@functools.cache
+def load_fixture_module(name: str = "make_fixtures"):
+    """Import ``fixtures/<name>.py`` (the project's deterministic input generators)."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "fixtures" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def _load_fixture_module():
+    return load_fixture_module("make_fixtures")
 
 
 @pytest.fixture(scope="session")

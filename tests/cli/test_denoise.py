@@ -3,7 +3,6 @@ against ground truth, and one-line exit-2 refusals that leave no output."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -13,16 +12,12 @@ import pytest
 from geoproc.animation import Animation, animation_to_bytes, load_animation
 from geoproc.denoise import denoise_errors
 from geoproc.mesh import Mesh, load_mesh, save_mesh
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.conftest import load_fixture_module
 
 
 @pytest.fixture(scope="module")
 def dfx():
-    spec = importlib.util.spec_from_file_location("denoise_fixtures", ROOT / "fixtures" / "denoise_fixtures.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_fixture_module("denoise_fixtures")
 
 
 @pytest.fixture(scope="module")

@@ -2,24 +2,18 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 
 from geoproc.animation import load_animation
 from geoproc.mesh import load_mesh
 from geoproc.perturb import noise_scale
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.conftest import load_fixture_module
 
 
 def denoise_fixtures():
-    spec = importlib.util.spec_from_file_location("denoise_fixtures", ROOT / "fixtures" / "denoise_fixtures.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_fixture_module("denoise_fixtures")
 
 
 def test_same_seed_same_bytes_and_requested_sigma(cli, fixture_dir, tmp_path):

@@ -6,18 +6,12 @@ import numpy as np
 import pytest
 
 from geoproc.wos.images import read_exr
+from tests.conftest import load_fixture_module
 
 
 def _load_wos_fixtures():
     """fixtures/wos_fixtures.py, loaded the way conftest loads make_fixtures."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[2] / "fixtures" / "wos_fixtures.py"
-    spec = importlib.util.spec_from_file_location("wos_fixtures", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_fixture_module("wos_fixtures")
 
 
 wf = _load_wos_fixtures()

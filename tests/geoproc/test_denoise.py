@@ -4,9 +4,6 @@ noisy/clean benchmark pairs (slow)."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -22,15 +19,11 @@ from geoproc.denoise.metrics import flipped_faces, two_sided_hausdorff
 from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.vertex_update import update_vertices
 from geoproc.mesh import load_mesh
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.conftest import load_fixture_module
 
 
 def _denoise_fixtures():
-    spec = importlib.util.spec_from_file_location("denoise_fixtures", ROOT / "fixtures" / "denoise_fixtures.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_fixture_module("denoise_fixtures")
 
 
 @pytest.fixture(scope="module")

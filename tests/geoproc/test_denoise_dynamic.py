@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -13,16 +10,12 @@ from geoproc.denoise import denoise_errors, denoise_mesh
 from geoproc.denoise.dynamic import coherent_normals, denoise_animation
 from geoproc.errors import InputError
 from geoproc.mesh import Mesh, save_mesh
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.conftest import load_fixture_module
 
 
 @pytest.fixture(scope="module")
 def dfx():
-    spec = importlib.util.spec_from_file_location("denoise_fixtures", ROOT / "fixtures" / "denoise_fixtures.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_fixture_module("denoise_fixtures")
 
 
 def _theta(V, F, V_ref):

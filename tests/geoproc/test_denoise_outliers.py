@@ -2,25 +2,18 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from geoproc.denoise import detection_scores, rpca_outliers
 from geoproc.denoise.outliers import robust_planes
 from geoproc.errors import InputError
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.conftest import load_fixture_module
 
 
 @pytest.fixture(scope="module")
 def dfx():
-    spec = importlib.util.spec_from_file_location("denoise_fixtures", ROOT / "fixtures" / "denoise_fixtures.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_fixture_module("denoise_fixtures")
 
 
 def test_outlier_f1_on_torus_cloud(dfx):

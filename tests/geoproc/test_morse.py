@@ -3,9 +3,6 @@ independent references: known answers and gudhi's lower-star persistence."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -18,17 +15,14 @@ from geoproc.morse import (
     surface_complex,
     vertex_order,
 )
+from tests.conftest import load_fixture_module
 
 gudhi = pytest.importorskip("gudhi")
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def _fixtures():
-    spec = importlib.util.spec_from_file_location("morse_fixtures", ROOT / "fixtures" / "morse_fixtures.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_fixture_module("morse_fixtures")
 
 
 mfx = _fixtures()

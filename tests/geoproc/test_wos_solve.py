@@ -9,18 +9,12 @@ from geoproc.wos.domain import build_domain
 from geoproc.wos.expression import evaluate, parse_expression
 from geoproc.wos.problem import WalkProblem, pass_seed
 from geoproc.wos.solve import solve_laplace
+from tests.conftest import load_fixture_module
 
 
 def _load_wos_fixtures():
     """fixtures/wos_fixtures.py, loaded the way conftest loads make_fixtures."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[2] / "fixtures" / "wos_fixtures.py"
-    spec = importlib.util.spec_from_file_location("wos_fixtures", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_fixture_module("wos_fixtures")
 
 
 wf = _load_wos_fixtures()
