@@ -10,18 +10,7 @@ import numpy as np
 import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path, load_animation
-from geoproc.denoise import (
-    DEFAULT_METHOD,
-    METHODS,
-    DenoiseParams,
-    denoise_errors,
-    denoise_mesh,
-    detection_scores,
-    rpca_outliers,
-)
-from geoproc.denoise.dynamic import denoise_animation
-from geoproc.denoise.metrics import flipped_faces
-from geoproc.denoise.validate import require_edge_manifold, require_same_connectivity
+from geoproc.denoise import DEFAULT_METHOD, METHODS
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh import Mesh, load_mesh
 from geoproc.mesh.validate import require_triangle_mesh
@@ -84,6 +73,8 @@ def denoise(
     Examples: geoproc denoise noisy.ply -o clean.ply --reference original.ply --report r.json;
     geoproc denoise cloud.ply --outliers -o inliers.ply
     """
+    from geoproc.denoise.mesh_denoise import DenoiseParams
+
     params = {"input": input, "method": method, "reference": reference, "rounds": rounds,
               "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
               "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "outliers": outliers,
@@ -113,6 +104,10 @@ def denoise(
 
 
 def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
+    from geoproc.denoise.mesh_denoise import denoise_mesh
+    from geoproc.denoise.metrics import denoise_errors, flipped_faces
+    from geoproc.denoise.validate import require_edge_manifold, require_same_connectivity
+
     mesh = run.load_mesh(input, clean=not no_clean)
     path = mesh.log.path or None
     if mesh.is_point_cloud:
@@ -144,6 +139,8 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
 
 
 def _outliers(run, input, output, k, threshold, keep_all, no_clean) -> None:
+    from geoproc.denoise.outliers import detection_scores, rpca_outliers
+
     if k < 4:
         raise UsageError(f"--k {k}: must be at least 4")
     cloud = run.load_mesh(input, clean=not no_clean)
@@ -168,6 +165,10 @@ def _outliers(run, input, output, k, threshold, keep_all, no_clean) -> None:
 
 
 def _dynamic(run, input, output, reference, method, dp) -> None:
+    from geoproc.denoise.dynamic import denoise_animation
+    from geoproc.denoise.metrics import denoise_errors
+    from geoproc.denoise.validate import require_edge_manifold, require_same_connectivity
+
     if input == "-" or not is_animation_path(input):
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
     if not output.lower().endswith(".npz"):

@@ -1,30 +1,35 @@
 """Feature-preserving denoising: meshes (bilateral, guided and RPCA-guided normal
 filtering with the vertex update), point-cloud outliers (RPCA on neighbourhoods)
-and animations (RPCA on the stacked per-frame normals)."""
+and animations (RPCA on the stacked per-frame normals).
 
-from geoproc.denoise.mesh_denoise import (
-    DEFAULT_METHOD,
-    METHODS,
-    DenoiseParams,
-    DenoiseResult,
-    denoise_mesh,
-    median_dihedral_deg,
-)
-from geoproc.denoise.metrics import denoise_errors
-from geoproc.denoise.outliers import OutlierResult, detection_scores, rpca_outliers
-from geoproc.denoise.rpca import RPCAResult, rpca
+Names are loaded on first use (PEP 562), so importing the package does not
+compile or load the numba kernels until a function is needed.
+"""
 
-__all__ = [
-    "DEFAULT_METHOD",
-    "METHODS",
-    "DenoiseParams",
-    "DenoiseResult",
-    "OutlierResult",
-    "RPCAResult",
-    "denoise_errors",
-    "denoise_mesh",
-    "detection_scores",
-    "median_dihedral_deg",
-    "rpca",
-    "rpca_outliers",
-]
+from __future__ import annotations
+
+import importlib
+
+METHODS = ("bilateral", "guided", "rpca")
+DEFAULT_METHOD = "guided"
+
+_NAMES = {
+    "DenoiseParams": "mesh_denoise",
+    "DenoiseResult": "mesh_denoise",
+    "denoise_mesh": "mesh_denoise",
+    "median_dihedral_deg": "mesh_denoise",
+    "denoise_errors": "metrics",
+    "OutlierResult": "outliers",
+    "detection_scores": "outliers",
+    "rpca_outliers": "outliers",
+    "RPCAResult": "rpca",
+    "rpca": "rpca",
+}
+
+__all__ = ["DEFAULT_METHOD", "METHODS", *_NAMES]
+
+
+def __getattr__(name: str):
+    if name in _NAMES:
+        return getattr(importlib.import_module(f"geoproc.denoise.{_NAMES[name]}"), name)
+    raise AttributeError(f"module 'geoproc.denoise' has no attribute {name!r}")

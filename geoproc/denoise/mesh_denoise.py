@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geoproc.denoise import DEFAULT_METHOD, METHODS
 from geoproc.denoise.bilateral import bilateral_normal_filter
 from geoproc.denoise.face_geometry import (
     face_centroids,
@@ -37,9 +38,6 @@ from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import update_vertices
 from geoproc.mesh.topology import boundary_edges
-
-METHODS = ("bilateral", "guided", "rpca")
-DEFAULT_METHOD = "guided"
 
 
 def median_dihedral_deg(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> float:
