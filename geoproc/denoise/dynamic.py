@@ -104,11 +104,10 @@ def denoise_animation(
             progress(0.9 * (t + 1) / T)
     fixed = None
     if p.pin_boundary:
-        from geoproc.mesh.topology import boundary_edges
+        from geoproc.mesh.topology import boundary_vertices
 
-        B = boundary_edges(F)
         fixed = np.zeros(V.shape[1], dtype=bool)
-        fixed[B.reshape(-1)] = True
+        fixed[boundary_vertices(F)] = True
     out, info = coherent_refinement(static, F, coherent_iterations, fixed)
     if progress is not None:
         progress(1.0)

@@ -49,12 +49,6 @@ def face_centroids(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return V[F].mean(axis=1)
 
 
-def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
-    """Mean length of the undirected edges of a triangle mesh."""
-    E, _, _ = unique_edges(F)
-    return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
-
-
 def face_vertex_ring(F: np.ndarray, n: int) -> sp.csr_matrix:
     """(m, m) 0/1 CSR matrix: faces sharing at least one vertex (diagonal included)."""
     m = len(F)

@@ -37,7 +37,7 @@ from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import update_vertices
-from geoproc.mesh.topology import boundary_edges
+from geoproc.mesh.topology import boundary_vertices
 
 
 def median_dihedral_deg(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> float:
@@ -226,10 +226,10 @@ def denoise_mesh(
     ring = face_ring_csr(F, n, 1)
     fixed = None
     if p.pin_boundary:
-        B = boundary_edges(F)
-        if len(B):
+        on_boundary = boundary_vertices(F)
+        if len(on_boundary):
             fixed = np.zeros(n, dtype=bool)
-            fixed[B.reshape(-1)] = True
+            fixed[on_boundary] = True
     X = np.array(V, dtype=np.float64, copy=True)
     N, A = face_normals_and_areas(X, F)
     N_input = N.copy()

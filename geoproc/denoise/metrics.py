@@ -5,7 +5,8 @@ from __future__ import annotations
 import igl
 import numpy as np
 
-from geoproc.denoise.face_geometry import face_normals_and_areas, mean_edge_length
+from geoproc.denoise.face_geometry import face_normals_and_areas
+from geoproc.mesh.topology import mean_edge_length
 
 
 def normal_angles_deg(N: np.ndarray, N_ref: np.ndarray) -> np.ndarray:

@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.errors import InputError, UsageError
-from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass, mean_edge_length
-from geoproc.mesh.topology import face_areas, nonmanifold_edges, vertex_components
+from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass
+from geoproc.mesh.topology import face_areas, mean_edge_length, nonmanifold_edges, vertex_components
 from geoproc.mesh.validate import require_manifold
 
 METHODS = ("exact", "heat", "varadhan", "log-splitting", "log-ode", "log-heat")

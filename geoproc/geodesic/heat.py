@@ -23,12 +23,7 @@ from geoproc.geodesic.operators import (
     per_face_vectors,
 )
 from geoproc.geodesic.poisson import PoissonSolver
-from geoproc.mesh.topology import boundary_edges
-
-
-def boundary_vertices(F: np.ndarray) -> np.ndarray:
-    """Sorted indices of the vertices on a boundary edge."""
-    return np.unique(boundary_edges(F).reshape(-1))
+from geoproc.mesh.topology import boundary_vertices
 
 
 class HeatMethodSolver:

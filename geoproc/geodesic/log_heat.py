@@ -20,7 +20,6 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.geodesic.heat import boundary_vertices
 from geoproc.geodesic.log_ode import LogODESolver
 from geoproc.geodesic.operators import (
     divergence_matrix,
@@ -30,6 +29,7 @@ from geoproc.geodesic.operators import (
     per_face_vectors,
 )
 from geoproc.geodesic.poisson import PoissonSolver
+from geoproc.mesh.topology import boundary_vertices
 
 
 def face_gradient_coefficients(G: sp.spmatrix, F: np.ndarray) -> np.ndarray:

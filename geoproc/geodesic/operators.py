@@ -12,15 +12,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from geoproc.mesh.topology import face_areas
+from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
+
 LAPLACIANS = ("cotan", "intrinsic-delaunay")
-
-
-def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
-    """Mean length h of the mesh's edges (each undirected edge once), in V's unit."""
-    from geoproc.mesh.topology import unique_edges
-
-    E = unique_edges(F)[0]
-    return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
 
 
 def cotan_laplacian(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
@@ -46,7 +41,7 @@ def is_edge_manifold_nondegenerate(V: np.ndarray, F: np.ndarray) -> bool:
     """True when no edge has more than two faces and every face has positive area."""
     E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
     _, counts = np.unique(E[:, 0] * len(V) + E[:, 1], return_counts=True)
-    return bool(counts.max() <= 2 and (face_double_areas(V, F) > 0).all())
+    return bool(counts.max() <= 2 and (face_areas(V, F) > 0).all())
 
 
 def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
@@ -121,11 +116,6 @@ def face_gradient_matrix(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix(igl.grad(V, F))
 
 
-def face_double_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(m,) twice the area of each face."""
-    return np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-
-
 def divergence_matrix(V: np.ndarray, F: np.ndarray, G: sp.spmatrix | None = None) -> sp.csr_matrix:
     """(n, 3m) integrated divergence ``D = -G^T A`` of a per-face vector field.
 
@@ -133,13 +123,13 @@ def divergence_matrix(V: np.ndarray, F: np.ndarray, G: sp.spmatrix | None = None
     Poisson problem ``L phi = D X`` recovers ``phi`` from ``X = grad phi``.
     """
     G = face_gradient_matrix(V, F) if G is None else G
-    a = 0.5 * face_double_areas(V, F)
+    a = face_areas(V, F)
     return sp.csr_matrix(-(G.T @ sp.diags(np.tile(a, 3))))
 
 
 def face_to_vertex_average(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
     """(n, m) area-weighted average of face values onto vertices (rows sum to 1)."""
-    a = 0.5 * face_double_areas(V, F)
+    a = face_areas(V, F)
     n, m = len(V), len(F)
     A = sp.csr_matrix((np.repeat(a, 3), (F.reshape(-1), np.repeat(np.arange(m), 3))), shape=(n, m))
     s = np.asarray(A.sum(axis=1)).ravel()

@@ -45,6 +45,11 @@ def boundary_edges(F: np.ndarray) -> np.ndarray:
     return E[count == 1]
 
 
+def boundary_vertices(F: np.ndarray) -> np.ndarray:
+    """Sorted indices of the vertices on a boundary edge."""
+    return np.unique(boundary_edges(F).reshape(-1))
+
+
 def count_boundary_loops(F: np.ndarray) -> int:
     """Number of boundary loops: the cycle rank of the boundary-edge graph.
 
@@ -164,6 +169,12 @@ def orientation_status(F: np.ndarray) -> tuple[bool, bool]:
     _, label = connected_components(G, directed=False)
     orientable = not (label[:m] == label[m:]).any()
     return bool(orientable), False
+
+
+def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
+    """Mean length h of the mesh's undirected edges (each once), in V's unit."""
+    E = unique_edges(F)[0]
+    return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
 
 
 def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from geoproc.errors import InputError
-from geoproc.mesh.topology import unique_edges
+from geoproc.mesh.topology import mean_edge_length
 
 
 @dataclass(frozen=True)
@@ -69,8 +69,7 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     """Unit of ``sigma``: mean edge length of a mesh, or mean nearest-neighbour
     distance of a point cloud (``F`` with no rows)."""
     if len(F):
-        E, _, _ = unique_edges(F)
-        return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
+        return mean_edge_length(V, F)
     if len(V) < 2:
         return 0.0
     d, _ = cKDTree(V).query(V, k=2)
