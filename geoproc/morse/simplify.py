@@ -67,6 +67,7 @@ import numpy as np
 
 from geoproc.morse.complex import SurfaceComplex
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
+from geoproc.morse.heap import heap_pop, heap_push
 from geoproc.morse.merge_forest import cone_adjacency, merge_forest
 from geoproc.morse.order import vertex_order
 
@@ -244,11 +245,11 @@ def _flood_from(g, seeds, adj_ptr, adj_nbr, sign):
     for v in range(n):
         if seeds[v]:
             seen[v] = True
-            size = _fheap_push(keys, items, size, h[v], v)
+            size = heap_push(keys, items, size, h[v], v)
     changed = 0
     last = -np.inf
     while size > 0:
-        v, size = _fheap_pop(keys, items, size)
+        v, size = heap_pop(keys, items, size)
         if h[v] <= last:
             h[v] = np.nextafter(last, np.inf)
             changed += 1
@@ -257,46 +258,10 @@ def _flood_from(g, seeds, adj_ptr, adj_nbr, sign):
             w = adj_nbr[j]
             if not seen[w]:
                 seen[w] = True
-                size = _fheap_push(keys, items, size, h[w], w)
+                size = heap_push(keys, items, size, h[w], w)
     for v in range(n):
         g[v] = sign * h[v]
     return changed
-
-
-@numba.njit(cache=True, inline="always")
-def _fheap_push(keys, items, size, key, item):
-    i = size
-    keys[i] = key
-    items[i] = item
-    while i > 0:
-        p = (i - 1) >> 1
-        if keys[p] < keys[i] or (keys[p] == keys[i] and items[p] < items[i]):
-            break
-        keys[p], keys[i] = keys[i], keys[p]
-        items[p], items[i] = items[i], items[p]
-        i = p
-    return size + 1
-
-
-@numba.njit(cache=True, inline="always")
-def _fheap_pop(keys, items, size):
-    item = items[0]
-    size -= 1
-    keys[0] = keys[size]
-    items[0] = items[size]
-    i = 0
-    while True:
-        c = 2 * i + 1
-        if c >= size:
-            break
-        if c + 1 < size and (keys[c + 1] < keys[c] or (keys[c + 1] == keys[c] and items[c + 1] < items[c])):
-            c += 1
-        if keys[i] < keys[c] or (keys[i] == keys[c] and items[i] < items[c]):
-            break
-        keys[c], keys[i] = keys[i], keys[c]
-        items[c], items[i] = items[i], items[c]
-        i = c
-    return item, size
 
 
 @numba.njit(cache=True)
