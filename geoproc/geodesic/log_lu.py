@@ -21,24 +21,31 @@ import numpy as np
 import scipy.sparse as sp
 
 
+@numba.njit(cache=True, inline="always")
+def _log_row(indptr, indices, logabs, x, start, i):
+    """log(exp(start) + sum_k |a_ik| x_k) over row i's stored entries, from logs,
+    with a running max-shifted log-sum-exp (-inf when every term is 0)."""
+    m = start
+    s = 1.0 if m > -np.inf else 0.0
+    for k in range(indptr[i], indptr[i + 1]):
+        t = logabs[k] + x[indices[k]]
+        if t == -np.inf:
+            continue
+        if t > m:
+            s = s * np.exp(m - t) + 1.0
+            m = t
+        else:
+            s += np.exp(t - m)
+    return m + np.log(s) if s > 0.0 else -np.inf
+
+
 @numba.njit(cache=True)
 def _log_forward(indptr, indices, logabs, beta):
     """log of the solution of a unit lower-triangular solve; strict part given."""
     n = len(beta)
     y = np.empty(n)
     for i in range(n):
-        m = beta[i]
-        s = 1.0 if m > -np.inf else 0.0
-        for k in range(indptr[i], indptr[i + 1]):
-            x = logabs[k] + y[indices[k]]
-            if x == -np.inf:
-                continue
-            if x > m:
-                s = s * np.exp(m - x) + 1.0
-                m = x
-            else:
-                s += np.exp(x - m)
-        y[i] = m + np.log(s) if s > 0.0 else -np.inf
+        y[i] = _log_row(indptr, indices, logabs, y, beta[i], i)
     return y
 
 
@@ -48,18 +55,7 @@ def _log_backward(indptr, indices, logabs, logdiag, beta):
     n = len(beta)
     x_out = np.empty(n)
     for i in range(n - 1, -1, -1):
-        m = beta[i]
-        s = 1.0 if m > -np.inf else 0.0
-        for k in range(indptr[i], indptr[i + 1]):
-            x = logabs[k] + x_out[indices[k]]
-            if x == -np.inf:
-                continue
-            if x > m:
-                s = s * np.exp(m - x) + 1.0
-                m = x
-            else:
-                s += np.exp(x - m)
-        x_out[i] = (m + np.log(s) if s > 0.0 else -np.inf) - logdiag[i]
+        x_out[i] = _log_row(indptr, indices, logabs, x_out, beta[i], i) - logdiag[i]
     return x_out
 
 
