@@ -103,6 +103,18 @@ class Run:
         self.note_load(mesh)
         return mesh
 
+    def load_animation(self, path: str | os.PathLike):
+        """Read an animation (``.npz``, or a folder of frame meshes with equal
+        connectivity) under the ``load`` timer; a ``.npz`` file is recorded as an input."""
+        from geoproc.animation import load_animation
+
+        name = os.fspath(path)
+        with self.timer("load"):
+            anim = load_animation(name)
+            if os.path.isfile(name):
+                self.add_input(name)
+        return anim
+
     def note_load(self, mesh: Mesh) -> None:
         """Put the read/clean-up log into the metrics and tell the user on stderr."""
         log = mesh.log

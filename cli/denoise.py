@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from geoproc.animation import Animation, animation_to_bytes, is_animation_path, load_animation
+from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.denoise import DEFAULT_METHOD, METHODS
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh import Mesh, load_mesh
@@ -173,16 +173,12 @@ def _dynamic(run, input, output, reference, method, dp) -> None:
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
     if not output.lower().endswith(".npz"):
         raise UsageError(f"{output}: an animation is written as .npz")
-    with run.timer("load"):
-        anim = load_animation(input)
-        if Path(input).is_file():
-            run.add_input(input)
+    anim = run.load_animation(input)
     require_triangle_mesh(Mesh(anim.V[0], anim.F, log=_log(anim.path)))
     require_edge_manifold(anim.F, anim.path)
     ref = None
     if reference is not None:
-        ref = load_animation(reference)
-        run.add_input(reference) if Path(reference).is_file() else None
+        ref = run.load_animation(reference)
         if ref.V.shape != anim.V.shape:
             raise InputError(reference, f"reference has {ref.V.shape[0]} frames of {ref.V.shape[1]} "
                              f"vertices; the input {anim.V.shape[0]} of {anim.V.shape[1]}")

@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from geoproc.animation import Animation, animation_to_bytes, is_animation_path, load_animation
+from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.errors import UsageError
 from geoproc.perturb import NoiseSpec, noise_scale, perturb_positions
 from geoproc_cli.common import (
@@ -72,10 +72,7 @@ def perturb(
         if input != "-" and is_animation_path(input):
             if not output.lower().endswith(".npz"):
                 raise UsageError(f"{output}: an animation is written as .npz")
-            with run.timer("load"):
-                anim = load_animation(input)
-                if Path(input).is_file():
-                    run.add_input(input)
+            anim = run.load_animation(input)
             with run.timer("compute"):
                 frames, flags = [], []
                 for t in range(anim.n_frames):
