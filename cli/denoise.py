@@ -3,7 +3,6 @@ removal, and animation denoising."""
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import numpy as np
@@ -80,7 +79,7 @@ def denoise(
               "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "outliers": outliers,
               "k": k, "threshold": threshold, "keep_all": keep_all, "dynamic": dynamic,
               "clean": not no_clean}
-    with command_run("denoise", params, report=Path(report) if report else None, checks=check,
+    with command_run("denoise", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         if method not in METHODS:
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import re
 from enum import Enum, StrEnum
-from pathlib import Path
 from typing import Annotated
 
 import numpy as np
@@ -114,7 +113,7 @@ def geodesic(
         "solver": solver.value, "reference": reference.value if reference else None,
         "field_name": field_name, "render": render, "clean": not no_clean,
     }
-    with command_run("geodesic", params, report=Path(report) if report else None, checks=check,
+    with command_run("geodesic", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -43,7 +42,7 @@ def info(
     --check, e.g. --check 'genus==0'.
     """
     params = {"mesh": mesh, "clean": not no_clean}
-    with command_run("info", params, report=Path(report) if report else None, checks=check,
+    with command_run("info", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         m = run.load_mesh(mesh, clean=not no_clean)
         with run.timer("compute"):

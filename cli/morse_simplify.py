@@ -76,7 +76,7 @@ def morse_simplify(
     params = {"mesh": mesh, "field": field, "persistence": persistence, "relative": relative,
               "output": output, "critical": str(critical) if critical else None,
               "diagram": str(diagram) if diagram else None, "clean": not no_clean}
-    with command_run("morse-simplify", params, report=Path(report) if report else None, checks=check,
+    with command_run("morse-simplify", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
         from geoproc.morse import find_closed_vpath, lower_star_persistence

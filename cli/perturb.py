@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import numpy as np
@@ -55,7 +54,7 @@ def perturb(
     """
     params = {"input": input, "noise": noise, "direction": direction, "impulsive": impulsive,
               "outliers": outliers, "outlier_range": outlier_range, "seed": seed, "clean": not no_clean}
-    with command_run("perturb", params, report=Path(report) if report else None, checks=check,
+    with command_run("perturb", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         if noise < 0:
             raise UsageError(f"--noise {noise}: must be >= 0")

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 from enum import StrEnum
-from pathlib import Path
 from typing import Annotated
 
 import numpy as np
@@ -87,7 +86,7 @@ def wos_solve(
               "walks": walks, "grid": grid, "epsilon": epsilon, "kernels": kernels,
               "fit_walks": fit_walks, "fit_points": fit_points, "ridge": ridge, "seed": seed,
               "exact": exact}
-    with command_run("wos-solve", params, report=Path(report) if report else None, checks=check,
+    with command_run("wos-solve", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         from geoproc.wos import load_domain, parse_expression, solve_laplace
         from geoproc.wos.images import exr_bytes, png_bytes
