@@ -227,7 +227,7 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         stats["negative_heat_vertices"] = int((u < 0).sum())
         return d
     if method == "log-ode":
-        from geoproc.geodesic.log_ode import LogODESolver, LogStepSystem, log_ode_step
+        from geoproc.geodesic.log_ode import log_ode_stepper, run_log_ode
 
         if solver == "cvxpy":
             from geoproc.geodesic.log_ode_cvxpy import log_ode_steps_cvxpy
@@ -235,17 +235,10 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
             timings["setup"] = _now() - a
             w, _ = log_ode_steps_cvxpy(L, M, src, t, steps, progress)
         else:
-            fast = LogODESolver(L, M, t / steps) if solver == "lu" else LogStepSystem(L, M, t / steps)
+            step = log_ode_stepper(L, M, t / steps, solver)
             timings["setup"] = _now() - a
-            w = np.full(len(M), -np.inf)
-            w[src] = 0.0
-            total = 0
-            for k in range(steps):
-                w, it = fast.step(w) if solver == "lu" else log_ode_step(fast, w)
-                total += it
-                if progress is not None:
-                    progress((k + 1) / steps)
-            stats["iterations"] = total
+            w, info = run_log_ode(step, len(M), src, steps, progress)
+            stats["iterations"] = info["iterations"]
         _log_stats(w, stats)
         return np.sqrt(np.maximum(0.0, -4.0 * t * w))
     if method == "log-splitting":

@@ -226,17 +226,33 @@ def log_ode_steps(L: sp.spmatrix, M: np.ndarray, sources: np.ndarray, T: float, 
         from geoproc.geodesic.log_ode_cvxpy import log_ode_steps_cvxpy
 
         return log_ode_steps_cvxpy(L, M, sources, T, steps, progress)
-    if solver not in ("lu", "newton"):
-        raise ValueError(f"unknown log-ODE solver {solver!r}")
+    return run_log_ode(log_ode_stepper(L, M, T / steps, solver), len(M), sources, steps, progress)
+
+
+def log_ode_stepper(L: sp.spmatrix, M: np.ndarray, dt: float, solver: str = "lu"):
+    """Factor once for steps of size ``dt``; returns ``step(w) -> (w_next, iterations)``.
+
+    ``solver`` is ``"lu"`` (:class:`LogODESolver`) or ``"newton"``
+    (:func:`log_ode_step` on a :class:`LogStepSystem`).
+    """
     if solver == "lu":
-        fast = LogODESolver(L, M, T / steps)
-    else:
-        system = LogStepSystem(L, M, T / steps)
-    w = np.full(len(M), -np.inf)
+        return LogODESolver(L, M, dt).step
+    if solver == "newton":
+        system = LogStepSystem(L, M, dt)
+        return lambda w: log_ode_step(system, w)
+    raise ValueError(f"unknown log-ODE solver {solver!r}")
+
+
+def run_log_ode(step, n: int, sources: np.ndarray, steps: int, progress=None) -> tuple[np.ndarray, dict]:
+    """Apply ``step`` ``steps`` times from ``w = 0`` at the sources, ``-inf`` elsewhere.
+
+    Returns ``(w, {"iterations": total})`` as :func:`log_ode_steps`.
+    """
+    w = np.full(n, -np.inf)
     w[np.asarray(sources)] = 0.0
     total = 0
     for k in range(steps):
-        w, it = fast.step(w) if solver == "lu" else log_ode_step(system, w)
+        w, it = step(w)
         total += it
         if progress is not None:
             progress((k + 1) / steps)
