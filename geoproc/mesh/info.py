@@ -9,7 +9,6 @@ from geoproc.mesh.mesh import Mesh
 from geoproc.mesh.topology import (
     count_boundary_loops,
     degenerate_faces,
-    nonmanifold_edges,
     nonmanifold_vertices,
     orientation_status,
     unique_edges,
@@ -60,14 +59,15 @@ def mesh_info(mesh: Mesh) -> dict:
              "degenerate_faces", "mean_edge_length"]))
         info["unreferenced_vertices"] = 0
         return info
-    E, _, count = unique_edges(F)
+    edges = unique_edges(F)
+    E, _, count = edges
     used = np.zeros(n, dtype=bool)
     used[F.reshape(-1)] = True
     n_used = int(used.sum())
     n_comp, _ = vertex_components(F, n)
-    nm_e = len(nonmanifold_edges(F))
+    nm_e = int((count > 2).sum())
     nm_v = len(nonmanifold_vertices(F, n))
-    orientable, oriented = orientation_status(F)
+    orientable, oriented = orientation_status(F, edges)
     n_boundary = int((count == 1).sum())
     chi = n_used - len(E) + len(F)
     closed = n_boundary == 0
@@ -80,7 +80,7 @@ def mesh_info(mesh: Mesh) -> dict:
         edges=len(E),
         components=n_comp,
         boundary_edges=n_boundary,
-        boundary_loops=count_boundary_loops(F),
+        boundary_loops=count_boundary_loops(F, edges),
         euler_characteristic=int(chi),
         genus=genus,
         closed=bool(closed),

@@ -50,14 +50,16 @@ def boundary_vertices(F: np.ndarray) -> np.ndarray:
     return np.unique(boundary_edges(F).reshape(-1))
 
 
-def count_boundary_loops(F: np.ndarray) -> int:
+def count_boundary_loops(F: np.ndarray, edges: tuple | None = None) -> int:
     """Number of boundary loops: the cycle rank of the boundary-edge graph.
 
     For a manifold boundary (every boundary vertex on two boundary edges) this is
     the number of closed loops; where two loops touch at a vertex it still counts
     them as two (edges - vertices + components of the boundary graph).
+    ``edges``: the result of :func:`unique_edges` for F, when already computed.
     """
-    B = boundary_edges(F)
+    E, _, count = unique_edges(F) if edges is None else edges
+    B = E[count == 1]
     if len(B) == 0:
         return 0
     verts, local = np.unique(B, return_inverse=True)
@@ -135,7 +137,7 @@ def nonmanifold_vertices(F: np.ndarray, n: int) -> np.ndarray:
     return np.flatnonzero(vertex_fans(F, n) > 1)
 
 
-def orientation_status(F: np.ndarray) -> tuple[bool, bool]:
+def orientation_status(F: np.ndarray, edges: tuple | None = None) -> tuple[bool, bool]:
     """Whether an edge-manifold mesh is orientable and consistently oriented.
 
     Two faces sharing an edge are consistent when they traverse it in opposite
@@ -144,6 +146,8 @@ def orientation_status(F: np.ndarray) -> tuple[bool, bool]:
     "kept" and "flipped"); it fails exactly when some face's two copies are
     connected.
 
+    ``edges``: the result of :func:`unique_edges` for F, when already computed.
+
     Returns
     -------
     orientable, consistently_oriented : bool
@@ -151,7 +155,7 @@ def orientation_status(F: np.ndarray) -> tuple[bool, bool]:
     """
     m = len(F)
     H = halfedges(F)
-    E, edge_of, count = unique_edges(F)
+    _, edge_of, count = unique_edges(F) if edges is None else edges
     if (count > 2).any():
         return False, False
     interior = count[edge_of] == 2
