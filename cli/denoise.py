@@ -50,6 +50,15 @@ def denoise(
                                            "between adjacent face centroids.")] = 1.0,
     pin_boundary: Annotated[bool, typer.Option("--pin-boundary", help="Keep boundary vertices fixed.")]
     = False,
+    features: Annotated[str, typer.Option("--features", help="How the per-face 'feature' output is found: "
+                                          "l1 (support of the l1-sparse normal Laplacian n.(Lv) of the "
+                                          "result) or dihedral (filtered normals of edge neighbours more "
+                                          "than --feature-angle apart).")] = "l1",
+    feature_tau: Annotated[float, typer.Option("--feature-tau", help="--features l1: cut on the sparse "
+                                               "normal Laplacian, in local mean edge lengths (0.12 is a "
+                                               "crease of about 24 degrees).")] = 0.12,
+    feature_angle: Annotated[float, typer.Option("--feature-angle", help="--features dihedral: angle in "
+                                                 "degrees.")] = 30.0,
     outliers: Annotated[bool, typer.Option("--outliers", help="Point-cloud outlier removal by RPCA on "
                                            "k-nearest-neighbour matrices.")] = False,
     k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers.")] = 16,
@@ -76,7 +85,8 @@ def denoise(
 
     params = {"input": input, "method": method, "reference": reference, "rounds": rounds,
               "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
-              "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "outliers": outliers,
+              "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "features": features,
+              "feature_tau": feature_tau, "feature_angle": feature_angle, "outliers": outliers,
               "k": k, "threshold": threshold, "keep_all": keep_all, "dynamic": dynamic,
               "clean": not no_clean}
     with command_run("denoise", params, report=report, checks=check,
@@ -91,9 +101,14 @@ def denoise(
                 raise UsageError(f"{name} {v}: must be >= 0")
         if (sigma_r is not None and sigma_r <= 0) or sigma_s <= 0:
             raise UsageError("--sigma-r and --sigma-s must be > 0")
+        if features not in ("l1", "dihedral"):
+            raise UsageError(f"--features {features}: use l1 or dihedral")
+        if feature_tau < 0 or not 0 <= feature_angle <= 180:
+            raise UsageError("--feature-tau must be >= 0 and --feature-angle within [0, 180]")
         dp = DenoiseParams(outer_iterations=rounds, normal_iterations=normal_iterations,
                            vertex_iterations=vertex_iterations, sigma_r=sigma_r, sigma_s_scale=sigma_s,
-                           pin_boundary=pin_boundary)
+                           pin_boundary=pin_boundary, features=features, feature_tau=feature_tau,
+                           feature_angle_deg=feature_angle)
         if dynamic:
             _dynamic(run, input, output, reference, method, dp)
         elif outliers:

@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -97,9 +98,10 @@ def denoise_animation(
     """
     T = len(V)
     p = DenoiseParams() if params is None else params
+    per_frame = replace(p, features="none")  # only the positions are used
     static = np.empty_like(V, dtype=np.float64)
     for t in range(T):
-        static[t] = denoise_mesh(V[t], F, method, p).V
+        static[t] = denoise_mesh(V[t], F, method, per_frame).V
         if progress is not None:
             progress(0.9 * (t + 1) / T)
     fixed = None

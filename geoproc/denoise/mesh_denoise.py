@@ -32,6 +32,7 @@ from geoproc.denoise.face_geometry import (
     face_normals_and_areas,
     face_ring_csr,
 )
+from geoproc.denoise.features import dihedral_feature_faces, l1_feature_faces
 from geoproc.denoise.guidance import guidance_normals
 from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.patches import nearest_faces_in_ring
@@ -78,6 +79,17 @@ class DenoiseParams:
         Keep boundary vertices fixed.
     patch_size : int
         Faces per patch in the RPCA matrices (``rpca`` only).
+    features : {"l1", "dihedral", "none"}
+        How the per-face ``feature`` output is found: ``l1`` (default) from the
+        support of the l1-sparse normal Laplacian of the result
+        (:func:`geoproc.denoise.features.l1_feature_vertices`, faces with two
+        feature vertices); ``dihedral`` where the filtered normal differs from
+        an edge neighbour's by more than ``feature_angle_deg``; ``none``: all 0
+        (callers that need only the positions).
+    feature_tau : float
+        ``l1``: cut on the sparse normal Laplacian, in local mean edge lengths.
+    feature_angle_deg : float
+        ``dihedral``: the angle in degrees.
     """
 
     outer_iterations: int | None = None
@@ -87,6 +99,12 @@ class DenoiseParams:
     sigma_s_scale: float = 1.0
     pin_boundary: bool = False
     patch_size: int = 10
+    features: str = "l1"
+    feature_tau: float = 0.12
+    feature_angle_deg: float = 30.0
+
+
+FEATURE_METHODS = ("l1", "dihedral", "none")
 
 
 def default_schedule(rough: float, coarseness_deg: float = 0.0) -> dict:
@@ -136,7 +154,7 @@ class DenoiseResult:
     ----------
     V : (n, 3) float64 denoised positions.
     normals : (m, 3) float64 filtered face normals of the last round.
-    feature : (m,) float64 1.0 on feature faces, else 0.0.
+    feature : (m,) float64 1.0 on feature faces, else 0.0 (see ``DenoiseParams.features``).
     info : dict of scalars (noise estimate, parameters used).
     """
 
@@ -172,17 +190,6 @@ def rpca_guidance(G: np.ndarray, patch: np.ndarray) -> tuple[np.ndarray, np.ndar
     return out, np.linalg.norm(res.S[:, 0, :], axis=1)
 
 
-def feature_faces(N: np.ndarray, edge_nb: np.ndarray, angle_deg: float = 30.0) -> np.ndarray:
-    """(m,) 0/1 float: faces whose normal differs from an edge-adjacent face's
-    normal by more than ``angle_deg``."""
-    m = len(N)
-    i, k = np.nonzero(edge_nb >= 0)
-    cos = np.einsum("ij,ij->i", N[i], N[edge_nb[i, k]])
-    out = np.zeros(m)
-    out[i[cos < np.cos(np.radians(angle_deg))]] = 1.0
-    return out
-
-
 def denoise_mesh(
     V: np.ndarray,
     F: np.ndarray,
@@ -213,6 +220,8 @@ def denoise_mesh(
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}")
     p = DenoiseParams() if params is None else params
+    if p.features not in FEATURE_METHODS:
+        raise ValueError(f"unknown feature method {p.features!r}")
     n = len(V)
     edge_nb = face_edge_neighbors(F)
     noise_deg = median_dihedral_deg(V, F, edge_nb)
@@ -271,7 +280,15 @@ def denoise_mesh(
         "sigma_r": sigma_r,
         "sigma_s": sigma_s,
     }
-    feature = feature_faces(N, edge_nb)
+    if p.features == "l1":
+        feature, fres = l1_feature_faces(X, F, tau=p.feature_tau)
+        info.update({"feature_method": "l1", "feature_lambda": fres.lam, "feature_tau": fres.tau,
+                     "feature_vertices": int(fres.feature.sum()), "feature_admm_iterations": fres.iterations})
+    elif p.features == "dihedral":
+        feature = dihedral_feature_faces(N, edge_nb, p.feature_angle_deg)
+        info.update({"feature_method": "dihedral", "feature_angle_deg": p.feature_angle_deg})
+    else:
+        feature = np.zeros(len(F))
     if method == "rpca":
         info["rpca_sparse_faces"] = int((sparse > 1e-3).sum())
     return DenoiseResult(V=X, normals=N, feature=feature, info=info)
