@@ -82,7 +82,7 @@ def peer_rows(name, k, rng):
             lambda s, i: igl.heat_geodesics_solve(s, np.array([i], dtype=np.int64))),
         run("geoproc heat (cotan)", lambda: gd.HeatMethodSolver(V, F, h * h),
             lambda s, i: s.solve([i])[0]),
-        run("geoproc log-heat", lambda: gd.LogHeatSolver(V, F, h * h, poisson="intrinsic-delaunay"),
+        run("geoproc log-heat", lambda: gd.LogHeatSolver(V, F, h * h),
             lambda s, i: s.solve([i])[0]),
     ]
     return rows
@@ -122,7 +122,7 @@ def log_ode_rows(name):
 
 def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sources", type=int, default=3)
+    ap.add_argument("--sources", type=int, default=10)
     ap.add_argument("--out", default=str(ROOT / "out" / "bench"))
     ap.add_argument("--meshes", nargs="*", default=MESHES)
     args = ap.parse_args(argv)

@@ -209,7 +209,7 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         from geoproc.geodesic.log_heat import LogHeatSolver
 
         a = _now()
-        ls = LogHeatSolver(V, F, t, steps, lap, poisson=lap)
+        ls = LogHeatSolver(V, F, t, steps, lap)
         timings["setup"] = _now() - a
         a = _now()
         d, w = ls.solve(src)

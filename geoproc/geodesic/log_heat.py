@@ -7,10 +7,11 @@ intrinsic-Delaunay Laplacian, non-negative weights), which stays finite where
 ``exp(w - max_face w)``, before taking the piecewise-linear gradient: exactly
 the direction of ``grad u``, never 0/0. (``direction="log"`` uses the
 piecewise-linear gradient of ``w`` itself instead.) Then ``X = -grad u / |grad u|``
-and the Poisson solve ``L phi = div X`` (by default with the same
-intrinsic-Delaunay Laplacian and the mesh's own divergence: on meshes with poor
-triangles it is markedly more accurate than the cotan one), shifted so the
-sources are at 0. On a mesh with boundary, ``u`` is the average of the Neumann
+and the Poisson solve ``L phi = div X`` with the mesh's own divergence and, by
+default, the cotan Laplacian, the one consistent with it (``div grad = L``
+exactly), shifted so the sources are at 0. Over ten sources on each of
+armadillo, bunny, fertility and camelhead this pairing had a lower mean error
+than the intrinsic-Delaunay Laplacian in the Poisson step on every mesh. On a mesh with boundary, ``u`` is the average of the Neumann
 and Dirichlet solutions (``boundary="average"``, as in the heat method),
 formed in log space with ``logaddexp``.
 """
@@ -79,14 +80,13 @@ class LogHeatSolver:
     boundary : {"average", "neumann"}
         On a mesh with boundary, average the Neumann and Dirichlet heat, or
         Neumann only.
-    poisson : {"intrinsic-delaunay", "cotan"}, optional
-        Laplacian of the Poisson step (with the mesh's own divergence); default
-        the same as ``laplacian``.
+    poisson : {"cotan", "intrinsic-delaunay"}
+        Laplacian of the Poisson step (with the mesh's own divergence).
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, t: float, steps: int = 1,
                  laplacian: str = "intrinsic-delaunay", direction: str = "heat",
-                 boundary: str = "average", poisson: str | None = None):
+                 boundary: str = "average", poisson: str = "cotan"):
         L, M = laplacian_and_mass(V, F, laplacian)
         self.n, self.steps, self.F, self.direction = len(V), steps, F, direction
         self.log_ode = LogODESolver(L, M, t / steps)
@@ -103,7 +103,6 @@ class LogHeatSolver:
         self.G = face_gradient_matrix(V, F)
         self.coef = face_gradient_coefficients(self.G, F)
         self.D = divergence_matrix(V, F, self.G)
-        poisson = poisson or laplacian
         self.poisson = PoissonSolver(L if laplacian == poisson else laplacian_and_mass(V, F, poisson)[0])
 
     def log_heat(self, sources: np.ndarray) -> np.ndarray:
