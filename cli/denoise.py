@@ -60,12 +60,21 @@ def denoise(
     feature_angle: Annotated[float, typer.Option("--feature-angle", help="--features dihedral: angle in "
                                                  "degrees.")] = 30.0,
     outliers: Annotated[bool, typer.Option("--outliers", help="Point-cloud outlier removal by RPCA on "
-                                           "k-nearest-neighbour matrices.")] = False,
+                                           "k-nearest-neighbour matrices; for an animation (.npz or folder "
+                                           "of frames), RPCA on the animation matrix (one column per frame) "
+                                           "flags the outlying points of every frame.")] = False,
     k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers.")] = 16,
-    threshold: Annotated[float, typer.Option("--threshold", help="--outliers cut on the score, in median "
-                                             "point spacings.")] = 0.5,
+    threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, in "
+                                                    "median point spacings (default 0.5; for an animation "
+                                                    "max(0.5, 3 x the median score)).",
+                                                    show_default=False)] = None,
     keep_all: Annotated[bool, typer.Option("--keep-all", help="--outliers: write every point with "
-                                           "'outlier_score' and 'outlier_detected' properties.")] = False,
+                                           "'outlier_score' and 'outlier_detected' properties (always so "
+                                           "for an animation).")] = False,
+    refined: Annotated[bool, typer.Option("--refined", help="--outliers: write the refined (denoised) "
+                                          "positions instead of the input ones: the merged projections "
+                                          "onto the neighbourhoods' robust planes; for an animation, the "
+                                          "robust low-rank trajectories.")] = False,
     dynamic: Annotated[bool, typer.Option("--dynamic", help="Animation denoising with RPCA on the "
                                           "stacked per-frame normals (Algorithm 4).")] = False,
     no_clean: NoCleanOpt = False,
@@ -87,7 +96,7 @@ def denoise(
               "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
               "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "features": features,
               "feature_tau": feature_tau, "feature_angle": feature_angle, "outliers": outliers,
-              "k": k, "threshold": threshold, "keep_all": keep_all, "dynamic": dynamic,
+              "k": k, "threshold": threshold, "keep_all": keep_all, "refined": refined, "dynamic": dynamic,
               "clean": not no_clean}
     with command_run("denoise", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
@@ -95,6 +104,12 @@ def denoise(
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:
             raise UsageError("--outliers and --dynamic cannot be combined")
+        if refined and not outliers:
+            raise UsageError("--refined applies to --outliers")
+        threshold_set = threshold is not None
+        if threshold_set and threshold < 0:
+            raise UsageError(f"--threshold {threshold}: must be >= 0")
+        threshold = 0.5 if threshold is None else threshold
         for name, v in (("--rounds", rounds), ("--normal-iterations", normal_iterations),
                         ("--vertex-iterations", vertex_iterations)):
             if v is not None and v < 0:
@@ -111,8 +126,10 @@ def denoise(
                            feature_angle_deg=feature_angle)
         if dynamic:
             _dynamic(run, input, output, reference, method, dp)
+        elif outliers and input != "-" and is_animation_path(input):
+            _animation_outliers(run, input, output, threshold_set, threshold, refined)
         elif outliers:
-            _outliers(run, input, output, k, threshold, keep_all, no_clean)
+            _outliers(run, input, output, k, threshold, keep_all, refined, no_clean)
         else:
             _mesh(run, input, output, reference, method, dp, no_clean)
 
@@ -152,7 +169,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     run.write_mesh(output, out)
 
 
-def _outliers(run, input, output, k, threshold, keep_all, no_clean) -> None:
+def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> None:
     from geoproc.denoise.outliers import detection_scores, rpca_outliers
 
     if k < 4:
@@ -167,15 +184,40 @@ def _outliers(run, input, output, k, threshold, keep_all, no_clean) -> None:
         truth = np.asarray(cloud.vertex_fields["outlier"]).reshape(len(cloud.V), -1)[:, 0] > 0.5
         run.metrics["true_outliers"] = int(truth.sum())
         run.metrics.update(detection_scores(res.outlier, truth))
+    P = res.refined if refined else cloud.V
+    if refined:
+        run.metrics["mean_refinement_shift"] = float(np.linalg.norm(res.refined - cloud.V, axis=1).mean())
     if keep_all:
-        out = Mesh(cloud.V, np.zeros((0, 3), dtype=np.int64), dict(cloud.vertex_fields))
+        out = Mesh(P, np.zeros((0, 3), dtype=np.int64), dict(cloud.vertex_fields))
         out.vertex_fields["outlier_score"] = res.score
         out.vertex_fields["outlier_detected"] = res.outlier.astype(np.float64)
     else:
         keep = ~res.outlier
-        out = Mesh(cloud.V[keep], np.zeros((0, 3), dtype=np.int64),
+        out = Mesh(P[keep], np.zeros((0, 3), dtype=np.int64),
                    {name: v[keep] for name, v in cloud.vertex_fields.items()})
     run.write_mesh(output, out)
+
+
+def _animation_outliers(run, input, output, threshold_set, threshold, refined) -> None:
+    from geoproc.denoise.outliers import detection_scores, rpca_animation_outliers
+
+    if not output.lower().endswith(".npz"):
+        raise UsageError(f"{output}: an animation is written as .npz")
+    anim = run.load_animation(input)
+    with run.timer("outliers"):
+        res = rpca_animation_outliers(anim.V, threshold if threshold_set else None, path=anim.path)
+    run.metrics.update({"frames": anim.n_frames, "points": int(anim.V.shape[1]),
+                        "detected_outliers": int(res.outlier.sum()), "threshold": res.threshold,
+                        "motion_rank": res.rank, "rpca_iterations": res.rpca_iterations})
+    if "outlier" in anim.fields:
+        truth = np.asarray(anim.fields["outlier"]) > 0.5
+        run.metrics["true_outliers"] = int(truth.sum())
+        run.metrics.update(detection_scores(res.outlier, truth))
+    fields = dict(anim.fields)
+    fields["outlier_score"] = res.score
+    fields["outlier_detected"] = res.outlier.astype(np.float64)
+    V = res.refined if refined else anim.V
+    run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, fields, output)))
 
 
 def _dynamic(run, input, output, reference, method, dp) -> None:

@@ -1,6 +1,7 @@
 """Feature-preserving denoising: meshes (bilateral, guided and RPCA-guided normal
-filtering with the vertex update), point-cloud outliers (RPCA on neighbourhoods)
-and animations (RPCA on the stacked per-frame normals).
+filtering with the vertex update; l1 feature identification), point-cloud
+outliers (RPCA on neighbourhoods; on the animation matrix for time-varying
+clouds) and animations (RPCA on the stacked per-frame normals).
 
 Names are loaded on first use (PEP 562), so importing the package does not
 compile or load the numba kernels until a function is needed.
@@ -19,8 +20,12 @@ _NAMES = {
     "denoise_mesh": "mesh_denoise",
     "median_dihedral_deg": "mesh_denoise",
     "denoise_errors": "metrics",
+    "L1FeatureResult": "features",
+    "l1_feature_vertices": "features",
+    "AnimationOutlierResult": "outliers",
     "OutlierResult": "outliers",
     "detection_scores": "outliers",
+    "rpca_animation_outliers": "outliers",
     "rpca_outliers": "outliers",
     "RPCAResult": "rpca",
     "rpca": "rpca",

@@ -5,9 +5,10 @@ coordinate-wise median, is split by RPCA into ``P + S``: on a smooth surface the
 centred neighbourhood is (nearly) rank two, so points off the surface show up as
 large rows of the sparse part S (Eq. 21-28 of the review). Every point lies in
 many neighbourhoods; the refinement merges its overlapping local estimates
-(Eq. 29-30): its score is the mean of its sparse residuals over every
-neighbourhood it belongs to, and its refined position is the mean of its
-low-rank estimates.
+(Eq. 29-30): its score is the median of its distances to the robust planes of
+every neighbourhood it belongs to, and its refined position is the mean of its
+projections onto the planes of the inlier-centred neighbourhoods that contain
+it (the minimiser of the summed squared distances to those local estimates).
 """
 
 from __future__ import annotations
@@ -34,7 +35,9 @@ class OutlierResult:
     threshold : float
         The cut used.
     refined : (n, 3) float64
-        Merged low-rank position estimates (the refinement).
+        Refined positions: the mean of the point's projections onto the robust
+        planes of the neighbourhoods (centred on inliers) that contain it; the
+        input position where there is none.
     """
 
     score: np.ndarray
@@ -147,9 +150,6 @@ def rpca_outliers(P: np.ndarray, k: int = 16, threshold: float | None = None,
     vals = resid.reshape(-1)[order]
     score = np.array([np.median(vals[starts[j]:starts[j + 1]]) for j in range(n)]) if n < 0 else \
         _group_median(vals, starts)
-    est = res.P * spacing + center
-    refined = np.column_stack([np.bincount(flat, weights=est[:, :, c].reshape(-1), minlength=n)
-                               for c in range(3)]) / count[:, None]
     if threshold is None:
         threshold = 0.5
     outlier = score > threshold
@@ -157,7 +157,38 @@ def rpca_outliers(P: np.ndarray, k: int = 16, threshold: float | None = None,
         for _ in range(refine_passes):
             score = _plane_residual_to_inliers(P, ~outlier, k, lam, spacing)
             outlier = score > threshold
+    refined = merged_projections(nb, idx, normal, center[:, 0, :], ~outlier, P)
     return OutlierResult(score=score, outlier=outlier, threshold=float(threshold), refined=refined)
+
+
+def merged_projections(nb: np.ndarray, idx: np.ndarray, normal: np.ndarray, center: np.ndarray,
+                       use: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Merge the overlapping local estimates of every point (Eq. 29-30).
+
+    Neighbourhood j (its members ``idx[j]`` at ``nb[j]``, robust plane through
+    ``center[j]`` with unit ``normal[j]``) estimates each member by its
+    projection onto the plane. The point's refined position minimises the sum of
+    squared distances to its estimates from the neighbourhoods with ``use[j]``:
+    their mean (the input position when no such neighbourhood contains it).
+
+    Parameters
+    ----------
+    nb : (b, k, 3) member positions; idx : (b, k) member indices; normal, center : (b, 3);
+    use : (b,) bool; P : (n, 3) input positions.
+
+    Returns
+    -------
+    (n, 3) float64
+    """
+    n = len(P)
+    off = np.einsum("bkc,bc->bk", nb - center[:, None, :], normal)
+    proj = nb - off[..., None] * normal[:, None, :]
+    rows = np.flatnonzero(use)
+    flat = idx[rows].reshape(-1)
+    count = np.bincount(flat, minlength=n).astype(np.float64)
+    total = np.column_stack([np.bincount(flat, weights=proj[rows, :, c].reshape(-1), minlength=n)
+                             for c in range(3)])
+    return np.where(count[:, None] > 0, total / np.maximum(count, 1.0)[:, None], P)
 
 
 def detection_scores(predicted: np.ndarray, truth: np.ndarray) -> dict:
@@ -169,3 +200,112 @@ def detection_scores(predicted: np.ndarray, truth: np.ndarray) -> dict:
     recall = tp / max(float(truth.sum()), 1.0)
     f1 = 2 * precision * recall / (precision + recall) if precision + recall > 0 else 0.0
     return {"precision": precision, "recall": recall, "f1": f1}
+
+
+@dataclass
+class AnimationOutlierResult:
+    """Output of :func:`rpca_animation_outliers`.
+
+    Attributes
+    ----------
+    score : (T, n) float64
+        Distance of each point in each frame from its robust low-rank trajectory,
+        in median point spacings (of the first frame).
+    outlier : (T, n) bool
+        ``score > threshold``.
+    threshold : float
+        The cut used (spacings).
+    refined : (T, n, 3) float64
+        The low-rank trajectories (coherent motion: outliers pulled back, noise reduced).
+    rank : int
+        Number of temporal basis vectors of the motion (RPCA rank, plus the constant).
+    rpca_iterations : int
+    """
+
+    score: np.ndarray
+    outlier: np.ndarray
+    threshold: float
+    refined: np.ndarray
+    rank: int
+    rpca_iterations: int
+
+
+def _robust_trajectory_fit(X: np.ndarray, B: np.ndarray, w: np.ndarray, c: float,
+                           iterations: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Fit every point's trajectory in the temporal basis by iteratively reweighted
+    least squares (Cauchy weights ``1 / (1 + (r / c)^2)`` on the per-frame residual).
+
+    X : (n, T, 3) trajectories; B : (T, r) orthonormal basis; w : (n, T) initial weights.
+    Returns the fitted (n, T, 3) trajectories and the (n, T) residual norms.
+    """
+    r = B.shape[1]
+    outer = (B[:, :, None] * B[:, None, :]).reshape(len(B), r * r)  # (T, r*r)
+    fit = X
+    res = np.zeros(X.shape[:2])
+    for _ in range(iterations):
+        G = (w @ outer).reshape(-1, r, r) + 1e-12 * np.eye(r)
+        rhs = np.tensordot(w[:, :, None] * X, B, axes=([1], [0])).transpose(0, 2, 1)  # (n, r, 3)
+        C = np.linalg.solve(G, rhs)
+        fit = np.tensordot(C, B, axes=([1], [1])).transpose(0, 2, 1)  # (n, T, 3)
+        res = np.linalg.norm(X - fit, axis=2)
+        w = 1.0 / (1.0 + (res / c) ** 2)
+    return fit, res
+
+
+def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: float | None = None,
+                            path: str | None = None) -> AnimationOutlierResult:
+    """Outliers of a time-varying point cloud by RPCA on its animation matrix.
+
+    The trajectories form the (3n, T) animation matrix (one column per frame),
+    each row centred on its median over the frames. A cloud that moves
+    coherently (rigidly, articulated, or any smooth deformation with few
+    degrees of freedom) makes this matrix low-rank; a point displaced in some
+    frames (an outlier) adds a few large entries: RPCA splits the matrix into
+    ``P + S`` (:func:`geoproc.denoise.rpca.rpca`). The right singular vectors of
+    P (with the constant) span the motion in time; since the nuclear norm
+    shrinks P, every point's trajectory is then refitted in that temporal
+    basis by reweighted least squares (the refinement, robust to the frames in
+    which it is an outlier), and its score in each frame is its distance to the
+    fit, in median point spacings.
+
+    Parameters
+    ----------
+    V : (T, n, 3) float64 positions per frame (same points in every frame).
+    threshold : float, optional
+        Cut on the score in spacings; default ``max(0.5, 3 median(score))`` (the
+        median follows the noise level).
+    lam : float, optional
+        RPCA sparsity weight (default ``1/sqrt(3n)``).
+    path : str, optional
+        File name for errors.
+
+    Returns
+    -------
+    AnimationOutlierResult
+    """
+    from geoproc.denoise.rpca import rpca
+
+    V = np.asarray(V, dtype=np.float64)
+    T, n, _ = V.shape
+    if T < 3:
+        raise InputError(path, f"has {T} frames; RPCA on the animation matrix needs at least 3")
+    if n < 2:
+        raise InputError(path, f"has {n} points per frame; at least 2 are needed")
+    dist, _ = cKDTree(V[0]).query(V[0], k=2)
+    pos = dist[:, 1] > 0
+    spacing = float(np.median(dist[pos, 1])) if pos.any() else 1.0
+    D = V.transpose(1, 2, 0).reshape(3 * n, T) / spacing
+    med = np.median(D, axis=1, keepdims=True)
+    res = rpca(D - med, lam=lam, tol=1e-7, max_iter=500)
+    _, s, Wt = np.linalg.svd(res.P, full_matrices=False)
+    rank = int((s > 1e-3 * s[0]).sum()) if len(s) and s[0] > 0 else 0
+    B, _ = np.linalg.qr(np.column_stack([np.ones(T), Wt[:rank].T]))
+    X = V.transpose(1, 0, 2) / spacing  # (n, T, 3)
+    S = np.linalg.norm(res.S.reshape(n, 3, T), axis=1)  # (n, T) sparse residual per point and frame
+    fit, resid = _robust_trajectory_fit(X, B, 1.0 / (1.0 + (S / 0.5) ** 2), 0.5)
+    score = resid.T
+    if threshold is None:
+        threshold = max(0.5, 3.0 * float(np.median(score)))
+    return AnimationOutlierResult(score=score, outlier=score > threshold, threshold=float(threshold),
+                                  refined=fit.transpose(1, 0, 2) * spacing, rank=B.shape[1],
+                                  rpca_iterations=res.iterations)
