@@ -105,14 +105,14 @@ class Run:
 
     def load_animation(self, path: str | os.PathLike):
         """Read an animation (``.npz``, or a folder of frame meshes with equal
-        connectivity) under the ``load`` timer; a ``.npz`` file is recorded as an input."""
+        connectivity) under the ``load`` timer and record it as an input (a folder's
+        hash covers its files' names and contents)."""
         from geoproc.animation import load_animation
 
         name = os.fspath(path)
         with self.timer("load"):
             anim = load_animation(name)
-            if os.path.isfile(name):
-                self.add_input(name)
+            self.add_input(name)
         return anim
 
     def note_load(self, mesh: Mesh) -> None:

@@ -71,3 +71,25 @@ def test_animation_with_differing_connectivity_exit_2(cli, tmp_path):
     out = tmp_path / "o.npz"
     p = cli("perturb", tmp_path / "bad.npz", "--seed", "1", "-o", out)
     assert p.returncode == 2 and "connectivity" in p.stderr and not out.exists()
+
+
+def test_animation_folder_is_recorded_in_the_report(cli, tmp_path):
+    import trimesh
+
+    V, F = denoise_fixtures().wave_animation(3)
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, Vk in enumerate(V):
+        trimesh.Trimesh(Vk, F, process=False).export(folder / f"frame{k:03d}.obj")
+
+    def recorded():
+        rep = tmp_path / "r.json"
+        p = cli("perturb", folder, "--noise", "0.3", "--seed", "3", "-o", tmp_path / "n.npz", "--report", rep)
+        assert p.returncode == 0, p.stderr
+        (entry,) = json.loads(rep.read_text())["inputs"]
+        assert entry["path"] == str(folder)
+        return entry["sha256"]
+
+    first = recorded()
+    trimesh.Trimesh(V[1] + 1e-3, F, process=False).export(folder / "frame001.obj")
+    assert recorded() != first  # the folder's hash follows its frames' contents
