@@ -148,6 +148,67 @@ def test_log_ode_fast_solvers_equal_cvxpy_clarabel(make_fixtures, factor, steps)
     assert np.abs(w_newton - w_cvx).max() < 1e-6
 
 
+
+def _splitting_solver(make_fixtures, n, T, steps):
+    from geoproc.geodesic.log_splitting import LogSplittingSolver
+
+    V, F = make_fixtures.grid(n)
+    L, M = gd.laplacian_and_mass(V, F, "cotan")
+    return V, LogSplittingSolver(V, F, L, M, T, steps)
+
+
+def test_log_splitting_nonlinear_step_lifts_a_linear_function_by_dt_slope_squared(make_fixtures):
+    # w' linear with slope a: its gradient is exact on any triangulation, and the
+    # backward-Euler step of dw/dt = |grad w|^2 lifts it by dt |a|^2 (Hopf-Lax: the
+    # maximizer sits 2 dt |a| = 0.02 away, under one grid spacing, so the border of
+    # the patch does not interfere).
+    pytest.importorskip("cvxpy")
+    V, S = _splitting_solver(make_fixtures, 21, 2e-4, 1)
+    slope = np.array([30.0, -40.0])  # |a| = 50, values span 70 units like a log-heat field
+    w1 = V[:, :2] @ slope
+    lift = S.dt * 50.0**2
+    w = S.nonlinear_step(w1)
+    assert np.abs(w - (w1 + lift)).max() < 1e-5 * lift  # measured 1.6e-6
+
+
+
+def test_log_splitting_step_from_the_log_floor_reaches_the_optimum(make_fixtures):
+    # The program is invariant under w -> w - c (c constant) except for its objective, so
+    # at the optimum some constraint is active: min slack 0. From a log-delta at the
+    # 1e-300 floor (values down to -690) the unscaled program stopped with every
+    # constraint slack by several units.
+    pytest.importorskip("cvxpy")
+    from geoproc.geodesic.operators import face_gradient_matrix, face_to_vertex_average
+
+    _, S = _splitting_solver(make_fixtures, 21, 1e-3, 1)
+    V, F = make_fixtures.grid(21)
+    w = np.full(len(V), np.log(1e-300))
+    w[220] = 0.0  # the centre
+    w1 = S._half.solve(S.M * w)
+    w2 = S.nonlinear_step(w1)
+    g = (face_gradient_matrix(V, F) @ w2).reshape(3, -1)
+    slack = w2 - w1 - S.dt * (face_to_vertex_average(V, F) @ (g**2).sum(axis=0))
+    assert slack.min() > -1e-6 * np.ptp(w1) and slack.min() < 1e-6 * np.ptp(w1)
+
+def test_log_splitting_follows_the_plane_heat_kernel_in_log_space(make_fixtures):
+    # w = log of the plane heat kernel solves dw/dt = Lap w + |grad w|^2 exactly; away from
+    # the patch's (Neumann) border the scheme must track it, first order in the step.
+    pytest.importorskip("cvxpy")
+    t0, T = 0.01, 0.005
+    errors = []
+    for steps in (4, 8):
+        V, S = _splitting_solver(make_fixtures, 21, T, steps)
+        r2 = ((V[:, :2] - 0.5) ** 2).sum(axis=1)
+
+        def kernel(t, r2=r2):
+            return -np.log(4 * np.pi * t) - r2 / (4 * t)
+
+        inner = r2 < 0.2**2
+        change = np.abs(kernel(t0 + T) - kernel(t0))[inner].max()  # 0.41
+        errors.append(np.abs(S.evolve(kernel(t0)) - kernel(t0 + T))[inner].max() / change)
+    assert errors[0] < 0.1  # measured 0.043
+    assert errors[1] < 0.7 * errors[0]  # measured ratio 0.5
+
 def _chain_reference(n, m, a, lg_b):
     """log of the solution of a path-graph system (diag m+deg*a, off -a) by the
     Thomas algorithm in 60-digit Decimal arithmetic (exponent range 1e-999999)."""
