@@ -12,8 +12,9 @@ default, the cotan Laplacian, the one consistent with it (``div grad = L``
 exactly), shifted so the sources are at 0. Over ten sources on each of
 armadillo, bunny, fertility and camelhead this pairing had a lower mean error
 than the intrinsic-Delaunay Laplacian in the Poisson step on every mesh. On a
-mesh with boundary, ``u`` is the average of the Neumann and Dirichlet solutions (``boundary="average"``, as in the heat method),
-formed in log space with ``logaddexp``.
+mesh with boundary, ``u`` is the average of the Neumann and Dirichlet
+solutions (``boundary="average"``, as in the heat method), formed in log space
+with ``logaddexp``.
 """
 
 from __future__ import annotations
