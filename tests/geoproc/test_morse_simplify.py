@@ -3,6 +3,8 @@ distance), known answers and the sup-norm bound."""
 
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 import pytest
 
@@ -19,6 +21,18 @@ def finite_pairs(d: np.ndarray, at_least: float = 0.0, strictly_positive: bool =
     p = d[:, 1] - d[:, 0]
     keep = (p > 0) if strictly_positive else (p >= at_least)
     return d[keep & (p >= at_least)]
+
+
+def kept_saddle_vertices(F, f, g, P):
+    """Highest vertices of f's kept saddle edges (pairs with persistence >= P and
+    essential edges) and of g's critical edges, sorted, with multiplicity."""
+    cx = surface_complex(F, len(f))
+    pf, pg = lower_star_persistence(cx, f), lower_star_persistence(cx, g)
+    pers0 = f[pf.edge_top[pf.min_saddle_edge]] - f[pf.min_vertex]
+    pers1 = f[pf.triangle_top[pf.max_triangle]] - f[pf.edge_top[pf.saddle_edge]]
+    kept = np.concatenate([pf.min_saddle_edge[pers0 >= P], pf.saddle_edge[pers1 >= P], pf.essential_edges])
+    gg = discrete_gradient(cx, g)
+    return sorted(pf.edge_top[kept].tolist()), sorted(pg.edge_top[gg.critical_edges].tolist())
 
 
 def check_simplification(V, F, f, P):
@@ -119,29 +133,40 @@ def test_shared_meshes_noisy_height(shared_data, name, axis, rel):
     f = mfx.noisy_height(mesh.V, axis=axis, noise=0.02, seed=10)
     P = rel * (f.max() - f.min())
     s = check_simplification(mesh.V, mesh.F, f, P)
-    # sup-norm: P/2 except at a few vertices (where a cancelled basin and peak
-    # meet, see the README), and within P everywhere
+    # sup-norm: P/2 except at a few vertices (see test_morse_bound for where it
+    # is provably out of reach), and within P everywhere
     beyond = np.abs(s.g - f) > P / 2 * (1 + 1e-12)
     assert np.array_equal(np.flatnonzero(beyond), s.widened_vertices)
     assert beyond.sum() <= 0.01 * len(f)
     assert s.max_abs_change <= P * (1 + 1e-12)
+    # every kept saddle at its own vertex, with its multiplicity
+    want, have = kept_saddle_vertices(mesh.F, f, s.g, P)
+    assert want == have
 
 
-def test_monkey_saddle_limit_of_piecewise_linear_functions():
-    """A cancelled minimum m and maximum M meeting at one vertex s, each with no
-    other neighbour within P: every piecewise-linear g without them has
-    |f - g| >= (f(M) - f(m)) / 2 > P/2 somewhere; the result meets that bound."""
-    # hexagon fan around s = 0 (interior), ring 1..6; outer ring 7..12 closes it
+def monkey_saddle_case():
+    """A cancelled minimum m = 1 and maximum M = 4 meeting at the vertex s = 0,
+    each with no other neighbour within P = 1 (hexagon fan around s, closed
+    by an outer ring)."""
     ang = np.arange(6) * np.pi / 3
     V = np.concatenate([[[0, 0, 0]], np.c_[np.cos(ang), np.sin(ang), 0 * ang],
                         np.c_[2 * np.cos(ang + np.pi / 6), 2 * np.sin(ang + np.pi / 6), 0 * ang]])
     F = [[0, 1 + i, 1 + (i + 1) % 6] for i in range(6)]
     F += [[1 + i, 7 + i, 1 + (i + 1) % 6] for i in range(6)]
     F += [[1 + (i + 1) % 6, 7 + i, 7 + (i + 1) % 6] for i in range(6)]
-    F = np.array(F)
     # s = 0.6; ring: m (0.0), high, low, M (1.2), low, high; outer ring alternates
     f = np.array([0.6, 0.0, 1.9, 0.05, 1.2, 0.1, 1.95] + [2.0, 2.1, -0.5, -0.4, 2.2, 2.3])
-    P = 1.0
+    return V, np.array(F), f, 1.0
+
+
+def test_monkey_saddle_limit_of_piecewise_linear_functions():
+    """A cancelled minimum m and maximum M meeting at one vertex s, each with no
+    other neighbour within P: no piecewise-linear g without them stays within
+    P/2. The least max |f - g| is (f(M) - f(5)) / 2 = 0.55 P (M climbs over the
+    raised low neighbour 5; test_morse_bound finds it with an exact program);
+    draining m and M both across s, as the construction does, costs
+    (f(M) - f(m)) / 2 = 0.6 P."""
+    V, F, f, P = monkey_saddle_case()
     cx = surface_complex(F, len(V))
     pp = lower_star_persistence(cx, f)
     assert 1 in pp.min_vertex and pp.edge_top[pp.min_saddle_edge[pp.min_vertex == 1][0]] == 0
@@ -151,9 +176,8 @@ def test_monkey_saddle_limit_of_piecewise_linear_functions():
     crit = discrete_gradient(cx, s.g)
     top_g = lower_star_persistence(cx, s.g).triangle_top
     assert 1 not in crit.critical_vertices and 4 not in top_g[crit.critical_triangles]
-    need = (f[4] - f[1]) / 2
-    assert s.max_abs_change >= need * (1 - 1e-9)
-    assert s.max_abs_change <= P
+    assert s.max_abs_change >= (f[4] - f[5]) / 2 * (1 - 1e-9)
+    assert s.max_abs_change <= (f[4] - f[1]) / 2 * (1 + 1e-9)
 
 
 def test_pipeline_relabelled_matches_direct(shared_data):
@@ -177,4 +201,9 @@ def test_armadillo_noisy_height(shared_data, rel):
     P = rel * (f.max() - f.min())
     s = check_simplification(mesh.V, mesh.F, f, P)
     assert s.max_abs_change <= P * (1 + 1e-12)
-    assert len(s.widened_vertices) <= 0.03 * len(f)
+    assert len(s.widened_vertices) <= 0.005 * len(f)
+    # kept saddles: at most 0.2% (and 10) of the kept saddle edges at another vertex
+    want, have = kept_saddle_vertices(mesh.F, f, s.g, P)
+    assert len(have) == len(want)
+    moved = len(want) - sum((Counter(want) & Counter(have)).values())
+    assert moved <= max(10, 0.002 * len(want))
