@@ -113,6 +113,7 @@ def worker(side: str, level: int, repeat: int) -> dict:
             phases, kept, s = geoproc_run(V, F, f, P)
             runs.append([float(x) for x in phases])
             extra = {"max_abs_change_over_P": float(s.max_abs_change / P),
+                     "beyond_half": int(len(s.widened_vertices)),
                      "pairs_removed": s.pairs_removed}
         else:
             phases, kept = gudhi_run(V, F, f, P)
@@ -156,16 +157,17 @@ def main(argv: list[str]) -> int:
             "gudhi_mb": f"{gud['rss_peak_mb']:.0f} (+{gud['rss_peak_mb'] - gud['rss_base_mb']:.0f})",
             "pairs_agree": geo["kept"] == gud["kept"],
             "max_abs_change_over_P": geo["max_abs_change_over_P"],
+            "beyond_half": geo["beyond_half"],
         })
     head = ("| mesh | vertices | geoproc pipeline s | gudhi lower-star s | ratio | geoproc phases s | "
             "gudhi phases s | peak RSS MB geoproc (extra) | peak RSS MB gudhi (extra) | pairs >= P agree | "
-            "max abs change / P |")
+            "max abs change / P | vertices beyond P/2 |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         lines.append(f"| {r['mesh']} | {r['vertices']:,} | {r['geoproc_s']:.3f} | {r['gudhi_s']:.3f} | "
                      f"{r['ratio']:.2f}x | {r['phases']} | {r['gudhi_phases']} | {r['geoproc_mb']} | "
                      f"{r['gudhi_mb']} | {'yes' if r['pairs_agree'] else 'NO'} | "
-                     f"{r['max_abs_change_over_P']:.3f} |")
+                     f"{r['max_abs_change_over_P']:.3f} | {r['beyond_half']:,} |")
     table = "\n".join(lines)
     print(table)
     a.out.mkdir(parents=True, exist_ok=True)
