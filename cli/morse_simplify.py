@@ -64,9 +64,9 @@ def morse_simplify(
     with persistence < P is cancelled (Bauer, Lange, Wardetzky 2012), every
     pair with persistence >= P and every essential class stays. The output
     field g has no ties, its minima and maxima are exactly the kept ones, and
-    |f - g| <= P/2 except where cancelled basins and peaks interact (at a
-    multiple saddle a piecewise-linear g cannot always stay within P/2); those
-    vertices are counted in vertices_beyond_half_threshold.
+    |f - g| <= P/2 except where cancelled basins and peaks interact (a
+    vertex function with exactly the kept extrema cannot always stay within
+    P/2); those vertices are counted in vertices_beyond_half_threshold.
 
     Metrics: minima/saddles/maxima before and after, euler_characteristic,
     betti_0/1/2, pairs_removed, pairs_kept, max_abs_change, threshold,
