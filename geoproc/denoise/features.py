@@ -36,7 +36,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from geoproc.denoise.face_geometry import face_normals_and_areas, vertex_face_incidence
 from geoproc.mesh.topology import unique_edges
@@ -141,13 +140,39 @@ def default_lam(J0: np.ndarray) -> float:
     return float(3.0 * 1.4826 * np.median(np.abs(J0 - np.median(J0))))
 
 
+def _cg(M: sp.csr_matrix, b: np.ndarray, x: np.ndarray, inv_diag: np.ndarray, rtol: float = 1e-8,
+        max_iter: int = 200) -> np.ndarray:
+    """Solve the SPD system ``M x = b`` by Jacobi-preconditioned conjugate gradients from ``x``."""
+    r = b - M @ x
+    stop = rtol * max(np.linalg.norm(b), 1e-300)
+    if np.linalg.norm(r) <= stop:
+        return x
+    x = x.copy()
+    zv = inv_diag * r
+    p = zv.copy()
+    rz = r @ zv
+    for _ in range(max_iter):
+        Mp = M @ p
+        alpha = rz / (p @ Mp)
+        x += alpha * p
+        r -= alpha * Mp
+        if np.linalg.norm(r) <= stop:
+            break
+        zv = inv_diag * r
+        rz_new = r @ zv
+        p = zv + (rz_new / rz) * p
+        rz = rz_new
+    return x
+
+
 def l1_sparse_normal_laplacian(
     J0: np.ndarray, A: sp.spmatrix, lam: float, rho: float = 1.0, tol: float = 1e-5, max_iter: int = 2000,
 ) -> tuple[np.ndarray, np.ndarray, int, bool]:
     """Solve ``min_d 1/2 |d|^2 + lam |J0 + A d|_1`` by ADMM.
 
     Splitting ``z = J0 + A d`` with the scaled multiplier u:
-    ``d = (I + rho A^T A)^-1 rho A^T (z - J0 - u)`` (one sparse LU factorization),
+    ``d = (I + rho A^T A)^-1 rho A^T (z - J0 - u)`` (Jacobi-preconditioned conjugate
+    gradients from the previous d: the matrix is well conditioned),
     ``z = shrink(J0 + A d + u, lam / rho)``, ``u += J0 + A d - z``. Stops when the
     primal residual ``|J0 + A d - z|`` and the dual residual ``rho |A^T (z - z_prev)|``
     are both below ``tol (sqrt(n) + |J0|)``.
@@ -171,8 +196,9 @@ def l1_sparse_normal_laplacian(
     A = sp.csr_matrix(A)
     if lam <= 0 or n == 0:
         return np.zeros(n), J0.copy(), 0, True
-    lu = spla.splu(sp.csc_matrix(sp.identity(n) + rho * (A.T @ A)))
     AT = sp.csr_matrix(A.T)
+    M = sp.csr_matrix(sp.identity(n) + rho * (AT @ A))  # SPD, eigenvalues in [1, 1 + rho |A|^2]
+    inv_diag = 1.0 / M.diagonal()
     d = np.zeros(n)
     z = J0.copy()
     u = np.zeros(n)
@@ -181,7 +207,7 @@ def l1_sparse_normal_laplacian(
     it = 0
     while it < max_iter:
         it += 1
-        d = lu.solve(rho * (AT @ (z - J0 - u)))
+        d = _cg(M, rho * (AT @ (z - J0 - u)), d, inv_diag, rtol=min(1e-6, 0.1 * tol))
         Jd = J0 + A @ d
         v = Jd + u
         z_prev = z

@@ -218,7 +218,7 @@ class AnimationOutlierResult:
     refined : (T, n, 3) float64
         The low-rank trajectories (coherent motion: outliers pulled back, noise reduced).
     rank : int
-        Number of temporal basis vectors of the motion (RPCA rank, plus the constant).
+        Dimension of the motion basis (the RPCA rank, plus the constant part).
     rpca_iterations : int
     """
 
@@ -232,21 +232,22 @@ class AnimationOutlierResult:
 
 def _robust_trajectory_fit(X: np.ndarray, B: np.ndarray, w: np.ndarray, c: float,
                            iterations: int = 10) -> tuple[np.ndarray, np.ndarray]:
-    """Fit every point's trajectory in the temporal basis by iteratively reweighted
+    """Fit every point's trajectory in the motion basis by iteratively reweighted
     least squares (Cauchy weights ``1 / (1 + (r / c)^2)`` on the per-frame residual).
 
-    X : (n, T, 3) trajectories; B : (T, r) orthonormal basis; w : (n, T) initial weights.
+    X : (n, T, 3) trajectories; B : (T, 3, r) orthonormal basis of trajectories
+    (a row of the animation matrix is ``C_p B``); w : (n, T) initial weights.
     Returns the fitted (n, T, 3) trajectories and the (n, T) residual norms.
     """
-    r = B.shape[1]
-    outer = (B[:, :, None] * B[:, None, :]).reshape(len(B), r * r)  # (T, r*r)
+    r = B.shape[2]
+    outer = np.einsum("tcr,tcs->trs", B, B).reshape(len(B), r * r)  # (T, r*r)
     fit = X
     res = np.zeros(X.shape[:2])
     for _ in range(iterations):
         G = (w @ outer).reshape(-1, r, r) + 1e-12 * np.eye(r)
-        rhs = np.tensordot(w[:, :, None] * X, B, axes=([1], [0])).transpose(0, 2, 1)  # (n, r, 3)
-        C = np.linalg.solve(G, rhs)
-        fit = np.tensordot(C, B, axes=([1], [1])).transpose(0, 2, 1)  # (n, T, 3)
+        rhs = np.tensordot(w[:, :, None] * X, B, axes=([1, 2], [0, 1]))  # (n, r)
+        C = np.linalg.solve(G, rhs[:, :, None])[:, :, 0]
+        fit = np.tensordot(C, B, axes=([1], [2]))  # (n, T, 3)
         res = np.linalg.norm(X - fit, axis=2)
         w = 1.0 / (1.0 + (res / c) ** 2)
     return fit, res
@@ -256,17 +257,17 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
                             path: str | None = None) -> AnimationOutlierResult:
     """Outliers of a time-varying point cloud by RPCA on its animation matrix.
 
-    The trajectories form the (3n, T) animation matrix (one column per frame),
-    each row centred on its median over the frames. A cloud that moves
-    coherently (rigidly, articulated, or any smooth deformation with few
-    degrees of freedom) makes this matrix low-rank; a point displaced in some
-    frames (an outlier) adds a few large entries: RPCA splits the matrix into
-    ``P + S`` (:func:`geoproc.denoise.rpca.rpca`). The right singular vectors of
-    P (with the constant) span the motion in time; since the nuclear norm
-    shrinks P, every point's trajectory is then refitted in that temporal
-    basis by reweighted least squares (the refinement, robust to the frames in
-    which it is an outlier), and its score in each frame is its distance to the
-    fit, in median point spacings.
+    Every point's trajectory is a row of the (n, 3T) animation matrix (its
+    x, y, z in every frame), each column centred on its median. A cloud that
+    moves coherently makes this matrix low-rank: a rigid or affine motion gives
+    rank 4 (a row is ``[x_p, 1]`` times a 4 x 3T motion), a skinned motion with
+    B bones at most 4B. A point displaced in some frames (an outlier) adds a few
+    large entries: RPCA splits the matrix into ``P + S``
+    (:func:`geoproc.denoise.rpca.rpca`). The right singular vectors of P span
+    the motion; since the nuclear norm shrinks P, every point's trajectory is
+    then refitted in that basis by reweighted least squares (the refinement,
+    robust to the frames in which it is an outlier), and its score in each
+    frame is its distance to the fit, in median point spacings.
 
     Parameters
     ----------
@@ -275,7 +276,7 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
         Cut on the score in spacings; default ``max(0.5, 3 median(score))`` (the
         median follows the noise level).
     lam : float, optional
-        RPCA sparsity weight (default ``1/sqrt(3n)``).
+        RPCA sparsity weight (default ``1/sqrt(max(n, 3T))``).
     path : str, optional
         File name for errors.
 
@@ -294,18 +295,20 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
     dist, _ = cKDTree(V[0]).query(V[0], k=2)
     pos = dist[:, 1] > 0
     spacing = float(np.median(dist[pos, 1])) if pos.any() else 1.0
-    D = V.transpose(1, 2, 0).reshape(3 * n, T) / spacing
-    med = np.median(D, axis=1, keepdims=True)
+    X = V.transpose(1, 0, 2) / spacing  # (n, T, 3)
+    D = X.reshape(n, 3 * T)
+    med = np.median(D, axis=0, keepdims=True)
     res = rpca(D - med, lam=lam, tol=1e-7, max_iter=500)
     _, s, Wt = np.linalg.svd(res.P, full_matrices=False)
     rank = int((s > 1e-3 * s[0]).sum()) if len(s) and s[0] > 0 else 0
-    B, _ = np.linalg.qr(np.column_stack([np.ones(T), Wt[:rank].T]))
-    X = V.transpose(1, 0, 2) / spacing  # (n, T, 3)
-    S = np.linalg.norm(res.S.reshape(n, 3, T), axis=1)  # (n, T) sparse residual per point and frame
+    # the basis: the column medians (a row's constant part) and the motion of P
+    B, _ = np.linalg.qr(np.column_stack([med[0], Wt[:rank].T]))
+    B = B.reshape(T, 3, -1)
+    S = np.linalg.norm(res.S.reshape(n, T, 3), axis=2)  # (n, T) sparse residual per point and frame
     fit, resid = _robust_trajectory_fit(X, B, 1.0 / (1.0 + (S / 0.5) ** 2), 0.5)
     score = resid.T
     if threshold is None:
         threshold = max(0.5, 3.0 * float(np.median(score)))
     return AnimationOutlierResult(score=score, outlier=score > threshold, threshold=float(threshold),
-                                  refined=fit.transpose(1, 0, 2) * spacing, rank=B.shape[1],
+                                  refined=fit.transpose(1, 0, 2) * spacing, rank=B.shape[2],
                                   rpca_iterations=res.iterations)
