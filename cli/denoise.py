@@ -208,7 +208,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
         res = rpca_animation_outliers(anim.V, threshold if threshold_set else None, path=anim.path)
     run.metrics.update({"frames": anim.n_frames, "points": int(anim.V.shape[1]),
                         "detected_outliers": int(res.outlier.sum()), "threshold": res.threshold,
-                        "motion_rank": res.rank, "rpca_iterations": res.rpca_iterations})
+                        "motion_basis": res.rank, "rpca_iterations": res.rpca_iterations})
     if "outlier" in anim.fields:
         truth = np.asarray(anim.fields["outlier"]) > 0.5
         run.metrics["true_outliers"] = int(truth.sum())

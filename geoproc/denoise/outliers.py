@@ -218,7 +218,8 @@ class AnimationOutlierResult:
     refined : (T, n, 3) float64
         The low-rank trajectories (coherent motion: outliers pulled back, noise reduced).
     rank : int
-        Dimension of the motion basis (the RPCA rank, plus the constant part).
+        Dimension of the motion basis: the rank of the RPCA low-rank part, plus
+        the constant part (the column medians).
     rpca_iterations : int
     """
 
