@@ -61,8 +61,9 @@ def denoise(
                                                  "degrees.")] = 30.0,
     outliers: Annotated[bool, typer.Option("--outliers", help="Point-cloud outlier removal by RPCA on "
                                            "k-nearest-neighbour matrices; for an animation (.npz or folder "
-                                           "of frames), RPCA on the animation matrix (one column per frame) "
-                                           "flags the outlying points of every frame.")] = False,
+                                           "of frames), RPCA on the animation matrix (one row per point: "
+                                           "its x, y, z in every frame) flags the outlying points of every "
+                                           "frame.")] = False,
     k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers.")] = 16,
     threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, in "
                                                     "median point spacings (default 0.5; for an animation "
