@@ -132,7 +132,7 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     laplacian : {"cotan", "intrinsic-delaunay"}, optional
         Default per :data:`DEFAULT_LAPLACIAN`.
     solver : {"lu", "newton", "cvxpy"}
-        Log-ODE solver (``log-ode`` only; ``log-splitting`` always uses cvxpy).
+        Log-ODE solver (``log-ode`` only; ``log-splitting`` always uses Clarabel).
     path : str, optional
         Named in error messages.
     progress : callable, optional
