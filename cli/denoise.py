@@ -53,7 +53,7 @@ def denoise(
     features: Annotated[str, typer.Option("--features", help="How the per-face 'feature' output is found: "
                                           "l1 (support of the l1-sparse normal Laplacian n.(Lv) of the "
                                           "result) or dihedral (filtered normals of edge neighbours more "
-                                          "than --feature-angle apart).")] = "l1",
+                                          "than --feature-angle apart).")] = "dihedral",
     feature_tau: Annotated[float, typer.Option("--feature-tau", help="--features l1: cut on the sparse "
                                                "normal Laplacian, in local mean edge lengths (0.12 is a "
                                                "crease of about 24 degrees).")] = 0.12,

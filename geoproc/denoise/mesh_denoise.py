@@ -80,11 +80,13 @@ class DenoiseParams:
     patch_size : int
         Faces per patch in the RPCA matrices (``rpca`` only).
     features : {"l1", "dihedral", "none"}
-        How the per-face ``feature`` output is found: ``l1`` (default) from the
-        support of the l1-sparse normal Laplacian of the result
-        (:func:`geoproc.denoise.features.l1_feature_vertices`, faces with two
-        feature vertices); ``dihedral`` where the filtered normal differs from
-        an edge neighbour's by more than ``feature_angle_deg``; ``none``: all 0
+        How the per-face ``feature`` output is found: ``dihedral`` (default)
+        where the filtered normal differs from an edge neighbour's by more than
+        ``feature_angle_deg``; ``l1`` from the support of the l1-sparse normal
+        Laplacian of the result (:func:`geoproc.denoise.features.l1_feature_vertices`,
+        faces with two feature vertices; its F1 against the clean creases of
+        the benchmark pairs is lower on SharpSphere0.3 and Bunny0.2 and about
+        equal elsewhere, see ``bench/denoise_features.py``); ``none``: all 0
         (callers that need only the positions).
     feature_tau : float
         ``l1``: cut on the sparse normal Laplacian, in local mean edge lengths.
@@ -99,7 +101,7 @@ class DenoiseParams:
     sigma_s_scale: float = 1.0
     pin_boundary: bool = False
     patch_size: int = 10
-    features: str = "l1"
+    features: str = "dihedral"
     feature_tau: float = 0.12
     feature_angle_deg: float = 30.0
 
