@@ -41,8 +41,8 @@ class MorseSimplification:
     g: np.ndarray
 
 
-def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | None = None
-                   ) -> MorseSimplification:
+def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | None = None,
+                   exact_windows: int = 4) -> MorseSimplification:
     """Gradient, persistence pairs and simplification of f on the mesh F.
 
     Parameters
@@ -55,6 +55,8 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
         Absolute persistence threshold P >= 0.
     path : str, optional
         File name for error messages.
+    exact_windows : int
+        Windows re-solved exactly (see :func:`simplify_function`).
     """
     f = np.asarray(f, dtype=np.float64)
     n = len(f)
@@ -63,7 +65,7 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
     fr = f[order]
     grad = discrete_gradient(cx, fr)
     pairs = lower_star_persistence(cx, fr)
-    simp = simplify_function(cx, fr, threshold, grad)
+    simp = simplify_function(cx, fr, threshold, grad, exact_windows)
     g = np.empty(n)
     g[order] = simp.g
     return MorseSimplification(order, cx, grad, pairs, simp, g)

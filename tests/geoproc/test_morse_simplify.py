@@ -186,11 +186,16 @@ def test_pipeline_relabelled_matches_direct(shared_data):
     mesh = load_mesh(shared_data / "meshes" / "bunny.off")
     f = mfx.noisy_height(mesh.V, axis=1, noise=0.02, seed=11)
     P = 0.02 * (f.max() - f.min())
-    r = morse_simplify(mesh.F, f, P)
-    direct = simplify_function(surface_complex(mesh.F, len(f)), f, P)
+    cx = surface_complex(mesh.F, len(f))
+    r = morse_simplify(mesh.F, f, P, exact_windows=0)
+    direct = simplify_function(cx, f, P, exact_windows=0)
     # equal up to the last-place steps that separate ties (index order differs)
     np.testing.assert_allclose(r.g, direct.g, rtol=0, atol=1e-12 * (f.max() - f.min()))
     np.testing.assert_array_equal(np.sort(r.order[r.simplification.kept_minima]), direct.kept_minima)
+    # the exact windows may pick another optimum under another numbering, not another max |f - g|
+    r = morse_simplify(mesh.F, f, P)
+    direct = simplify_function(cx, f, P)
+    assert r.simplification.max_abs_change == pytest.approx(direct.max_abs_change, rel=1e-6)
 
 
 @pytest.mark.slow
