@@ -87,8 +87,11 @@ def _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri):
         lo_b.append(-np.inf)
         hi_b.append(np.inf)
         integ.append(0)
-    lo_b.append(0.0)
-    hi_b.append(np.inf)
+    # t: nothing is gained below 1/2, and only a window that gets closer to f is kept (a cutoff for
+    # the search)
+    cur = float(np.abs(g[W] - f[W]).max()) / P
+    lo_b.append(0.5)
+    hi_b.append(max(0.5, cur - 1e-6))
     integ.append(0)
     rows, cols, vals, rlo, rhi = [], [], [], [], []
 
@@ -110,7 +113,7 @@ def _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri):
         return c_
 
     # value bounds (in units of P from z)
-    r = max(0.5, float(np.abs(g[W] - f[W]).max()) / P) + 1e-3  # the box already reached (room for eps steps)
+    r = max(0.5, cur) + 1e-3  # the box already reached (room for the eps steps)
     for i, v in enumerate(W):
         fv = (f[v] - z) / P
         lo_b[i] = fv - r
@@ -221,7 +224,12 @@ def _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri):
         return None
     below = [(b, a) if (col == -2 if col < 0 else res.x[col] > 0.5) else (a, b)
              for (a, b), col in bit.items() if a in inW or b in inW]  # (lower, upper)
-    return _values_from_order(W, g, f, P * (res.x[k] + 1e-6), below)
+    t = float(res.x[k])
+    for T in ([0.5] if t <= 0.5 + 1e-6 else []) + [t + 1e-6]:
+        x = _values_from_order(W, g, f, P * T, below)
+        if x is not None:
+            return x
+    return None
 
 
 def _values_from_order(W, g, f, T, below):
@@ -306,17 +314,22 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
         Windows solved and windows written back.
     """
     half = P / 2.0
-    types = vertex_types(g, cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary)
-    bad = (np.abs(g - f) > half * (1 + 1e-12)) | (types != want)
+    kw = (cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary)
+    bad = np.abs(g - f) > half * (1 + 1e-12)
     windows = [W for W in _windows(bad, cx.adj_ptr, cx.adj_nbr, radius) if len(W) <= max_window]
+    if max_windows < 0 or len(windows) < max_windows:  # room for the wrong saddle types too
+        bad |= vertex_types(g, *kw) != want
+        windows = [W for W in _windows(bad, cx.adj_ptr, cx.adj_nbr, radius) if len(W) <= max_window]
     windows.sort(key=lambda W: -float(np.abs(g[W] - f[W]).max()))
     if max_windows >= 0:
         windows = windows[:max_windows]
     done = 0
     for W in windows:
         C = _ball(W, cx.adj_ptr, cx.adj_nbr, 1)
-        for need in (want, types.copy()):
-            if need is not want and not (types[C] != want[C]).any():
+        now = want.copy()  # the types g has now, on C
+        now[C] = [vertex_type(c, g, *kw) for c in C.tolist()]
+        for need in (want, now):
+            if need is now and not (now[C] != want[C]).any():
                 break
             x = _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri)
             if x is None:
@@ -325,15 +338,12 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
             old = g[W].copy()
             g[W] = x
             after = _window_score(W, C, g, f, half, want, cx, vf_ptr, vf_tri)
-            ok = all(vertex_type(c, g, cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary) == need[c]
-                     for c in C.tolist())
+            ok = all(vertex_type(c, g, *kw) == need[c] for c in C.tolist())
             tol = 1e-9 * P
             better = after[0] < before[0] or (after[0] == before[0] and (
                 after[1] < before[1] - tol or (after[1] <= before[1] + tol and after[2] < before[2])))
             if ok and after[0] <= before[0] and after[1] <= before[1] + tol and better:
                 done += 1
-                for c in C.tolist():
-                    types[c] = vertex_type(c, g, cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary)
                 break
             g[W] = old
     return len(windows), done

@@ -184,7 +184,8 @@ def forced_windows(cx, f, P, kmin, kmax):
 def test_monkey_saddle_window_bound():
     """The hand-made case of test_morse_simplify: P/2 is out of reach; the least
     max |f - g| is (f(M) - f(5)) / 2 (M climbs over its raised neighbour 5),
-    below the (f(M) - f(m)) / 2 of draining m and M both across s."""
+    below the (f(M) - f(m)) / 2 of draining m and M both across s; ours gets
+    there."""
     from tests.geoproc.test_morse_simplify import monkey_saddle_case
 
     V, F, f, P = monkey_saddle_case()
@@ -193,8 +194,8 @@ def test_monkey_saddle_window_bound():
     assert contradictions(cx, f, P / 2, kmin, kmax)
     t = window_lower_bound(cx, f, kmin, kmax, np.arange(len(f)))
     assert t == pytest.approx((f[4] - f[5]) / 2, rel=1e-9)
-    s = simplify_function(cx, f, P)
-    assert t <= s.max_abs_change <= (f[4] - f[1]) / 2 * (1 + 1e-9)
+    s = simplify_function(cx, f, P)  # its exact window reaches the bound (up to 1e-5 P margins)
+    assert t <= s.max_abs_change <= t + 1e-4 * P
 
 
 def test_bunny_half_threshold_infeasible(shared_data):
@@ -227,6 +228,7 @@ def test_armadillo_half_threshold_infeasible(shared_data):
     assert bound > 0.81
     s = simplify_function(cx, f, P)
     assert s.max_abs_change >= bound * P
-    # ours: within P, and the vertices beyond P/2 are few (at least 8 are forced)
-    assert s.max_abs_change <= 0.95 * P
+    # ours: within 0.87 P (0.903 P without the exact windows), and the vertices
+    # beyond P/2 are few (at least 8 are forced)
+    assert s.max_abs_change <= 0.87 * P
     assert 8 <= len(s.widened_vertices) <= 50
