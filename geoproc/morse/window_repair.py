@@ -71,7 +71,7 @@ def _windows(bad: np.ndarray, adj_ptr, adj_nbr, radius: int) -> list[np.ndarray]
     return [np.unique(np.concatenate(v)) for v in groups.values()]
 
 
-def _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri):
+def _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri, node_limit=200):
     """Values for the vertices W (None when infeasible) minimising
     max |g - f| over W, with vertex types ``need`` on W and its neighbours."""
     adj_ptr, adj_nbr, F, boundary = cx.adj_ptr, cx.adj_nbr, cx.F, cx.boundary
@@ -219,7 +219,7 @@ def _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri):
     cost = np.zeros(n)
     cost[k] = 1.0
     res = milp(cost, constraints=LinearConstraint(A, rlo, rhi), integrality=np.array(integ),
-               bounds=Bounds(np.array(lo_b), np.array(hi_b)), options={"node_limit": 200})
+               bounds=Bounds(np.array(lo_b), np.array(hi_b)), options={"node_limit": node_limit})
     if res.x is None or res.status not in (0, 1):
         return None
     below = [(b, a) if (col == -2 if col < 0 else res.x[col] > 0.5) else (a, b)
@@ -281,7 +281,7 @@ def _window_score(W, C, g, f, half, need, cx, vf_ptr, vf_tri):
 
 
 def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, radius: int = 1,
-                   max_window: int = 300) -> tuple[int, int]:
+                   max_window: int = 300, node_limit: int = 200) -> tuple[int, int]:
     """Re-solve (in place) the windows around the vertices of g beyond f +- P/2
     or of the wrong type, the farthest from f first.
 
@@ -307,6 +307,9 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
         windows that touch are merged.
     max_window : int
         Windows with more vertices are skipped.
+    node_limit : int
+        Branch-and-bound nodes per window (HiGHS); the best order found by
+        then is used.
 
     Returns
     -------
@@ -331,7 +334,7 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
         for need in (want, now):
             if need is now and not (now[C] != want[C]).any():
                 break
-            x = _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri)
+            x = _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri, node_limit)
             if x is None:
                 continue
             before = _window_score(W, C, g, f, half, want, cx, vf_ptr, vf_tri)
