@@ -176,7 +176,7 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
     timings: dict = {}
     t0 = _now()
-    d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress)
+    d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path)
     timings.setdefault("solve", _now() - t0 - timings.get("setup", 0.0))
     d = np.full(n, np.inf)
     d[keep] = d2
@@ -187,7 +187,7 @@ def _now() -> float:
     return time.perf_counter()
 
 
-def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progress):
+def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progress, path=None):
     if method == "exact":
         from geoproc.geodesic.exact import exact_geodesic_distance
 
@@ -244,7 +244,7 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
     if method == "log-splitting":
         from geoproc.geodesic.log_splitting import LogSplittingSolver
 
-        sol = LogSplittingSolver(V, F, L, M, t, steps)
+        sol = LogSplittingSolver(V, F, L, M, t, steps, path=path)
         timings["setup"] = _now() - a
         d, w = sol.solve(src, progress)
         _log_stats(w, stats)
