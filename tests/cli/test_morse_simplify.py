@@ -127,3 +127,27 @@ def test_shared_meshes(cli, shared_data, tmp_path, name):
     assert m["minima_after"] - m["saddles_after"] + m["maxima_after"] == chi
     assert m["minima_before"] - m["saddles_before"] + m["maxima_before"] == chi
     assert chi == {"camelhead.off": 1, "fertility.off": -6}[name]
+
+
+def test_exact_windows_option(cli, shared_data, tmp_path):
+    # camelhead, height + 2% noise, P = 5% of the range: the default (4 windows) leaves
+    # six vertices beyond P/2 (0.556 P); every window (-1) reaches the bound; -2 is refused
+    from tests.conftest import load_fixture_module
+
+    name = shared_data / "meshes" / "camelhead.off"
+    field = tmp_path / "f.npy"
+    np.save(field, load_fixture_module("morse_fixtures").noisy_height(load_mesh(name).V, axis=1, noise=0.02,
+                                                                       seed=10))
+    seen = {}
+    for windows in ("4", "-1"):
+        out, rep = tmp_path / f"o{windows}.ply", tmp_path / f"r{windows}.json"
+        p = cli("morse-simplify", name, "--field", field, "--persistence", "0.05", "--relative",
+                "--exact-windows", windows, "-o", out, "--report", rep, "-q")
+        assert p.returncode == 0, p.stderr
+        m = metrics(rep)
+        seen[windows] = (m["vertices_beyond_half_threshold"], m["max_abs_change"] / m["threshold"])
+    assert seen["4"][0] == 6 and seen["-1"][0] == 0  # measured
+    assert seen["-1"][1] <= 0.5 * (1 + 1e-12) < seen["4"][1]
+    p = cli("morse-simplify", name, "--field", "y", "--persistence", "1", "--exact-windows", "-2",
+            "-o", tmp_path / "bad.ply")
+    assert p.returncode == 2 and "--exact-windows" in p.stderr and not (tmp_path / "bad.ply").exists()
