@@ -104,6 +104,24 @@ def contradictions(cx, f, h, kmin, kmax):
     return sorted(bad)
 
 
+def _min_max_change(rows, cols, vals, lb, ub, k, nvar, binary):
+    """Solve the window program: columns 0..k-1 the values g, column k the bound
+    t >= |g - f| (minimized), the columns ``binary`` 0/1 orientation bits, every
+    column after k in [0, 1] (the continuous ones as well)."""
+    A = coo_matrix((vals, (rows, cols)), shape=(len(lb), nvar)).tocsr()
+    cost = np.zeros(nvar)
+    cost[k] = 1.0
+    integ = np.zeros(nvar)
+    integ[binary] = 1
+    lo_b = np.full(nvar, -np.inf)
+    hi_b = np.full(nvar, np.inf)
+    lo_b[k:] = 0.0
+    hi_b[k + 1:] = 1.0
+    res = milp(cost, constraints=LinearConstraint(A, lb, ub), integrality=integ, bounds=Bounds(lo_b, hi_b))
+    assert res.status == 0, res.message
+    return float(res.fun)
+
+
 def window_lower_bound(cx, f, kmin, kmax, inner):
     """Exact smallest max |g - f| over the window (inner vertices and their
     neighbours) for which every inner vertex gets its wanted status."""
@@ -142,19 +160,7 @@ def window_lower_bound(cx, f, kmin, kmax, inner):
     for i, v in enumerate(verts):  # |g_v - f_v| <= t
         row([(i, 1.0), (k, -1.0)], -np.inf, f[v])
         row([(i, 1.0), (k, 1.0)], f[v], np.inf)
-    nvar = nz[0]
-    A = coo_matrix((vals, (rows, cols)), shape=(len(lb), nvar)).tocsr()
-    cost = np.zeros(nvar)
-    cost[k] = 1.0
-    integ = np.zeros(nvar)
-    integ[k + 1:] = 1
-    lo_b = np.full(nvar, -np.inf)
-    hi_b = np.full(nvar, np.inf)
-    lo_b[k:] = 0.0
-    hi_b[k + 1:] = 1.0
-    res = milp(cost, constraints=LinearConstraint(A, lb, ub), integrality=integ, bounds=Bounds(lo_b, hi_b))
-    assert res.status == 0, res.message
-    return float(res.fun)
+    return _min_max_change(rows, cols, vals, lb, ub, k, nz[0], np.arange(k + 1, nz[0]))
 
 
 def wanted_types(cx, f, P):
@@ -242,19 +248,7 @@ def typed_window_lower_bound(cx, f, want, inner):
     for i, v in enumerate(verts):
         row([(i, 1.0), (k, -1.0)], -np.inf, f[v])
         row([(i, 1.0), (k, 1.0)], f[v], np.inf)
-    nvar = nz[0]
-    A = coo_matrix((vals, (rows, cols)), shape=(len(lb), nvar)).tocsr()
-    cost = np.zeros(nvar)
-    cost[k] = 1.0
-    integ = np.zeros(nvar)
-    integ[binary] = 1
-    lo_b = np.full(nvar, -np.inf)
-    hi_b = np.full(nvar, np.inf)
-    lo_b[k:] = 0.0
-    hi_b[k + 1:] = 1.0
-    res = milp(cost, constraints=LinearConstraint(A, lb, ub), integrality=integ, bounds=Bounds(lo_b, hi_b))
-    assert res.status == 0, res.message
-    return float(res.fun)
+    return _min_max_change(rows, cols, vals, lb, ub, k, nz[0], binary)
 
 
 def ball(cx, v, radius):
