@@ -192,7 +192,7 @@ def test_log_splitting_step_from_the_log_floor_reaches_the_optimum(make_fixtures
 
 def test_log_splitting_follows_the_plane_heat_kernel_in_log_space(make_fixtures):
     # w = log of the plane heat kernel solves dw/dt = Lap w + |grad w|^2 exactly; away from
-    # the patch's (Neumann) border the scheme must track it, first order in the step.
+    # the patch's (Neumann) border the scheme must track it, better as the step shrinks.
     pytest.importorskip("cvxpy")
     t0, T = 0.01, 0.005
     errors = []
@@ -207,7 +207,7 @@ def test_log_splitting_follows_the_plane_heat_kernel_in_log_space(make_fixtures)
         change = np.abs(kernel(t0 + T) - kernel(t0))[inner].max()  # 0.41
         errors.append(np.abs(S.evolve(kernel(t0)) - kernel(t0 + T))[inner].max() / change)
     assert errors[0] < 0.1  # measured 0.043
-    assert errors[1] < 0.7 * errors[0]  # measured ratio 0.5
+    assert errors[1] < 0.7 * errors[0]  # measured 0.015 (ratio 0.35)
 
 def _chain_reference(n, m, a, lg_b):
     """log of the solution of a path-graph system (diag m+deg*a, off -a) by the
