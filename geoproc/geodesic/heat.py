@@ -19,7 +19,6 @@ from geoproc.geodesic.operators import (
     face_gradient_matrix,
     factor_sparse,
     laplacian_and_mass,
-    normalized_direction,
     per_face_vectors,
 )
 from geoproc.geodesic.poisson import PoissonSolver
@@ -73,9 +72,7 @@ class HeatMethodSolver:
 
     def distance_from_heat(self, u: np.ndarray, sources: np.ndarray) -> np.ndarray:
         """Normalize ``-grad u``, Poisson-solve and shift so the sources are at 0."""
-        X = -normalized_direction(per_face_vectors(self.G, u))
-        phi = self.poisson.solve(self.D @ X.T.reshape(-1))
-        return self.poisson.shift_to_sources(phi, sources)
+        return self.poisson.distance_from_direction(self.D, per_face_vectors(self.G, u), sources)
 
     def solve(self, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance (n,) to the nearest source and the heat ``u`` it came from."""

@@ -27,7 +27,6 @@ from geoproc.geodesic.operators import (
     divergence_matrix,
     face_gradient_matrix,
     laplacian_and_mass,
-    normalized_direction,
     per_face_vectors,
 )
 from geoproc.geodesic.poisson import PoissonSolver
@@ -129,9 +128,7 @@ class LogHeatSolver:
             g = per_face_vectors(self.G, np.where(np.isfinite(w), w, w[np.isfinite(w)].min()))
         else:
             g = face_heat_direction(self.coef, self.F, w)
-        X = -normalized_direction(g)
-        phi = self.poisson.solve(self.D @ X.T.reshape(-1))
-        return self.poisson.shift_to_sources(phi, sources)
+        return self.poisson.distance_from_direction(self.D, g, sources)
 
     def solve(self, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance (n,) to the nearest source and the ``w = log u`` it came from."""

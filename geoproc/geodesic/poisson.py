@@ -6,7 +6,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from geoproc.geodesic.operators import factor_sparse
+from geoproc.geodesic.operators import factor_sparse, normalized_direction
 
 
 class PoissonSolver:
@@ -40,6 +40,13 @@ class PoissonSolver:
         if self._lu is not None:
             phi[self.keep] = self._lu.solve(-np.asarray(b, dtype=np.float64)[self.keep])
         return phi
+
+    def distance_from_direction(self, D: sp.spmatrix, g: np.ndarray, sources: np.ndarray) -> np.ndarray:
+        """The heat method's last two steps: ``X = -g / |g|`` per face (``g`` (m, 3)
+        parallel to the heat gradient), ``L phi = D X`` (``D`` (n, 3m) the integrated
+        divergence), shifted so the sources are at 0. Returns ``phi`` (n,)."""
+        X = -normalized_direction(g)
+        return self.shift_to_sources(self.solve(D @ X.T.reshape(-1)), sources)
 
     def shift_to_sources(self, phi: np.ndarray, sources: np.ndarray) -> np.ndarray:
         """Shift ``phi`` per component so its mean over that component's sources is 0."""
