@@ -134,6 +134,20 @@ def _gaps(v, g, f, half, reach, adj_ptr, adj_nbr, out):
     return k
 
 
+@numba.njit(cache=True, inline="always")
+def _enqueue_closed_ring(v, adj_ptr, adj_nbr, inq, queue, head, size):
+    """Append ``v`` and its neighbours that are not queued yet to the ring buffer
+    ``queue`` (capacity n, ``size`` entries from ``head``); returns the new size."""
+    n = queue.shape[0]
+    for j in range(adj_ptr[v], adj_ptr[v + 1] + 1):
+        w = v if j == adj_ptr[v + 1] else adj_nbr[j]
+        if not inq[w]:
+            inq[w] = True
+            queue[(head + size) % n] = w
+            size += 1
+    return size
+
+
 @numba.njit(cache=True)
 def refine_types(g, f, half, want, adj_ptr, adj_nbr, vf_ptr, vf_tri, F, boundary, max_moves):
     """Local search on g (in place): single-vertex moves that lower
@@ -236,21 +250,11 @@ def refine_types(g, f, half, want, adj_ptr, adj_nbr, vf_ptr, vf_tri, F, boundary
                 g[v] = cv_best
                 g[best_u] = cu_best
                 moves += 1
-                for w0 in (v, best_u):
-                    for jj in range(adj_ptr[w0], adj_ptr[w0 + 1] + 1):
-                        w = w0 if jj == adj_ptr[w0 + 1] else adj_nbr[jj]
-                        if not inq[w]:
-                            inq[w] = True
-                            queue[(head + size) % n] = w
-                            size += 1
+                size = _enqueue_closed_ring(v, adj_ptr, adj_nbr, inq, queue, head, size)
+                size = _enqueue_closed_ring(best_u, adj_ptr, adj_nbr, inq, queue, head, size)
             continue
         g[v] = best_x
         if best_x != old:
             moves += 1
-            for j in range(adj_ptr[v], adj_ptr[v + 1] + 1):
-                w = v if j == adj_ptr[v + 1] else adj_nbr[j]
-                if not inq[w]:
-                    inq[w] = True
-                    queue[(head + size) % n] = w
-                    size += 1
+            size = _enqueue_closed_ring(v, adj_ptr, adj_nbr, inq, queue, head, size)
     return moves
