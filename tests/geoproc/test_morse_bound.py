@@ -104,22 +104,38 @@ def contradictions(cx, f, h, kmin, kmax):
     return sorted(bad)
 
 
-def _min_max_change(rows, cols, vals, lb, ub, k, nvar, binary):
-    """Solve the window program: columns 0..k-1 the values g, column k the bound
-    t >= |g - f| (minimized), the columns ``binary`` 0/1 orientation bits, every
-    column after k in [0, 1] (the continuous ones as well)."""
-    A = coo_matrix((vals, (rows, cols)), shape=(len(lb), nvar)).tocsr()
-    cost = np.zeros(nvar)
-    cost[k] = 1.0
-    integ = np.zeros(nvar)
-    integ[binary] = 1
-    lo_b = np.full(nvar, -np.inf)
-    hi_b = np.full(nvar, np.inf)
-    lo_b[k:] = 0.0
-    hi_b[k + 1:] = 1.0
-    res = milp(cost, constraints=LinearConstraint(A, lb, ub), integrality=integ, bounds=Bounds(lo_b, hi_b))
-    assert res.status == 0, res.message
-    return float(res.fun)
+class _WindowProgram:
+    """Sparse rows ``lo <= sum a_c z_c <= hi`` of a window program, and its solve."""
+
+    def __init__(self):
+        self.rows, self.cols, self.vals, self.lb, self.ub = [], [], [], [], []
+
+    def row(self, entries, lo_, hi_):
+        r = len(self.lb)
+        for c, a in entries:
+            self.rows.append(r)
+            self.cols.append(c)
+            self.vals.append(a)
+        self.lb.append(lo_)
+        self.ub.append(hi_)
+
+    def min_max_change(self, k, nvar, binary):
+        """Columns 0..k-1 the values g, column k the bound t >= |g - f| (minimized),
+        the columns ``binary`` 0/1 orientation bits, every column after k in [0, 1]
+        (the continuous ones as well). Returns the least t."""
+        A = coo_matrix((self.vals, (self.rows, self.cols)), shape=(len(self.lb), nvar)).tocsr()
+        cost = np.zeros(nvar)
+        cost[k] = 1.0
+        integ = np.zeros(nvar)
+        integ[binary] = 1
+        lo_b = np.full(nvar, -np.inf)
+        hi_b = np.full(nvar, np.inf)
+        lo_b[k:] = 0.0
+        hi_b[k + 1:] = 1.0
+        res = milp(cost, constraints=LinearConstraint(A, self.lb, self.ub), integrality=integ,
+                   bounds=Bounds(lo_b, hi_b))
+        assert res.status == 0, res.message
+        return float(res.fun)
 
 
 def window_lower_bound(cx, f, kmin, kmax, inner):
@@ -130,17 +146,9 @@ def window_lower_bound(cx, f, kmin, kmax, inner):
     col = {int(v): i for i, v in enumerate(verts)}
     k = len(verts)
     big = 4.0 * (f[verts].max() - f[verts].min()) + 1.0
-    rows, cols, vals, lb, ub = [], [], [], [], []
+    prog = _WindowProgram()
+    row = prog.row
     nz = [k + 1]  # next binary column; column k is t
-
-    def row(entries, lo_, hi_):
-        r = len(lb)
-        for c, a in entries:
-            rows.append(r)
-            cols.append(c)
-            vals.append(a)
-        lb.append(lo_)
-        ub.append(hi_)
 
     for v in inner:
         for s, keep in ((1.0, kmin[v]), (-1.0, kmax[v])):
@@ -160,7 +168,7 @@ def window_lower_bound(cx, f, kmin, kmax, inner):
     for i, v in enumerate(verts):  # |g_v - f_v| <= t
         row([(i, 1.0), (k, -1.0)], -np.inf, f[v])
         row([(i, 1.0), (k, 1.0)], f[v], np.inf)
-    return _min_max_change(rows, cols, vals, lb, ub, k, nz[0], np.arange(k + 1, nz[0]))
+    return prog.min_max_change(k, nz[0], np.arange(k + 1, nz[0]))
 
 
 def wanted_types(cx, f, P):
@@ -192,18 +200,11 @@ def typed_window_lower_bound(cx, f, want, inner):
     col = {int(v): i for i, v in enumerate(verts)}
     k = len(verts)
     big = 4.0 * (f[verts].max() - f[verts].min()) + 1.0
-    rows, cols, vals, lb, ub, binary = [], [], [], [], [], []
+    prog = _WindowProgram()
+    row = prog.row
+    binary = []
     nz = [k + 1]
     bits = {}
-
-    def row(entries, lo_, hi_):
-        r = len(lb)
-        for c, a in entries:
-            rows.append(r)
-            cols.append(c)
-            vals.append(a)
-        lb.append(lo_)
-        ub.append(hi_)
 
     def below(c, a):
         """[a below c] as (entries, constant)."""
@@ -248,7 +249,7 @@ def typed_window_lower_bound(cx, f, want, inner):
     for i, v in enumerate(verts):
         row([(i, 1.0), (k, -1.0)], -np.inf, f[v])
         row([(i, 1.0), (k, 1.0)], f[v], np.inf)
-    return _min_max_change(rows, cols, vals, lb, ub, k, nz[0], binary)
+    return prog.min_max_change(k, nz[0], binary)
 
 
 def ball(cx, v, radius):
