@@ -24,8 +24,8 @@ import scipy.sparse as sp
 
 from geoproc.geodesic.log_ode import LogODESolver
 from geoproc.geodesic.operators import (
+    cotan_laplacian,
     divergence_matrix,
-    face_gradient_matrix,
     laplacian_and_mass,
     per_face_vectors,
 )
@@ -33,18 +33,33 @@ from geoproc.geodesic.poisson import PoissonSolver
 from geoproc.mesh.topology import boundary_vertices
 
 
-def face_gradient_coefficients(G: sp.spmatrix, F: np.ndarray) -> np.ndarray:
+def face_gradient_coefficients(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(3, m, 3) gradient weights: ``grad f`` on face k, axis a, is
-    ``sum_c coef[a, k, c] * f[F[k, c]]``, read from ``G`` (3m, n)."""
-    m = len(F)
-    coef = np.zeros((3, m, 3))
-    G = sp.csr_matrix(G)
-    for axis in range(3):
-        blk = G[axis * m:(axis + 1) * m].tocoo()
-        for c in range(3):
-            hit = blk.col == F[blk.row, c]
-            np.add.at(coef[axis, :, c], blk.row[hit], blk.data[hit])
+    ``sum_c coef[a, k, c] * f[F[k, c]]`` (unit: 1 / length).
+
+    The gradient of the hat function of corner c is ``N x e_c / |N|^2``, with
+    ``N`` the face's (unnormalized) normal and ``e_c`` the edge opposite c,
+    oriented counter-clockwise: the weights of ``igl.grad``, formed directly.
+    Zero-area faces get zero weights.
+    """
+    X = V[F]  # (m, 3 corners, 3)
+    N = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+    nn = np.einsum("ka,ka->k", N, N)
+    inv = np.divide(1.0, nn, out=np.zeros_like(nn), where=nn > 0)
+    coef = np.empty((3, len(F), 3))
+    for c in range(3):
+        e = X[:, (c + 2) % 3] - X[:, (c + 1) % 3]
+        coef[:, :, c] = (np.cross(N, e) * inv[:, None]).T
     return coef
+
+
+def gradient_matrix_from_coefficients(coef: np.ndarray, F: np.ndarray, n: int) -> sp.csr_matrix:
+    """(3m, n) face gradient matrix (rows ``a m + k``, the layout of ``igl.grad``)
+    from the weights ``coef`` (3, m, 3) of :func:`face_gradient_coefficients`."""
+    m = len(F)
+    rows = np.broadcast_to((np.arange(3)[:, None] * m + np.arange(m))[:, :, None], coef.shape)
+    cols = np.broadcast_to(F[None], coef.shape)
+    return sp.csr_matrix((coef.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * m, n))
 
 
 def face_heat_direction(coef: np.ndarray, F: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -59,6 +74,11 @@ def face_heat_direction(coef: np.ndarray, F: np.ndarray, w: np.ndarray) -> np.nd
         s = np.exp(wf - top)
     s[~np.isfinite(top[:, 0])] = 0.0
     return np.einsum("akc,kc->ka", coef, s)
+
+
+def poisson_laplacian(V: np.ndarray, F: np.ndarray, kind: str) -> sp.csr_matrix:
+    """(n, n) Laplacian of the Poisson step, without the mass the heat step needs."""
+    return cotan_laplacian(V, F) if kind == "cotan" else laplacian_and_mass(V, F, kind)[0]
 
 
 class LogHeatSolver:
@@ -100,10 +120,10 @@ class LogHeatSolver:
                 Lc = sp.csr_matrix(L)
                 self._dirichlet = LogODESolver(Lc[self.interior][:, self.interior], M[self.interior],
                                                t / steps)
-        self.G = face_gradient_matrix(V, F)
-        self.coef = face_gradient_coefficients(self.G, F)
+        self.coef = face_gradient_coefficients(V, F)
+        self.G = gradient_matrix_from_coefficients(self.coef, F, self.n)
         self.D = divergence_matrix(V, F, self.G)
-        self.poisson = PoissonSolver(L if laplacian == poisson else laplacian_and_mass(V, F, poisson)[0])
+        self.poisson = PoissonSolver(L if laplacian == poisson else poisson_laplacian(V, F, poisson))
 
     def log_heat(self, sources: np.ndarray) -> np.ndarray:
         """(n,) ``w = log u`` at the final time from ``u0 = 1`` at the sources."""

@@ -312,3 +312,20 @@ def test_intrinsic_delaunay_laplacian_matches_robust_laplacian(shared_data):
     Lr, Mr = robust_laplacian.mesh_laplacian(m.V, m.F, mollify_factor=0.0)
     assert abs(L + Lr).max() < 1e-9 * abs(Lr).max()
     assert np.abs(M - Mr.diagonal()).max() < 1e-12 * M.max()
+
+
+def test_face_gradient_weights_equal_libigl_grad(make_fixtures):
+    import igl
+
+    from geoproc.geodesic.log_heat import face_gradient_coefficients, gradient_matrix_from_coefficients
+
+    V, F = make_fixtures.icosphere(2)
+    V = V * np.array([1.0, 0.5, 2.0])  # anisotropic: faces of varied shapes
+    G = gradient_matrix_from_coefficients(face_gradient_coefficients(V, F), F, len(V))
+    ref = sp.csr_matrix(igl.grad(V, F))
+    assert abs(G - ref).max() <= 1e-10 * abs(ref).max()
+    # a linear function's gradient is its slope projected onto each face's plane
+    a = np.array([0.3, -1.2, 0.7])
+    N = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    N /= np.linalg.norm(N, axis=1, keepdims=True)
+    assert np.allclose((G @ (V @ a)).reshape(3, -1).T, a - (N @ a)[:, None] * N, atol=1e-12)
