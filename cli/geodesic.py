@@ -11,7 +11,7 @@ import numpy as np
 import typer
 
 from geoproc.errors import InputError, UsageError
-from geoproc.geodesic.distance import DEFAULT_LAPLACIAN, METHODS
+from geoproc.geodesic.distance import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, METHODS
 from geoproc_cli.common import (
     CheckOpt,
     DebugOpt,
@@ -27,6 +27,12 @@ Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
 class Laplacian(StrEnum):
     cotan = "cotan"
     intrinsic_delaunay = "intrinsic-delaunay"
+
+
+class Operators(StrEnum):
+    auto = "auto"
+    extrinsic = "extrinsic"
+    intrinsic = "intrinsic"
 
 
 class Solver(StrEnum):
@@ -81,6 +87,12 @@ def geodesic(
     laplacian: Annotated[Laplacian | None, typer.Option("--laplacian", help="Default: cotan for heat, "
                          "varadhan, log-splitting; intrinsic-delaunay for log-ode and log-heat.",
                          show_default=False)] = None,
+    operators: Annotated[Operators | None, typer.Option("--operators", help="heat and log-heat: gradient, "
+                         "divergence and Poisson Laplacian on the mesh (extrinsic), on its intrinsic Delaunay "
+                         "triangulation (intrinsic: no sliver triangles; the heat step then uses its Laplacian "
+                         "too), or auto: intrinsic when at least 0.5% of the faces have an angle below 5 "
+                         "degrees. Default: extrinsic for heat, auto for log-heat.",
+                         show_default=False)] = None,
     solver: Annotated[Solver, typer.Option("--solver", help="log-ode solver: lu (log-space LU, fast), "
                       "newton, or cvxpy (Clarabel; reference, slow).")] = Solver.lu,
     reference: Annotated[Reference | None, typer.Option("--reference", help="Compare with exact "
@@ -110,6 +122,7 @@ def geodesic(
         "mesh": mesh, "output": output, "sources": list(source or []), "sources_file": sources_file,
         "method": m_name, "time_factor": time_factor, "time": time, "steps": steps,
         "laplacian": laplacian.value if laplacian else DEFAULT_LAPLACIAN.get(m_name),
+        "operators": operators.value if operators else DEFAULT_OPERATORS.get(m_name),
         "solver": solver.value, "reference": reference.value if reference else None,
         "field_name": field_name, "render": render, "clean": not no_clean,
     }
@@ -134,7 +147,8 @@ def geodesic(
         with run.progress(f"geodesic {m_name}", 1.0) as update:
             res = geodesic_distance(m.V, m.F, srcs, m_name, time_factor=time_factor, time=time,
                                     steps=steps, laplacian=laplacian.value if laplacian else None,
-                                    solver=solver.value, path=m.log.path, progress=update)
+                                    solver=solver.value, operators=operators.value if operators else None,
+                                    path=m.log.path, progress=update)
         run.timings["setup"] = res.timings.get("setup", 0.0)
         run.timings["solve"] = res.timings.get("solve", 0.0)
         d = res.distance

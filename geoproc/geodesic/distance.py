@@ -25,6 +25,11 @@ DEFAULT_LAPLACIAN = {
     "log-heat": "intrinsic-delaunay",
 }
 #: Methods that need an edge- and vertex-manifold mesh (MMP walks vertex fans).
+OPERATORS = ("auto", "extrinsic", "intrinsic")
+#: Where heat and log-heat take gradient, divergence and the Poisson Laplacian
+#: unless told otherwise: the paper's extrinsic operators for heat; for
+#: log-heat, intrinsic on meshes with slivers (geoproc.geodesic.intrinsic).
+DEFAULT_OPERATORS = {"heat": "extrinsic", "log-heat": "auto"}
 NEEDS_MANIFOLD = ("exact",)
 #: Methods that need every edge to have at most two faces (boundary detection,
 #: per-face gradients); a vertex joining separate fans is fine for them.
@@ -109,8 +114,8 @@ def source_submesh(V: np.ndarray, F: np.ndarray, sources: np.ndarray):
 
 def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat", *,
                       time_factor: float | None = 1.0, time: float | None = None, steps: int = 1,
-                      laplacian: str | None = None, solver: str = "lu", path: str | None = None,
-                      progress=None) -> GeodesicResult:
+                      laplacian: str | None = None, solver: str = "lu", operators: str | None = None,
+                      path: str | None = None, progress=None) -> GeodesicResult:
     """Geodesic distance from ``sources`` by ``method`` (see :data:`METHODS`).
 
     Parameters
@@ -133,6 +138,11 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         Default per :data:`DEFAULT_LAPLACIAN`.
     solver : {"lu", "newton", "cvxpy"}
         Log-ODE solver (``log-ode`` only; ``log-splitting`` always uses Clarabel).
+    operators : {"auto", "extrinsic", "intrinsic"}, optional
+        Where ``heat`` and ``log-heat`` take the gradient, divergence and
+        Poisson Laplacian (see :class:`~geoproc.geodesic.log_heat.LogHeatSolver`);
+        default per :data:`DEFAULT_OPERATORS`. The choice made is
+        ``stats["operators"]``.
     path : str, optional
         Named in error messages.
     progress : callable, optional
@@ -144,6 +154,8 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         raise UsageError(f"--steps must be at least 1, got {steps}")
     if solver not in SOLVERS:
         raise UsageError(f"unknown solver '{solver}'; choose one of {', '.join(SOLVERS)}")
+    if operators is not None and operators not in OPERATORS:
+        raise UsageError(f"unknown operators '{operators}'; choose one of {', '.join(OPERATORS)}")
     if laplacian is not None and laplacian not in LAPLACIANS:
         raise UsageError(f"unknown Laplacian '{laplacian}'; choose cotan or intrinsic-delaunay")
     if len(F) == 0:
@@ -176,7 +188,8 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
     timings: dict = {}
     t0 = _now()
-    d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path)
+    ops = operators or DEFAULT_OPERATORS.get(method)
+    d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
     timings.setdefault("solve", _now() - t0 - timings.get("setup", 0.0))
     d = np.full(n, np.inf)
     d[keep] = d2
@@ -187,7 +200,7 @@ def _now() -> float:
     return time.perf_counter()
 
 
-def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progress, path=None):
+def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progress, path=None, ops=None):
     if method == "exact":
         from geoproc.geodesic.exact import exact_geodesic_distance
 
@@ -197,8 +210,9 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         from geoproc.geodesic.heat import HeatMethodSolver
 
         a = _now()
-        hs = HeatMethodSolver(V, F, t, lap)
+        hs = HeatMethodSolver(V, F, t, lap, ops)
         timings["setup"] = _now() - a
+        stats["operators"] = hs.operators
         a = _now()
         d, u = hs.solve(src)
         timings["solve"] = _now() - a
@@ -209,8 +223,9 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         from geoproc.geodesic.log_heat import LogHeatSolver
 
         a = _now()
-        ls = LogHeatSolver(V, F, t, steps, lap)
+        ls = LogHeatSolver(V, F, t, steps, lap, operators=ops)
         timings["setup"] = _now() - a
+        stats["operators"] = ls.operators
         a = _now()
         d, w = ls.solve(src)
         timings["solve"] = _now() - a

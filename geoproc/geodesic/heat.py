@@ -13,13 +13,13 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from geoproc.geodesic.intrinsic import face_operators_triangulation, intrinsic_face_operators
 from geoproc.geodesic.operators import (
     cotan_laplacian,
     divergence_matrix,
     face_gradient_matrix,
     factor_sparse,
     laplacian_and_mass,
-    per_face_vectors,
 )
 from geoproc.geodesic.poisson import PoissonSolver
 from geoproc.mesh.topology import boundary_vertices
@@ -36,13 +36,23 @@ class HeatMethodSolver:
     t : float
         Heat time step (area unit), > 0.
     laplacian : {"cotan", "intrinsic-delaunay"}
-        Laplacian of the heat step; the Poisson step always uses the cotan
-        Laplacian, the one consistent with the face gradient.
+        Laplacian of the heat step; with extrinsic operators the Poisson step
+        uses the cotan Laplacian, the one consistent with the face gradient.
+    operators : {"extrinsic", "intrinsic", "auto"}
+        Gradient, divergence and Poisson Laplacian on the mesh (the paper's
+        method) or on its intrinsic Delaunay triangulation, as in
+        :class:`geoproc.geodesic.log_heat.LogHeatSolver` (``auto``: intrinsic
+        on meshes with slivers). The choice made is in ``self.operators``.
     """
 
-    def __init__(self, V: np.ndarray, F: np.ndarray, t: float, laplacian: str = "cotan"):
+    def __init__(self, V: np.ndarray, F: np.ndarray, t: float, laplacian: str = "cotan",
+                 operators: str = "extrinsic"):
         self.n = len(V)
-        L, M = laplacian_and_mass(V, F, laplacian)
+        tri = face_operators_triangulation(V, F, operators)
+        if tri is not None:  # the heat step on the same intrinsic triangulation
+            L, M = tri[0], tri[1]
+        else:
+            L, M = laplacian_and_mass(V, F, laplacian)
         self.M = M
         A = (sp.diags(M) - t * L).tocsc()
         self._neumann = factor_sparse(A)
@@ -54,9 +64,15 @@ class HeatMethodSolver:
             self.interior = np.flatnonzero(interior)
             Ai = A[self.interior][:, self.interior].tocsc()
             self._dirichlet = factor_sparse(Ai) if Ai.shape[0] else None
-        self.G = face_gradient_matrix(V, F)
-        self.D = divergence_matrix(V, F, self.G)
-        self.poisson = PoissonSolver(L if laplacian == "cotan" else cotan_laplacian(V, F))
+        if tri is None:
+            self.operators, self.axes = "extrinsic", 3
+            self.G = face_gradient_matrix(V, F)
+            self.D = divergence_matrix(V, F, self.G)
+            self.poisson = PoissonSolver(L if laplacian == "cotan" else cotan_laplacian(V, F))
+        else:
+            self.operators, self.axes = "intrinsic", 2
+            _, self.G, self.D = intrinsic_face_operators(tri[2], tri[3], self.n)
+            self.poisson = PoissonSolver(tri[0])
 
     def heat(self, sources: np.ndarray) -> np.ndarray:
         """(n,) heat ``u`` after one step from a unit impulse ``u0 = 1`` at the sources."""
@@ -72,7 +88,8 @@ class HeatMethodSolver:
 
     def distance_from_heat(self, u: np.ndarray, sources: np.ndarray) -> np.ndarray:
         """Normalize ``-grad u``, Poisson-solve and shift so the sources are at 0."""
-        return self.poisson.distance_from_direction(self.D, per_face_vectors(self.G, u), sources)
+        g = (self.G @ u).reshape(self.axes, -1).T
+        return self.poisson.distance_from_direction(self.D, g, sources)
 
     def solve(self, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance (n,) to the nearest source and the heat ``u`` it came from."""
@@ -82,6 +99,6 @@ class HeatMethodSolver:
 
 
 def heat_method_distance(V: np.ndarray, F: np.ndarray, sources: np.ndarray, t: float,
-                         laplacian: str = "cotan") -> np.ndarray:
+                         laplacian: str = "cotan", operators: str = "extrinsic") -> np.ndarray:
     """(n,) heat-method distance from ``sources`` (see :class:`HeatMethodSolver`)."""
-    return HeatMethodSolver(V, F, t, laplacian).solve(sources)[0]
+    return HeatMethodSolver(V, F, t, laplacian, operators).solve(sources)[0]

@@ -15,6 +15,14 @@ than the intrinsic-Delaunay Laplacian in the Poisson step on every mesh. On a
 mesh with boundary, ``u`` is the average of the Neumann and Dirichlet
 solutions (``boundary="average"``, as in the heat method), formed in log space
 with ``logaddexp``.
+
+On meshes with sliver triangles (``operators="auto"``: at least 0.5 % of the
+faces with a corner angle below 5 degrees) the gradient, divergence and Poisson
+Laplacian are taken on the intrinsic Delaunay triangulation instead
+(:mod:`geoproc.geodesic.intrinsic`), where the extrinsic gradient's 1/height
+entries no longer make the Poisson solution spike. On well-shaped meshes the
+extrinsic pairing above was the more accurate one (bunny, fertility, armadillo
+over ten sources each), so ``auto`` keeps it there.
 """
 
 from __future__ import annotations
@@ -22,12 +30,16 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from geoproc.geodesic.intrinsic import (
+    face_operators_triangulation,
+    intrinsic_face_operators,
+    stack_gradient_coefficients,
+)
 from geoproc.geodesic.log_ode import LogODESolver
 from geoproc.geodesic.operators import (
     cotan_laplacian,
     divergence_matrix,
     laplacian_and_mass,
-    per_face_vectors,
 )
 from geoproc.geodesic.poisson import PoissonSolver
 from geoproc.mesh.topology import boundary_vertices
@@ -51,15 +63,6 @@ def face_gradient_coefficients(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         e = X[:, (c + 2) % 3] - X[:, (c + 1) % 3]
         coef[:, :, c] = (np.cross(N, e) * inv[:, None]).T
     return coef
-
-
-def gradient_matrix_from_coefficients(coef: np.ndarray, F: np.ndarray, n: int) -> sp.csr_matrix:
-    """(3m, n) face gradient matrix (rows ``a m + k``, the layout of ``igl.grad``)
-    from the weights ``coef`` (3, m, 3) of :func:`face_gradient_coefficients`."""
-    m = len(F)
-    rows = np.broadcast_to((np.arange(3)[:, None] * m + np.arange(m))[:, :, None], coef.shape)
-    cols = np.broadcast_to(F[None], coef.shape)
-    return sp.csr_matrix((coef.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * m, n))
 
 
 def face_heat_direction(coef: np.ndarray, F: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -101,14 +104,27 @@ class LogHeatSolver:
         On a mesh with boundary, average the Neumann and Dirichlet heat, or
         Neumann only.
     poisson : {"cotan", "intrinsic-delaunay"}
-        Laplacian of the Poisson step (with the mesh's own divergence).
+        Laplacian of the Poisson step with extrinsic operators (with the
+        mesh's own divergence).
+    operators : {"auto", "extrinsic", "intrinsic"}
+        Where the gradient, divergence and Poisson Laplacian live: on the mesh
+        itself, or on its intrinsic Delaunay triangulation
+        (:mod:`geoproc.geodesic.intrinsic`; its Laplacian then serves the
+        Poisson step). ``auto``: intrinsic when at least
+        :data:`~geoproc.geodesic.intrinsic.SLIVER_SHARE` of the faces have a
+        corner angle below :data:`~geoproc.geodesic.intrinsic.SLIVER_ANGLE_DEG`.
+        The choice made is in ``self.operators``.
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, t: float, steps: int = 1,
                  laplacian: str = "intrinsic-delaunay", direction: str = "heat",
-                 boundary: str = "average", poisson: str = "cotan"):
-        L, M = laplacian_and_mass(V, F, laplacian)
-        self.n, self.steps, self.F, self.direction = len(V), steps, F, direction
+                 boundary: str = "average", poisson: str = "cotan", operators: str = "auto"):
+        tri = face_operators_triangulation(V, F, operators)  # None: extrinsic
+        if tri is not None:  # the heat step on the same intrinsic triangulation
+            L, M = tri[0], tri[1]
+        else:
+            L, M = laplacian_and_mass(V, F, laplacian)
+        self.n, self.steps, self.direction = len(V), steps, direction
         self.log_ode = LogODESolver(L, M, t / steps)
         self.boundary = boundary_vertices(F) if boundary == "average" else np.zeros(0, dtype=np.int64)
         self._dirichlet = None
@@ -120,10 +136,16 @@ class LogHeatSolver:
                 Lc = sp.csr_matrix(L)
                 self._dirichlet = LogODESolver(Lc[self.interior][:, self.interior], M[self.interior],
                                                t / steps)
-        self.coef = face_gradient_coefficients(V, F)
-        self.G = gradient_matrix_from_coefficients(self.coef, F, self.n)
-        self.D = divergence_matrix(V, F, self.G)
-        self.poisson = PoissonSolver(L if laplacian == poisson else poisson_laplacian(V, F, poisson))
+        if tri is None:
+            self.operators, self.F = "extrinsic", F
+            self.coef = face_gradient_coefficients(V, F)
+            self.G = stack_gradient_coefficients(self.coef, F, self.n)
+            self.D = divergence_matrix(V, F, self.G)
+            self.poisson = PoissonSolver(L if laplacian == poisson else poisson_laplacian(V, F, poisson))
+        else:
+            self.operators, self.F = "intrinsic", tri[2]
+            self.coef, self.G, self.D = intrinsic_face_operators(tri[2], tri[3], self.n)
+            self.poisson = PoissonSolver(tri[0])
 
     def log_heat(self, sources: np.ndarray) -> np.ndarray:
         """(n,) ``w = log u`` at the final time from ``u0 = 1`` at the sources."""
@@ -145,7 +167,7 @@ class LogHeatSolver:
     def distance_from_log_heat(self, w: np.ndarray, sources: np.ndarray) -> np.ndarray:
         """Normalize the face direction, Poisson-solve, shift so the sources are 0."""
         if self.direction == "log":
-            g = per_face_vectors(self.G, np.where(np.isfinite(w), w, w[np.isfinite(w)].min()))
+            g = (self.G @ np.where(np.isfinite(w), w, w[np.isfinite(w)].min())).reshape(len(self.coef), -1).T
         else:
             g = face_heat_direction(self.coef, self.F, w)
         return self.poisson.distance_from_direction(self.D, g, sources)

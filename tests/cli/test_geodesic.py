@@ -216,3 +216,20 @@ def test_log_splitting_orders_vertices_like_exact_geodesics(cli, fixture_dir, tm
     met = _report(rep)["metrics"]
     assert met["pearson_r"] > 0.99  # measured 0.9987
     assert met["nonfinite_log_heat"] == 0 and np.isfinite(load_mesh(out).vertex_fields["distance"]).all()
+
+
+def test_log_heat_goes_intrinsic_on_a_mesh_of_slivers(cli, make_fixtures, tmp_path):
+    V, F = make_fixtures.torus(r=0.4, nu=60, nv=20, twist=3)  # 40% of faces with an angle below 5 deg
+    src = tmp_path / "slivers.ply"
+    save_mesh(src, Mesh(V, F))
+    errors = {}
+    for method, ops in (("log-heat", None), ("heat", None), ("heat", "intrinsic")):
+        rep = tmp_path / "r.json"
+        p = cli("geodesic", src, "-s", "0", "-m", method, *(["--operators", ops] if ops else []),
+                "--reference", "exact", "-o", tmp_path / "d.ply", "--report", rep)
+        assert p.returncode == 0, p.stderr
+        met = _report(rep)["metrics"]
+        errors[method, ops] = (met["operators"], met["mean_relative_error"])
+    assert errors["log-heat", None][0] == "intrinsic" and errors["log-heat", None][1] < 0.03
+    assert errors["heat", None][0] == "extrinsic" and errors["heat", None][1] > 0.1  # the paper's operators
+    assert errors["heat", "intrinsic"][1] < 0.03

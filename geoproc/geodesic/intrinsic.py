@@ -1,0 +1,133 @@
+"""Gradient and divergence on the intrinsic Delaunay triangulation, for meshes with slivers.
+
+The extrinsic face gradient of a triangle scales with the inverse of its
+heights: on a sliver (a corner angle near 0 or 180 degrees) it is
+ill-conditioned, and in the heat method the Poisson solution spikes there. The
+intrinsic Delaunay triangulation (edge flips on the same surface, libigl's
+``intrinsic_delaunay_cotmatrix``) has the same vertices and no such triangles.
+Each intrinsic triangle is known by its three edge lengths; it is laid out in
+its own 2D frame, where the gradient of a piecewise-linear function is a 2D
+vector per face. Its divergence ``D = -G^T A`` satisfies ``D G = L`` with ``L``
+the intrinsic Delaunay Laplacian, the pairing the Poisson step needs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from geoproc.geodesic.operators import (
+    _drop_rounding_negatives,
+    is_edge_manifold_nondegenerate,
+    negative_offdiagonal_count,
+)
+
+SLIVER_ANGLE_DEG = 5.0
+"""A face with a corner angle below this (degrees) counts as a sliver."""
+SLIVER_SHARE = 0.005
+"""``operators="auto"`` goes intrinsic when at least this share of faces are slivers."""
+
+
+def sliver_share(V: np.ndarray, F: np.ndarray, angle_deg: float = SLIVER_ANGLE_DEG) -> float:
+    """Share of faces (0..1) whose smallest corner angle is below ``angle_deg`` degrees.
+
+    The smallest angle is opposite the shortest edge: ``sin(a_min) = 2 A / (l_max l_mid)``.
+    """
+    X = V[F]
+    e = np.linalg.norm(X[:, [1, 2, 0]] - X[:, [2, 0, 1]], axis=2)  # (m, 3) edge lengths
+    e.sort(axis=1)
+    dbl = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = dbl / (e[:, 2] * e[:, 1])
+    return float(np.mean(~(s >= np.sin(np.radians(angle_deg)))))
+
+
+def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
+    """The intrinsic Delaunay triangulation of an edge-manifold mesh with its operators.
+
+    Returns
+    -------
+    (L, M, Fi, l) or None
+        ``L`` (n, n) its Laplacian (negative semi-definite, non-negative
+        off-diagonal weights), ``M`` (n,) its barycentric lumped mass (area
+        unit), ``Fi`` (m, 3) its faces on the same vertices and ``l`` (m, 3)
+        their edge lengths, ``l[f, c]`` opposite corner c (length unit).
+        None when the mesh is not edge-manifold, has zero-area faces, or the
+        flips leave a negative weight (callers then keep extrinsic operators).
+    """
+    if not is_edge_manifold_nondegenerate(V, F):
+        return None
+    import igl
+
+    Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
+    L = _drop_rounding_negatives(sp.csr_matrix(Li))
+    if negative_offdiagonal_count(L) or not np.isfinite(L.data).all():
+        return None
+    M = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
+    return L, np.asarray(M.diagonal(), dtype=np.float64), np.asarray(Fi, dtype=np.int64), np.asarray(l)
+
+
+def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gradient weights and areas of triangles given by their edge lengths.
+
+    Each face is laid out in its own 2D frame, corner 0 at the origin and
+    corner 1 on the x axis; the gradient of the hat function of corner c is
+    the edge opposite c turned by 90 degrees, over twice the area.
+
+    Parameters
+    ----------
+    l : (m, 3) float array
+        Edge lengths (length unit), ``l[f, c]`` opposite corner c.
+
+    Returns
+    -------
+    coef : (2, m, 3) float array
+        ``grad f`` on face k, axis a of its frame, is ``sum_c coef[a, k, c] f[k-th face's corner c]``
+        (1 / length unit); zero on zero-area faces.
+    area : (m,) float array
+        Face areas (area unit).
+    """
+    m = len(l)
+    l0, l1, l2 = l[:, 0], l[:, 1], l[:, 2]
+    x = (l2 * l2 + l1 * l1 - l0 * l0) / (2.0 * l2)
+    y = np.sqrt(np.maximum(l1 * l1 - x * x, 0.0))
+    P = np.stack([np.zeros((m, 2)), np.c_[l2, np.zeros(m)], np.c_[x, y]], axis=1)  # (m, 3, 2)
+    area = 0.5 * l2 * y
+    inv = np.divide(1.0, 2.0 * area, out=np.zeros(m), where=area > 0)
+    coef = np.empty((2, m, 3))
+    for c in range(3):
+        e = P[:, (c + 2) % 3] - P[:, (c + 1) % 3]
+        coef[0, :, c], coef[1, :, c] = -e[:, 1] * inv, e[:, 0] * inv
+    return coef, area
+
+
+def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str):
+    """The intrinsic Delaunay mesh (:func:`intrinsic_delaunay_mesh`) when ``operators``
+    asks for it, else None.
+
+    ``operators``: ``"extrinsic"`` (None), ``"intrinsic"``, or ``"auto"``
+    (intrinsic when at least :data:`SLIVER_SHARE` of the faces are slivers).
+    """
+    if operators not in ("auto", "extrinsic", "intrinsic"):
+        raise ValueError(f"unknown operators {operators!r}")
+    if operators == "intrinsic" or (operators == "auto" and sliver_share(V, F) >= SLIVER_SHARE):
+        return intrinsic_delaunay_mesh(V, F)
+    return None
+
+
+def intrinsic_face_operators(Fi: np.ndarray, l: np.ndarray, n: int):
+    """Gradient weights (2, m, 3), gradient (2m, n) and integrated divergence
+    ``-G^T diag(area)`` (n, 2m) of the triangulation ``(Fi, l)`` (n vertices),
+    with ``D G`` its cotan Laplacian."""
+    coef, area = intrinsic_gradient_coefficients(l)
+    G = stack_gradient_coefficients(coef, Fi, n)
+    return coef, G, sp.csr_matrix(-(G.T @ sp.diags(np.tile(area, 2))))
+
+
+def stack_gradient_coefficients(coef: np.ndarray, F: np.ndarray, n: int) -> sp.csr_matrix:
+    """(k m, n) sparse gradient (rows ``a m + face``, the layout of ``igl.grad``)
+    from per-face weights ``coef`` (k, m, 3) on the faces ``F`` (m, 3)."""
+    k, m = coef.shape[:2]
+    rows = np.broadcast_to((np.arange(k)[:, None] * m + np.arange(m))[:, :, None], coef.shape)
+    cols = np.broadcast_to(F[None], coef.shape)
+    return sp.csr_matrix((coef.ravel(), (rows.ravel(), cols.ravel())), shape=(k * m, n))
