@@ -37,7 +37,7 @@ from geoproc.denoise.guidance import guidance_normals
 from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
-from geoproc.denoise.vertex_update import update_vertices
+from geoproc.denoise.vertex_update import unfold_faces, update_vertices
 from geoproc.mesh.topology import boundary_vertices
 
 
@@ -92,6 +92,11 @@ class DenoiseParams:
         ``l1``: cut on the sparse normal Laplacian, in local mean edge lengths.
     feature_angle_deg : float
         ``dihedral``: the angle in degrees.
+    unfold_rounds : int
+        After each round's vertex update, at most this many umbrella
+        relaxations of the vertices of folded faces
+        (:func:`geoproc.denoise.vertex_update.unfold_faces`); 0 turns the
+        repair off.
     """
 
     outer_iterations: int | None = None
@@ -104,6 +109,7 @@ class DenoiseParams:
     features: str = "dihedral"
     feature_tau: float = 0.12
     feature_angle_deg: float = 30.0
+    unfold_rounds: int = 5
 
 
 FEATURE_METHODS = ("l1", "dihedral", "none")
@@ -254,6 +260,7 @@ def denoise_mesh(
     total = max(outer * inner, 1)
     done = 0
     sparse = np.zeros(len(F))
+    folded = 0
     for o in range(outer):
         if o:
             N, A = face_normals_and_areas(X, F)
@@ -272,6 +279,8 @@ def denoise_mesh(
             if progress is not None:
                 progress(done / total)
         X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input)
+        if p.unfold_rounds > 0:
+            X, folded = unfold_faces(X, F, N, edge_nb, fixed, N_input, p.unfold_rounds)
     info = {
         "noise_median_dihedral_deg": noise_deg,
         "noise_roughness": rough,
@@ -281,6 +290,8 @@ def denoise_mesh(
         "vertex_iterations": p.vertex_iterations,
         "sigma_r": sigma_r,
         "sigma_s": sigma_s,
+        "unfold_rounds": p.unfold_rounds,
+        "folded_faces": folded,
     }
     if p.features == "l1":
         feature, fres = l1_feature_faces(X, F, tau=p.feature_tau)
