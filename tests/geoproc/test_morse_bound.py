@@ -105,9 +105,17 @@ def contradictions(cx, f, h, kmin, kmax):
 
 
 class _WindowProgram:
-    """Sparse rows ``lo <= sum a_c z_c <= hi`` of a window program, and its solve."""
+    """A window program: the window (``inner`` vertices and their neighbours,
+    ``verts``, column ``col[v]`` for g_v, column ``k`` for the bound t, ``big``
+    for big-M rows), sparse rows ``lo <= sum a_c z_c <= hi``, and its solve."""
 
-    def __init__(self):
+    def __init__(self, cx, f, inner):
+        self.nb = lambda v: cx.adj_nbr[cx.adj_ptr[v]:cx.adj_ptr[v + 1]]
+        self.f = f
+        self.verts = np.unique(np.concatenate([inner] + [self.nb(v) for v in inner]))
+        self.col = {int(v): i for i, v in enumerate(self.verts)}
+        self.k = len(self.verts)
+        self.big = 4.0 * (f[self.verts].max() - f[self.verts].min()) + 1.0
         self.rows, self.cols, self.vals, self.lb, self.ub = [], [], [], [], []
 
     def row(self, entries, lo_, hi_):
@@ -119,10 +127,14 @@ class _WindowProgram:
         self.lb.append(lo_)
         self.ub.append(hi_)
 
-    def min_max_change(self, k, nvar, binary):
+    def min_max_change(self, nvar, binary):
         """Columns 0..k-1 the values g, column k the bound t >= |g - f| (minimized),
         the columns ``binary`` 0/1 orientation bits, every column after k in [0, 1]
         (the continuous ones as well). Returns the least t."""
+        k = self.k
+        for i, v in enumerate(self.verts):  # |g_v - f_v| <= t
+            self.row([(i, 1.0), (k, -1.0)], -np.inf, self.f[v])
+            self.row([(i, 1.0), (k, 1.0)], self.f[v], np.inf)
         A = coo_matrix((self.vals, (self.rows, self.cols)), shape=(len(self.lb), nvar)).tocsr()
         cost = np.zeros(nvar)
         cost[k] = 1.0
@@ -141,13 +153,8 @@ class _WindowProgram:
 def window_lower_bound(cx, f, kmin, kmax, inner):
     """Exact smallest max |g - f| over the window (inner vertices and their
     neighbours) for which every inner vertex gets its wanted status."""
-    nb = lambda v: cx.adj_nbr[cx.adj_ptr[v]:cx.adj_ptr[v + 1]]  # noqa: E731
-    verts = np.unique(np.concatenate([inner] + [nb(v) for v in inner]))
-    col = {int(v): i for i, v in enumerate(verts)}
-    k = len(verts)
-    big = 4.0 * (f[verts].max() - f[verts].min()) + 1.0
-    prog = _WindowProgram()
-    row = prog.row
+    prog = _WindowProgram(cx, f, inner)
+    nb, col, k, big, row = prog.nb, prog.col, prog.k, prog.big, prog.row
     nz = [k + 1]  # next binary column; column k is t
 
     for v in inner:
@@ -165,10 +172,7 @@ def window_lower_bound(cx, f, kmin, kmax, inner):
                     zs.append(z)
                     row([(col[int(v)], s), (col[int(w)], -s), (z, -big)], -big, np.inf)
                 row([(z, 1.0) for z in zs], 1.0, np.inf)
-    for i, v in enumerate(verts):  # |g_v - f_v| <= t
-        row([(i, 1.0), (k, -1.0)], -np.inf, f[v])
-        row([(i, 1.0), (k, 1.0)], f[v], np.inf)
-    return prog.min_max_change(k, nz[0], np.arange(k + 1, nz[0]))
+    return prog.min_max_change(nz[0], np.arange(k + 1, nz[0]))
 
 
 def wanted_types(cx, f, P):
@@ -195,13 +199,8 @@ def typed_window_lower_bound(cx, f, want, inner):
     (k = 0: regular), L < d inside, L = 0 for a minimum, L = d for a maximum.
     One binary per edge (which end is lower), the triangle products
     linearised; order relaxed to <=, so a lower bound for every such g."""
-    nb = lambda v: cx.adj_nbr[cx.adj_ptr[v]:cx.adj_ptr[v + 1]]  # noqa: E731
-    verts = np.unique(np.concatenate([inner] + [nb(v) for v in inner]))
-    col = {int(v): i for i, v in enumerate(verts)}
-    k = len(verts)
-    big = 4.0 * (f[verts].max() - f[verts].min()) + 1.0
-    prog = _WindowProgram()
-    row = prog.row
+    prog = _WindowProgram(cx, f, inner)
+    nb, col, k, big, row = prog.nb, prog.col, prog.k, prog.big, prog.row
     binary = []
     nz = [k + 1]
     bits = {}
@@ -246,10 +245,7 @@ def typed_window_lower_bound(cx, f, want, inner):
             row(eb + [(p, -1.0)], -kb, np.inf)
             ent.append((p, -1.0))
         row(ent, want[v] + 1 - const, want[v] + 1 - const)
-    for i, v in enumerate(verts):
-        row([(i, 1.0), (k, -1.0)], -np.inf, f[v])
-        row([(i, 1.0), (k, 1.0)], f[v], np.inf)
-    return prog.min_max_change(k, nz[0], binary)
+    return prog.min_max_change(nz[0], binary)
 
 
 def ball(cx, v, radius):
