@@ -13,15 +13,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.geodesic.intrinsic import face_operators_triangulation, intrinsic_face_operators
-from geoproc.geodesic.operators import (
-    cotan_laplacian,
-    divergence_matrix,
-    face_gradient_matrix,
-    factor_sparse,
-    laplacian_and_mass,
-)
-from geoproc.geodesic.poisson import PoissonSolver
+from geoproc.geodesic.heat_operators import heat_operators
+from geoproc.geodesic.operators import factor_sparse
 from geoproc.mesh.topology import boundary_vertices
 
 
@@ -48,13 +41,11 @@ class HeatMethodSolver:
     def __init__(self, V: np.ndarray, F: np.ndarray, t: float, laplacian: str = "cotan",
                  operators: str = "extrinsic"):
         self.n = len(V)
-        tri = face_operators_triangulation(V, F, operators)
-        if tri is not None:  # the heat step on the same intrinsic triangulation
-            L, M = tri[0], tri[1]
-        else:
-            L, M = laplacian_and_mass(V, F, laplacian)
-        self.M = M
-        A = (sp.diags(M) - t * L).tocsc()
+        ops = heat_operators(V, F, laplacian, operators)
+        self.operators, self.axes = ops.kind, len(ops.coef)
+        self.G, self.D, self.poisson = ops.G, ops.D, ops.poisson
+        self.M = ops.M
+        A = (sp.diags(ops.M) - t * ops.L).tocsc()
         self._neumann = factor_sparse(A)
         self.boundary = boundary_vertices(F)
         self._dirichlet = None
@@ -64,15 +55,6 @@ class HeatMethodSolver:
             self.interior = np.flatnonzero(interior)
             Ai = A[self.interior][:, self.interior].tocsc()
             self._dirichlet = factor_sparse(Ai) if Ai.shape[0] else None
-        if tri is None:
-            self.operators, self.axes = "extrinsic", 3
-            self.G = face_gradient_matrix(V, F)
-            self.D = divergence_matrix(V, F, self.G)
-            self.poisson = PoissonSolver(L if laplacian == "cotan" else cotan_laplacian(V, F))
-        else:
-            self.operators, self.axes = "intrinsic", 2
-            _, self.G, self.D = intrinsic_face_operators(tri[2], tri[3], self.n)
-            self.poisson = PoissonSolver(tri[0])
 
     def heat(self, sources: np.ndarray) -> np.ndarray:
         """(n,) heat ``u`` after one step from a unit impulse ``u0 = 1`` at the sources."""

@@ -16,11 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.geodesic.operators import (
-    _drop_rounding_negatives,
-    is_edge_manifold_nondegenerate,
-    negative_offdiagonal_count,
-)
+from geoproc.geodesic.operators import intrinsic_delaunay_mesh, stack_gradient_coefficients
 
 SLIVER_ANGLE_DEG = 5.0
 """A face with a corner angle below this (degrees) counts as a sliver."""
@@ -40,31 +36,6 @@ def sliver_share(V: np.ndarray, F: np.ndarray, angle_deg: float = SLIVER_ANGLE_D
     with np.errstate(divide="ignore", invalid="ignore"):
         s = dbl / (e[:, 2] * e[:, 1])
     return float(np.mean(~(s >= np.sin(np.radians(angle_deg)))))
-
-
-def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
-    """The intrinsic Delaunay triangulation of an edge-manifold mesh with its operators.
-
-    Returns
-    -------
-    (L, M, Fi, l) or None
-        ``L`` (n, n) its Laplacian (negative semi-definite, non-negative
-        off-diagonal weights), ``M`` (n,) its barycentric lumped mass (area
-        unit), ``Fi`` (m, 3) its faces on the same vertices and ``l`` (m, 3)
-        their edge lengths, ``l[f, c]`` opposite corner c (length unit).
-        None when the mesh is not edge-manifold, has zero-area faces, or the
-        flips leave a negative weight (callers then keep extrinsic operators).
-    """
-    if not is_edge_manifold_nondegenerate(V, F):
-        return None
-    import igl
-
-    Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
-    L = _drop_rounding_negatives(sp.csr_matrix(Li))
-    if negative_offdiagonal_count(L) or not np.isfinite(L.data).all():
-        return None
-    M = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
-    return L, np.asarray(M.diagonal(), dtype=np.float64), np.asarray(Fi, dtype=np.int64), np.asarray(l)
 
 
 def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +73,8 @@ def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str):
-    """The intrinsic Delaunay mesh (:func:`intrinsic_delaunay_mesh`) when ``operators``
+    """The intrinsic Delaunay mesh (:func:`geoproc.geodesic.operators.intrinsic_delaunay_mesh`;
+    None where it does not apply, callers then keep extrinsic operators) when ``operators``
     asks for it, else None.
 
     ``operators``: ``"extrinsic"`` (None), ``"intrinsic"``, or ``"auto"``
@@ -122,12 +94,3 @@ def intrinsic_face_operators(Fi: np.ndarray, l: np.ndarray, n: int):
     coef, area = intrinsic_gradient_coefficients(l)
     G = stack_gradient_coefficients(coef, Fi, n)
     return coef, G, sp.csr_matrix(-(G.T @ sp.diags(np.tile(area, 2))))
-
-
-def stack_gradient_coefficients(coef: np.ndarray, F: np.ndarray, n: int) -> sp.csr_matrix:
-    """(k m, n) sparse gradient (rows ``a m + face``, the layout of ``igl.grad``)
-    from per-face weights ``coef`` (k, m, 3) on the faces ``F`` (m, 3)."""
-    k, m = coef.shape[:2]
-    rows = np.broadcast_to((np.arange(k)[:, None] * m + np.arange(m))[:, :, None], coef.shape)
-    cols = np.broadcast_to(F[None], coef.shape)
-    return sp.csr_matrix((coef.ravel(), (rows.ravel(), cols.ravel())), shape=(k * m, n))

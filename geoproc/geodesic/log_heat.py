@@ -30,39 +30,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.geodesic.intrinsic import (
-    face_operators_triangulation,
-    intrinsic_face_operators,
-    stack_gradient_coefficients,
-)
+from geoproc.geodesic.heat_operators import heat_operators
 from geoproc.geodesic.log_ode import LogODESolver
-from geoproc.geodesic.operators import (
-    cotan_laplacian,
-    divergence_matrix,
-    laplacian_and_mass,
-)
-from geoproc.geodesic.poisson import PoissonSolver
 from geoproc.mesh.topology import boundary_vertices
-
-
-def face_gradient_coefficients(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(3, m, 3) gradient weights: ``grad f`` on face k, axis a, is
-    ``sum_c coef[a, k, c] * f[F[k, c]]`` (unit: 1 / length).
-
-    The gradient of the hat function of corner c is ``N x e_c / |N|^2``, with
-    ``N`` the face's (unnormalized) normal and ``e_c`` the edge opposite c,
-    oriented counter-clockwise: the weights of ``igl.grad``, formed directly.
-    Zero-area faces get zero weights.
-    """
-    X = V[F]  # (m, 3 corners, 3)
-    N = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
-    nn = np.einsum("ka,ka->k", N, N)
-    inv = np.divide(1.0, nn, out=np.zeros_like(nn), where=nn > 0)
-    coef = np.empty((3, len(F), 3))
-    for c in range(3):
-        e = X[:, (c + 2) % 3] - X[:, (c + 1) % 3]
-        coef[:, :, c] = (np.cross(N, e) * inv[:, None]).T
-    return coef
 
 
 def face_heat_direction(coef: np.ndarray, F: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -77,11 +47,6 @@ def face_heat_direction(coef: np.ndarray, F: np.ndarray, w: np.ndarray) -> np.nd
         s = np.exp(wf - top)
     s[~np.isfinite(top[:, 0])] = 0.0
     return np.einsum("akc,kc->ka", coef, s)
-
-
-def poisson_laplacian(V: np.ndarray, F: np.ndarray, kind: str) -> sp.csr_matrix:
-    """(n, n) Laplacian of the Poisson step, without the mass the heat step needs."""
-    return cotan_laplacian(V, F) if kind == "cotan" else laplacian_and_mass(V, F, kind)[0]
 
 
 class LogHeatSolver:
@@ -119,12 +84,11 @@ class LogHeatSolver:
     def __init__(self, V: np.ndarray, F: np.ndarray, t: float, steps: int = 1,
                  laplacian: str = "intrinsic-delaunay", direction: str = "heat",
                  boundary: str = "average", poisson: str = "cotan", operators: str = "auto"):
-        tri = face_operators_triangulation(V, F, operators)  # None: extrinsic
-        if tri is not None:  # the heat step on the same intrinsic triangulation
-            L, M = tri[0], tri[1]
-        else:
-            L, M = laplacian_and_mass(V, F, laplacian)
+        ops = heat_operators(V, F, laplacian, operators, poisson)
+        L, M = ops.L, ops.M
         self.n, self.steps, self.direction = len(V), steps, direction
+        self.operators, self.F, self.coef = ops.kind, ops.F, ops.coef
+        self.G, self.D, self.poisson = ops.G, ops.D, ops.poisson
         self.log_ode = LogODESolver(L, M, t / steps)
         self.boundary = boundary_vertices(F) if boundary == "average" else np.zeros(0, dtype=np.int64)
         self._dirichlet = None
@@ -136,16 +100,6 @@ class LogHeatSolver:
                 Lc = sp.csr_matrix(L)
                 self._dirichlet = LogODESolver(Lc[self.interior][:, self.interior], M[self.interior],
                                                t / steps)
-        if tri is None:
-            self.operators, self.F = "extrinsic", F
-            self.coef = face_gradient_coefficients(V, F)
-            self.G = stack_gradient_coefficients(self.coef, F, self.n)
-            self.D = divergence_matrix(V, F, self.G)
-            self.poisson = PoissonSolver(L if laplacian == poisson else poisson_laplacian(V, F, poisson))
-        else:
-            self.operators, self.F = "intrinsic", tri[2]
-            self.coef, self.G, self.D = intrinsic_face_operators(tri[2], tri[3], self.n)
-            self.poisson = PoissonSolver(tri[0])
 
     def log_heat(self, sources: np.ndarray) -> np.ndarray:
         """(n,) ``w = log u`` at the final time from ``u0 = 1`` at the sources."""

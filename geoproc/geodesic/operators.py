@@ -64,20 +64,39 @@ def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
         :func:`cotan_laplacian`).
     M : (n,) float array
     """
-    L = None
-    if is_edge_manifold_nondegenerate(V, F):
-        import igl
-
-        Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
-        L = _drop_rounding_negatives(sp.csr_matrix(Li))
-        if negative_offdiagonal_count(L) == 0 and np.isfinite(L.data).all():
-            Mi = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
-            return L, np.asarray(Mi.diagonal(), dtype=np.float64)
+    tri = intrinsic_delaunay_mesh(V, F)
+    if tri is not None:
+        return tri[0], tri[1]
     import robust_laplacian
 
     Lp, Mp = robust_laplacian.mesh_laplacian(np.ascontiguousarray(V), np.ascontiguousarray(F),
                                              mollify_factor=mollify_factor)
     return _drop_rounding_negatives(-sp.csr_matrix(Lp)), np.asarray(Mp.diagonal(), dtype=np.float64)
+
+
+def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
+    """libigl's intrinsic Delaunay triangulation of an edge-manifold mesh with its operators.
+
+    Returns
+    -------
+    (L, M, Fi, l) or None
+        ``L`` (n, n) its Laplacian (negative semi-definite, non-negative
+        off-diagonal weights), ``M`` (n,) its barycentric lumped mass (area
+        unit), ``Fi`` (m, 3) its faces on the same vertices and ``l`` (m, 3)
+        their edge lengths, ``l[f, c]`` opposite corner c (length unit).
+        None when the mesh is not edge-manifold, has zero-area faces, or the
+        flips leave a negative weight.
+    """
+    if not is_edge_manifold_nondegenerate(V, F):
+        return None
+    import igl
+
+    Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
+    L = _drop_rounding_negatives(sp.csr_matrix(Li))
+    if negative_offdiagonal_count(L) or not np.isfinite(L.data).all():
+        return None
+    M = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
+    return L, np.asarray(M.diagonal(), dtype=np.float64), np.asarray(Fi, dtype=np.int64), np.asarray(l)
 
 
 def _drop_rounding_negatives(L: sp.csr_matrix) -> sp.csr_matrix:
@@ -114,6 +133,35 @@ def face_gradient_matrix(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
     import igl
 
     return sp.csr_matrix(igl.grad(V, F))
+
+
+def face_gradient_coefficients(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(3, m, 3) gradient weights: ``grad f`` on face k, axis a, is
+    ``sum_c coef[a, k, c] * f[F[k, c]]`` (unit: 1 / length).
+
+    The gradient of the hat function of corner c is ``N x e_c / |N|^2``, with
+    ``N`` the face's (unnormalized) normal and ``e_c`` the edge opposite c,
+    oriented counter-clockwise: the weights of ``igl.grad``, formed directly.
+    Zero-area faces get zero weights.
+    """
+    X = V[F]  # (m, 3 corners, 3)
+    N = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+    nn = np.einsum("ka,ka->k", N, N)
+    inv = np.divide(1.0, nn, out=np.zeros_like(nn), where=nn > 0)
+    coef = np.empty((3, len(F), 3))
+    for c in range(3):
+        e = X[:, (c + 2) % 3] - X[:, (c + 1) % 3]
+        coef[:, :, c] = (np.cross(N, e) * inv[:, None]).T
+    return coef
+
+
+def stack_gradient_coefficients(coef: np.ndarray, F: np.ndarray, n: int) -> sp.csr_matrix:
+    """(k m, n) sparse gradient (rows ``a m + face``, the layout of ``igl.grad``)
+    from per-face weights ``coef`` (k, m, 3) on the faces ``F`` (m, 3)."""
+    k, m = coef.shape[:2]
+    rows = np.broadcast_to((np.arange(k)[:, None] * m + np.arange(m))[:, :, None], coef.shape)
+    cols = np.broadcast_to(F[None], coef.shape)
+    return sp.csr_matrix((coef.ravel(), (rows.ravel(), cols.ravel())), shape=(k * m, n))
 
 
 def divergence_matrix(V: np.ndarray, F: np.ndarray, G: sp.spmatrix | None = None) -> sp.csr_matrix:

@@ -365,8 +365,7 @@ def test_intrinsic_delaunay_laplacian_matches_robust_laplacian(shared_data):
 def test_face_gradient_weights_equal_libigl_grad(make_fixtures):
     import igl
 
-    from geoproc.geodesic.intrinsic import stack_gradient_coefficients
-    from geoproc.geodesic.log_heat import face_gradient_coefficients
+    from geoproc.geodesic.operators import face_gradient_coefficients, stack_gradient_coefficients
 
     V, F = make_fixtures.icosphere(2)
     V = V * np.array([1.0, 0.5, 2.0])  # anisotropic: faces of varied shapes

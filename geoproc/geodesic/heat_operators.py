@@ -1,0 +1,76 @@
+"""The operators of the heat method's last two steps, on the mesh or on its intrinsic Delaunay triangulation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from geoproc.geodesic.intrinsic import face_operators_triangulation, intrinsic_face_operators
+from geoproc.geodesic.operators import (
+    cotan_laplacian,
+    divergence_matrix,
+    face_gradient_coefficients,
+    laplacian_and_mass,
+    stack_gradient_coefficients,
+)
+from geoproc.geodesic.poisson import PoissonSolver
+
+
+@dataclass
+class HeatOperators:
+    """Laplacian and mass of the heat step, and gradient, divergence and Poisson
+    solver of the distance step, all on one triangulation.
+
+    Attributes
+    ----------
+    kind : {"extrinsic", "intrinsic"}
+        The mesh itself, or its intrinsic Delaunay triangulation.
+    L : (n, n) csr_matrix, M : (n,) float array
+        Heat-step Laplacian and lumped mass (area unit).
+    F : (m, 3) int array
+        Faces the gradient lives on (the intrinsic ones when ``kind`` is intrinsic).
+    coef : (k, m, 3) float array
+        Per-face gradient weights, k = 3 axes (extrinsic) or 2 (each intrinsic face's frame).
+    G : (k m, n) csr_matrix, D : (n, k m) csr_matrix
+        Face gradient and integrated divergence, ``D G`` the Poisson Laplacian.
+    poisson : PoissonSolver
+    """
+
+    kind: str
+    L: sp.csr_matrix
+    M: np.ndarray
+    F: np.ndarray
+    coef: np.ndarray
+    G: sp.csr_matrix
+    D: sp.csr_matrix
+    poisson: PoissonSolver
+
+
+def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
+                   poisson: str = "cotan") -> HeatOperators:
+    """Build :class:`HeatOperators`.
+
+    ``operators``: ``"extrinsic"`` (the heat step with ``laplacian``, the
+    mesh's own gradient and divergence, the Poisson step with ``poisson``),
+    ``"intrinsic"`` (everything on the intrinsic Delaunay triangulation, its
+    Laplacian in both steps) or ``"auto"`` (intrinsic on meshes with slivers,
+    see :func:`geoproc.geodesic.intrinsic.face_operators_triangulation`).
+    Intrinsic falls back to extrinsic where the triangulation does not apply.
+    """
+    tri = face_operators_triangulation(V, F, operators)
+    if tri is not None:
+        L, M, Fi, lengths = tri
+        coef, G, D = intrinsic_face_operators(Fi, lengths, len(V))
+        return HeatOperators("intrinsic", L, M, Fi, coef, G, D, PoissonSolver(L))
+    L, M = laplacian_and_mass(V, F, laplacian)
+    coef = face_gradient_coefficients(V, F)
+    G = stack_gradient_coefficients(coef, F, len(V))
+    if laplacian == poisson:
+        Lp = L
+    elif poisson == "cotan":
+        Lp = cotan_laplacian(V, F)  # without the mass the heat step needed
+    else:
+        Lp = laplacian_and_mass(V, F, poisson)[0]
+    return HeatOperators("extrinsic", L, M, F, coef, G, divergence_matrix(V, F, G), PoissonSolver(Lp))
