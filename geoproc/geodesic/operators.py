@@ -185,12 +185,6 @@ def face_to_vertex_average(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix(sp.diags(1.0 / s) @ A)
 
 
-def per_face_vectors(G: sp.spmatrix, f: np.ndarray) -> np.ndarray:
-    """(m, 3) gradient vectors of the vertex function ``f`` from ``G`` (3m, n)."""
-    g = G @ f
-    return g.reshape(3, -1).T
-
-
 def normalized_direction(X: np.ndarray) -> np.ndarray:
     """Rows of ``X`` (m, 3) scaled to unit length; zero (or non-finite) rows become 0."""
     norm = np.linalg.norm(X, axis=1)
