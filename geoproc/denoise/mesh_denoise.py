@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.denoise import DEFAULT_METHOD, METHODS
-from geoproc.denoise.bilateral import bilateral_normal_filter
+from geoproc.denoise.bilateral import bilateral_normal_filter, spatial_weights
 from geoproc.denoise.face_geometry import (
     face_centroids,
     face_edge_neighbors,
@@ -33,7 +33,7 @@ from geoproc.denoise.face_geometry import (
     face_ring_csr,
 )
 from geoproc.denoise.features import dihedral_feature_faces, l1_feature_faces
-from geoproc.denoise.guidance import guidance_normals
+from geoproc.denoise.guidance import guidance_normals, patch_interior_edges
 from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
@@ -257,6 +257,7 @@ def denoise_mesh(
     spacing = float(np.linalg.norm(C[i] - C[edge_nb[i, k]], axis=1).mean()) if len(i) else 1.0
     sigma_s = p.sigma_s_scale * spacing
     patch = nearest_faces_in_ring(C, ring, p.patch_size) if method == "rpca" else None
+    inside = patch_interior_edges(ring, edge_nb) if method != "bilateral" else None
     total = max(outer * inner, 1)
     done = 0
     sparse = np.zeros(len(F))
@@ -265,16 +266,17 @@ def denoise_mesh(
         if o:
             N, A = face_normals_and_areas(X, F)
             C = face_centroids(X, F)
+        W = spatial_weights(C, A, ring, sigma_s)
         if method == "rpca":
-            G_round, sparse = rpca_guidance(guidance_normals(N, A, ring, edge_nb), patch)
+            G_round, sparse = rpca_guidance(guidance_normals(N, A, ring, edge_nb, inside), patch)
         for _ in range(inner):
             if method == "bilateral":
                 G = None
             elif method == "rpca":
                 G = G_round
             else:
-                G = guidance_normals(N, A, ring, edge_nb)
-            N = bilateral_normal_filter(N, C, A, ring, sigma_s, sigma_r, G)
+                G = guidance_normals(N, A, ring, edge_nb, inside)
+            N = bilateral_normal_filter(N, C, A, ring, sigma_s, sigma_r, G, spatial=W)
             done += 1
             if progress is not None:
                 progress(done / total)

@@ -2,15 +2,91 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
+
+
+@numba.njit(cache=True)
+def _fitting_step(X, F, normals, valence, fixed, delta):
+    """Sun et al.'s step into ``delta``, summed over the corners in face order."""
+    delta[:] = 0.0
+    for f in range(F.shape[0]):
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        n0, n1, n2 = normals[f, 0], normals[f, 1], normals[f, 2]
+        c0 = (X[a, 0] + X[b, 0] + X[c, 0]) / 3.0
+        c1 = (X[a, 1] + X[b, 1] + X[c, 1]) / 3.0
+        c2 = (X[a, 2] + X[b, 2] + X[c, 2]) / 3.0
+        for k in range(3):
+            v = F[f, k]
+            s = n0 * (c0 - X[v, 0]) + n1 * (c1 - X[v, 1]) + n2 * (c2 - X[v, 2])
+            delta[v, 0] += n0 * s
+            delta[v, 1] += n1 * s
+            delta[v, 2] += n2 * s
+    for v in range(X.shape[0]):
+        for k in range(3):
+            delta[v, k] = 0.0 if fixed[v] else delta[v, k] / valence[v]
+
+
+@numba.njit(cache=True)
+def _face_cos(X, D, scale, F, f, n):
+    """Cosine between the normal of face ``f`` at positions ``X + scale * D`` and the unit vector ``n``."""
+    a, b, c = F[f, 0], F[f, 1], F[f, 2]
+    u0 = X[b, 0] - X[a, 0] + scale * (D[b, 0] - D[a, 0])
+    u1 = X[b, 1] - X[a, 1] + scale * (D[b, 1] - D[a, 1])
+    u2 = X[b, 2] - X[a, 2] + scale * (D[b, 2] - D[a, 2])
+    w0 = X[c, 0] - X[a, 0] + scale * (D[c, 0] - D[a, 0])
+    w1 = X[c, 1] - X[a, 1] + scale * (D[c, 1] - D[a, 1])
+    w2 = X[c, 2] - X[a, 2] + scale * (D[c, 2] - D[a, 2])
+    r0 = u1 * w2 - u2 * w1
+    r1 = u2 * w0 - u0 * w2
+    r2 = u0 * w1 - u1 * w0
+    norm = max(np.sqrt(r0 * r0 + r1 * r1 + r2 * r2), 1e-300)
+    return (r0 * n[0] + r1 * n[1] + r2 * n[2]) / norm
+
+
+@numba.njit(cache=True)
+def _withhold(X, delta, F, normals, keep, use_keep, margin):
+    """In-place core of :func:`withhold_folding_steps`: the same passes, each
+    judging every guarded face with the steps as they stood at its start."""
+    n = X.shape[0]
+    moving = np.zeros(n, dtype=np.bool_)
+    for v in range(n):
+        moving[v] = delta[v, 0] != 0.0 or delta[v, 1] != 0.0 or delta[v, 2] != 0.0
+    guarded = np.empty(F.shape[0], dtype=np.int64)
+    check_keep = np.zeros(F.shape[0], dtype=np.bool_)
+    count = 0
+    for f in range(F.shape[0]):
+        if not (moving[F[f, 0]] or moving[F[f, 1]] or moving[F[f, 2]]):
+            continue
+        if not _face_cos(X, delta, 0.0, F, f, normals[f]) > margin:
+            continue
+        guarded[count] = f
+        check_keep[count] = use_keep and _face_cos(X, delta, 0.0, F, f, keep[f]) > margin
+        count += 1
+    freeze = np.zeros(n, dtype=np.bool_)
+    while True:  # ends: every pass freezes at least one more vertex
+        any_bad = False
+        for i in range(count):
+            f = guarded[i]
+            bad = not _face_cos(X, delta, 1.0, F, f, normals[f]) > margin
+            if not bad and check_keep[i]:
+                bad = not _face_cos(X, delta, 1.0, F, f, keep[f]) > margin
+            if bad:
+                any_bad = True
+                for k in range(3):
+                    freeze[F[f, k]] = True
+        if not any_bad:
+            return
+        for v in range(n):
+            if freeze[v]:
+                delta[v, 0] = 0.0
+                delta[v, 1] = 0.0
+                delta[v, 2] = 0.0
+                freeze[v] = False
 
 
 def _raw_normals(X: np.ndarray, F: np.ndarray) -> np.ndarray:
     return np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
-
-
-def _unit(R: np.ndarray) -> np.ndarray:
-    return R / np.maximum(np.linalg.norm(R, axis=1, keepdims=True), 1e-300)
 
 
 def update_vertices(
@@ -60,18 +136,14 @@ def update_vertices(
     """
     X = np.array(V, dtype=np.float64, copy=True)
     n = len(X)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    normals = np.ascontiguousarray(normals, dtype=np.float64)
     valence = np.bincount(F.reshape(-1), minlength=n).astype(np.float64)
     valence[valence == 0] = 1.0
-    corners = F.reshape(-1)
-    Nc = np.repeat(normals, 3, axis=0)
+    pinned = np.zeros(n, dtype=bool) if fixed is None else np.asarray(fixed, dtype=bool)
+    delta = np.empty_like(X)
     for _ in range(iterations):
-        C = X[F].mean(axis=1)
-        d = np.repeat(C, 3, axis=0) - X[corners]
-        step = Nc * np.einsum("ij,ij->i", Nc, d)[:, None]
-        delta = np.column_stack([np.bincount(corners, weights=step[:, k], minlength=n) for k in range(3)])
-        delta /= valence[:, None]
-        if fixed is not None:
-            delta[fixed] = 0.0
+        _fitting_step(X, F, normals, valence, pinned, delta)
         if prevent_flips:
             delta = withhold_folding_steps(X, delta, F, normals, keep_orientation, margin)
         X += delta
@@ -109,25 +181,11 @@ def withhold_folding_steps(
     (n, 3) float64 steps: ``delta`` with the offending vertices' rows zeroed
     (modified in place).
     """
-    moving = (delta != 0.0).any(axis=1)
-    act = np.flatnonzero(moving[F].any(axis=1))  # only faces with a moving corner can change
-    if len(act) == len(F):
-        Fa, Na, Ka = F, normals, keep_orientation
-    else:
-        Fa, Na = F[act], normals[act]
-        Ka = None if keep_orientation is None else keep_orientation[act]
-    R0 = _unit(_raw_normals(X, Fa))
-    before = np.einsum("ij,ij->i", R0, Na) > margin
-    if Ka is not None:
-        before_k = before & (np.einsum("ij,ij->i", R0, Ka) > margin)
-    while True:  # ends: every pass freezes at least one more vertex
-        R1 = _unit(_raw_normals(X + delta, Fa))
-        bad = before & ~(np.einsum("ij,ij->i", R1, Na) > margin)
-        if Ka is not None:
-            bad |= before_k & ~(np.einsum("ij,ij->i", R1, Ka) > margin)
-        if not bad.any():
-            return delta
-        delta[Fa[bad].reshape(-1)] = 0.0
+    use_keep = keep_orientation is not None
+    keep = np.ascontiguousarray(keep_orientation if use_keep else normals, dtype=np.float64)
+    _withhold(np.ascontiguousarray(X, dtype=np.float64), delta, np.ascontiguousarray(F, dtype=np.int64),
+              np.ascontiguousarray(normals, dtype=np.float64), keep, use_keep, float(margin))
+    return delta
 
 
 def folded_faces(

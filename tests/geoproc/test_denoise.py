@@ -14,7 +14,8 @@ from geoproc.denoise.face_geometry import (
     face_normals_and_areas,
     face_ring_csr,
 )
-from geoproc.denoise.guidance import guidance_normals, patch_consistency
+from geoproc.denoise.bilateral import spatial_weights
+from geoproc.denoise.guidance import guidance_normals, patch_consistency, patch_interior_edges
 from geoproc.denoise.metrics import flipped_faces, two_sided_hausdorff
 from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.vertex_update import update_vertices
@@ -130,6 +131,30 @@ def test_guidance_picks_one_side_of_a_sharp_edge(dfx):
     assert exact.mean() > 0.95
     corner = (np.abs(V) > 1 - 1e-9).all(axis=1)
     assert exact[~corner[F].any(axis=1)].all()
+
+
+def test_patch_interior_edges_are_the_edges_with_both_faces_in_the_patch(make_fixtures):
+    V, F = make_fixtures.torus()
+    ring = face_ring_csr(F, len(V))
+    enb = face_edge_neighbors(F)
+    eptr, ids = patch_interior_edges(ring, enb)
+    for j in range(0, len(F), 7):
+        patch = set(ring[1][ring[0][j]:ring[0][j + 1]].tolist())
+        expected = {(a, int(b)) for a in patch for b in enb[a] if b in patch and b > a}
+        got = [(int(e) // 3, int(enb[e // 3, e % 3])) for e in ids[eptr[j]:eptr[j + 1]]]
+        assert len(got) == len(set(got)) and set(got) == expected
+
+
+def test_spatial_weights_are_area_times_gaussian(make_fixtures):
+    V, F = make_fixtures.icosphere()
+    _, A = face_normals_and_areas(V, F)
+    C = face_centroids(V, F)
+    ring = face_ring_csr(F, len(V))
+    W = spatial_weights(C, A, ring, 0.1, radius=0.15)
+    rows = np.repeat(np.arange(len(F)), np.diff(ring[0]))
+    d = np.linalg.norm(C[rows] - C[ring[1]], axis=1)
+    expected = np.where(d <= 0.15, A[ring[1]] * np.exp(-d**2 / (2 * 0.1**2)), 0.0)
+    assert np.allclose(W, expected, rtol=1e-12, atol=0) and 0 < (W == 0).sum() < len(W)
 
 
 def test_vertex_update_flattens_a_noisy_plane(make_fixtures):
