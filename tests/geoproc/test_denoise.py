@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from geoproc.denoise import DenoiseParams, denoise_errors, denoise_mesh
+from geoproc.denoise.bilateral import spatial_weights
 from geoproc.denoise.face_geometry import (
     face_centroids,
     face_edge_neighbors,
     face_normals_and_areas,
     face_ring_csr,
 )
-from geoproc.denoise.bilateral import spatial_weights
 from geoproc.denoise.guidance import guidance_normals, patch_consistency, patch_interior_edges
 from geoproc.denoise.metrics import flipped_faces, two_sided_hausdorff
 from geoproc.denoise.noise_level import roughness
