@@ -6,7 +6,10 @@ range. For each case and each setting of ``exact_windows`` (0: none, 4: the
 default, -1: all, wider where still beyond P/2): the vertices with
 |f - g| > P/2, max |f - g| / P, the kept saddle edges whose highest vertex
 under g is not their own under f (of all kept saddle edges), and the time of
-simplify_function (single-threaded numba compiled first; one run).
+simplify_function (single-threaded numba compiled first; one run). A last row
+per case: geoproc.morse.barycentric_simplify (g on the barycentric subdivision,
+f there the lower-star extension; its kept saddles are the kept edges' own
+midpoints by construction), with the whole function's time.
 
 Usage: python bench/morse_half_bound.py [--settings 0 4 -1] [--cases bunny camelhead ...]
 """
@@ -50,11 +53,12 @@ def main(argv: list[str]) -> int:
         print(f"skipped: {MESHES} not found (needs ../shared)")
         return 0
     from geoproc.mesh import load_mesh
-    from geoproc.morse import simplify_function, surface_complex
+    from geoproc.morse import barycentric_simplify, simplify_function, surface_complex
 
     sv = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
     simplify_function(surface_complex(np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]]), 4),
                       sv[:, 0] + 0.1, 0.5)  # compile numba
+    barycentric_simplify(sv, np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]]), sv[:, 0] + 0.1, 0.5)
     lines = ["| mesh | P / range | exact_windows | vertices beyond P/2 | max abs change / P | "
              "kept saddle edges elsewhere | simplify s |", "|---|---|---|---|---|---|---|"]
     for name, file, axis, rel, seed in CASES:
@@ -74,6 +78,14 @@ def main(argv: list[str]) -> int:
             lines.append(f"| {name} | {rel:g} | {k} | {len(s.widened_vertices)} | {s.max_abs_change / P:.4f} | "
                          f"{mv} of {nk:,} | {t:.2f} |")
             print(lines[-1], file=sys.stderr, flush=True)
+        t = time.perf_counter()
+        b = barycentric_simplify(V, F, f, P)
+        t = time.perf_counter() - t
+        fe = np.concatenate([f, f[b.E].max(axis=1), f[F].max(axis=1)])
+        beyond = int((np.abs(b.g - fe) > P / 2 * (1 + 1e-12)).sum())
+        lines.append(f"| {name} | {rel:g} | barycentric ({len(b.g):,} cells) | {beyond} | "
+                     f"{np.abs(b.g - fe).max() / P:.4f} | 0 | {t:.2f} |")
+        print(lines[-1], file=sys.stderr, flush=True)
     print("\n".join(lines))
     return 0
 

@@ -12,6 +12,7 @@ import numpy as np
 import typer
 
 from geoproc.errors import UsageError
+from geoproc.mesh import Mesh
 from geoproc.mesh.validate import require_manifold, require_triangle_mesh
 from geoproc.report import json_safe
 from geoproc_cli.common import (
@@ -54,6 +55,13 @@ def morse_simplify(
         help="After the construction, re-solve exactly (a small mixed-integer program each, scipy/HiGHS) "
         "this many windows around the vertices farthest beyond P/2; -1: every such window, then the 8 "
         "farthest again with wider windows (seconds on 10k vertices, tens of seconds on 40k); 0: off.")] = 4,
+    barycentric: Annotated[bool, typer.Option(
+        "--barycentric",
+        help="Write g on the barycentric subdivision of the mesh (every edge and triangle gets a vertex "
+        "with its own value; 6 triangles per input triangle), where |f - g| <= P/2 always holds: f there "
+        "is the lower-star extension (each cell's largest vertex value), and the per-vertex property "
+        "cell_dim (0, 1, 2) tells input vertices, edge midpoints and triangle centres apart. "
+        "--exact-windows is not used.")] = False,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,
@@ -77,16 +85,23 @@ def morse_simplify(
     betti_0/1/2, pairs_removed, pairs_kept, max_abs_change, threshold,
     vertices_beyond_half_threshold. Timings: field, simplify (gradient, pairs
     and simplification), after (pairs of g), diagram.
+
+    With --barycentric the cancellation is carried out on the cells
+    themselves (Forman's path reversal on the lower-star gradient, values
+    assigned cell by cell) and g is written on the barycentric subdivision:
+    |f - g| <= P/2 everywhere, the critical points of g are the barycentres
+    of the kept critical cells, and the "after" counts are taken there.
     """
     params = {"mesh": mesh, "field": field, "persistence": persistence, "relative": relative,
               "output": output, "critical": str(critical) if critical else None,
               "diagram": str(diagram) if diagram else None, "exact_windows": exact_windows,
-              "clean": not no_clean}
+              "barycentric": barycentric, "clean": not no_clean}
     with command_run("morse-simplify", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
-        from geoproc.morse import find_closed_vpath, lower_star_persistence
+        from geoproc.morse import discrete_gradient, find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field
+        from geoproc.morse.barycentric import barycentric_simplify
         from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
         from geoproc.morse.diagram_plot import persistence_diagram_png
         from geoproc.morse.fields import field_name, vertex_field
@@ -108,13 +123,25 @@ def morse_simplify(
         span = float(f.max() - f.min()) if len(f) else 0.0
         threshold = float(persistence) * span if relative else float(persistence)
         with run.timer("simplify"):  # gradient, pairs and simplification
-            res = morse_simplify_field(m.F, f, threshold, m.log.path or None, exact_windows=exact_windows)
-        cx, grad, before, simp, g = res.cx, res.gradient, res.pairs, res.simplification, res.g
+            if barycentric:
+                res = barycentric_simplify(m.V, m.F, f, threshold, m.log.path or None)
+                cx = surface_complex(m.F, m.n_vertices, m.log.path or None)
+                grad, before = discrete_gradient(cx, f), lower_star_persistence(cx, f)
+                order = None
+            else:
+                res = morse_simplify_field(m.F, f, threshold, m.log.path or None, exact_windows=exact_windows)
+                cx, grad, before, order = res.cx, res.gradient, res.pairs, res.order
         cycle = find_closed_vpath(cx, grad)
         if cycle is not None:
             raise RuntimeError(f"the discrete gradient has a closed V-path of dimension {cycle[0]}")
         with run.timer("after"):
-            after = lower_star_persistence(cx, simp.g)
+            if barycentric:
+                cx_after = surface_complex(res.F, len(res.g))
+                after = lower_star_persistence(cx_after, res.g)
+                order_after, f_ref, g = None, res.f, res.g
+            else:
+                cx_after, order_after, f_ref, g = res.cx, res.order, f, res.g
+                after = lower_star_persistence(cx_after, res.simplification.g)
         chi = cx.euler_characteristic
         c_before = critical_counts(before)
         c_after = critical_counts(after)
@@ -126,7 +153,8 @@ def morse_simplify(
             raise RuntimeError("gradient critical cells do not match the persistence pairs")
         pers = finite_persistence(before)
         half_tol = threshold / 2.0 * (1 + 1e-12)
-        beyond = int(np.count_nonzero(np.abs(g - f) > half_tol))
+        beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol))
+        max_change = float(np.max(np.abs(g - f_ref))) if len(g) else 0.0
         b0, b1, b2 = before.betti
         run.metrics.update({
             "vertices": m.n_vertices,
@@ -137,22 +165,26 @@ def morse_simplify(
             "betti_0": b0, "betti_1": b1, "betti_2": b2,
             "pairs_removed": int(np.count_nonzero(pers < threshold)),
             "pairs_kept": int(np.count_nonzero(pers >= threshold)),
-            "max_abs_change": simp.max_abs_change,
+            "max_abs_change": max_change,
             "threshold": threshold,
             "vertices_beyond_half_threshold": beyond,
         })
         if beyond:
             run.note(f"{beyond} vertices moved by more than P/2 = {threshold / 2:.6g} "
-                     f"(max |f - g| = {simp.max_abs_change:.6g}) where cancelled basins and peaks "
+                     f"(max |f - g| = {max_change:.6g}) where cancelled basins and peaks "
                      "interact; the critical points are still exactly the kept ones")
-        out = m.copy()
-        out.vertex_fields[name] = g
-        out.vertex_fields[f"{name}_original"] = f
+        if barycentric:
+            out = Mesh(res.V, res.F, {name: g, f"{name}_original": f_ref, "cell_dim": res.dim.astype(np.float64)})
+            run.metrics["subdivision_vertices"] = len(res.V)
+        else:
+            out = m.copy()
+            out.vertex_fields[name] = g
+            out.vertex_fields[f"{name}_original"] = f
         run.write_mesh(output, out)
         if critical is not None:
             doc = {"field": name, "threshold": threshold, "euler_characteristic": chi,
-                   "before": critical_cells_table(cx, before, res.order),
-                   "after": critical_cells_table(cx, after, res.order)}
+                   "before": critical_cells_table(cx, before, order),
+                   "after": critical_cells_table(cx_after, after, order_after)}
             run.write_bytes(critical, json.dumps(json_safe(doc)).encode())
         if diagram is not None:
             with run.timer("diagram"):

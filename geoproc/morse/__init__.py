@@ -7,6 +7,7 @@ then by vertex index (:func:`vertex_order`). Ties in the values are therefore
 harmless: two equal values are ordered by index, everywhere, consistently.
 """
 
+from geoproc.morse.barycentric import BarycentricSimplification, barycentric_simplify
 from geoproc.morse.complex import SurfaceComplex, surface_complex
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.order import vertex_order
@@ -16,11 +17,13 @@ from geoproc.morse.simplify import Simplification, simplify_function
 from geoproc.morse.vpath import find_closed_vpath
 
 __all__ = [
+    "BarycentricSimplification",
     "DiscreteGradient",
     "MorseSimplification",
     "PersistencePairs",
     "Simplification",
     "SurfaceComplex",
+    "barycentric_simplify",
     "discrete_gradient",
     "find_closed_vpath",
     "lower_star_persistence",

@@ -42,7 +42,9 @@ How g is built
    some vertex moves by more than P/2 (tests/geoproc/test_morse_bound.py
    certifies such windows with interval propagation and an exact
    mixed-integer program: bunny and armadillo with 2% noise at P = 1% of the
-   range). Chains the relation cannot fit in the box get the smallest local
+   range). On the barycentric subdivision, where every cell has its own
+   vertex, the bound always holds (:mod:`geoproc.morse.barycentric`). Chains
+   the relation cannot fit in the box get the smallest local
    widening that makes them feasible (half the drop of the chain through the
    vertex); this is not always the least possible, step 7 below takes the
    worst places closer; a vertex where the ascent and descent witnesses

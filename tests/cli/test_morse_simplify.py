@@ -151,3 +151,43 @@ def test_exact_windows_option(cli, shared_data, tmp_path):
     p = cli("morse-simplify", name, "--field", "y", "--persistence", "1", "--exact-windows", "-2",
             "-o", tmp_path / "bad.ply")
     assert p.returncode == 2 and "--exact-windows" in p.stderr and not (tmp_path / "bad.ply").exists()
+
+
+def test_barycentric_reaches_half_threshold_and_chains(cli, shared_data, tmp_path):
+    # bunny, height + 2% noise, P = 1% of the range: no vertex function on the mesh
+    # stays within P/2 (certified 0.802 P in test_morse_bound); on the subdivision g does
+    from tests.conftest import load_fixture_module
+
+    name = shared_data / "meshes" / "bunny.off"
+    mesh = load_mesh(name)
+    f = load_fixture_module("morse_fixtures").noisy_height(mesh.V, axis=1, noise=0.02, seed=10)
+    src = tmp_path / "f.ply"
+    save_mesh(src, Mesh(mesh.V, mesh.F, vertex_fields={"h": f}))
+    out, rep, crit = tmp_path / "o.ply", tmp_path / "r.json", tmp_path / "c.json"
+    p = cli("morse-simplify", src, "--field", "h", "--persistence", "0.01", "--relative", "--barycentric",
+            "-o", out, "--report", rep, "--critical", crit, "-q")
+    assert p.returncode == 0, p.stderr
+    m = metrics(rep)
+    sd = load_mesh(out)
+    n, faces = len(mesh.V), len(mesh.F)
+    edges = n + faces - m["euler_characteristic"]
+    assert len(sd.V) == m["subdivision_vertices"] == n + edges + faces and len(sd.F) == 6 * faces
+    dim = sd.vertex_fields["cell_dim"]
+    assert np.bincount(dim.astype(int)).tolist() == [n, edges, faces]
+    np.testing.assert_allclose(sd.vertex_fields["h_original"][:n], f)
+    g, fe = sd.vertex_fields["h"], sd.vertex_fields["h_original"]
+    assert m["vertices_beyond_half_threshold"] == 0
+    assert np.abs(g - fe).max() <= m["threshold"] / 2 * (1 + 1e-12)
+    assert m["minima_after"] - m["saddles_after"] + m["maxima_after"] == m["euler_characteristic"]
+    assert m["minima_after"] + m["saddles_after"] + m["maxima_after"] == 2 * m["pairs_kept"] + 2
+    # the minima of g on the subdivision, found from the output file alone
+    grad = discrete_gradient(surface_complex(sd.F, len(g)), g)
+    assert len(grad.critical_vertices) == m["minima_after"] and (dim[grad.critical_vertices] == 0).all()
+    assert len(json.loads(crit.read_text())["after"]) == 2 * m["pairs_kept"] + 2
+    # the output chains: the subdivided field is a valid input
+    p = cli("morse-simplify", out, "--field", "h", "--persistence", "0.01", "--relative", "-o",
+            tmp_path / "again.ply", "--report", tmp_path / "r2.json", "-q")
+    assert p.returncode == 0, p.stderr
+    m2 = metrics(tmp_path / "r2.json")
+    for kind in ("minima", "saddles", "maxima"):
+        assert m2[f"{kind}_before"] == m[f"{kind}_after"]

@@ -1,0 +1,378 @@
+"""Optimal simplification on the barycentric subdivision: the bound P/2 exactly.
+
+Bauer, Lange and Wardetzky's bound ``||f - g||_inf <= P/2`` holds for
+Forman's discrete Morse functions, where every cell (vertex, edge, triangle)
+carries its own value. A function on the vertices of the mesh alone cannot
+always reach it (:mod:`geoproc.morse.simplify`, step 4). On the barycentric
+subdivision every cell of the mesh becomes a vertex (its barycentre), so the
+construction can be carried out cell by cell:
+
+1. f on cells is the lower-star extension ``f(sigma) = max of f over the
+   vertices of sigma`` (the filtration whose persistence the issue's gudhi
+   reference computes; ties by the vertex order (value, index)).
+2. The discrete gradient of f (ProcessLowerStars,
+   :func:`geoproc.morse.gradient.discrete_gradient`) has one critical cell per
+   persistence pair end and per essential class.
+3. Every pair with persistence < P is cancelled by reversing the unique
+   gradient path between its two critical cells (Forman's cancellation):
+   minimum-saddle pairs along vertex-edge paths in increasing saddle order,
+   saddle-maximum pairs along edge-triangle paths in decreasing saddle order
+   (the elder rule guarantees the path, as in the persistence computation).
+4. The cancelled gradient V' orders the cells: a face is below its cofacet
+   unless the two are paired, then above. This relation is acyclic (V' is a
+   gradient); a backward pass gives every cell the highest value its
+   successors allow within f + P/2, a forward pass the value closest to f
+   above its predecessors, both strictly (one unit in the last place).
+   Cancelling a pair of persistence p < P needs a drop of p < P along its
+   reversed path, so every value stays within f +- P/2.
+5. g on the subdivision's vertices (the cells' barycentres) is piecewise
+   linear, and its critical vertices are exactly the barycentres of the
+   critical cells of V': a kept minimum vertex, a kept saddle edge's midpoint,
+   a kept maximum triangle's centre. Ties are removed by sorting by
+   (value, index), which keeps every strict relation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from geoproc.morse.complex import surface_complex
+from geoproc.morse.gradient import discrete_gradient
+from geoproc.morse.order import vertex_order
+from geoproc.morse.persistence import lower_star_persistence
+from geoproc.morse.simplify import _make_strict
+
+
+@dataclass
+class BarycentricSimplification:
+    """g on the barycentric subdivision of the mesh.
+
+    Attributes
+    ----------
+    V : (n + k + m, 3) float64
+        Subdivision vertices: the n mesh vertices (input order), then the
+        midpoints of the k edges ``E``, then the centroids of the m triangles.
+    F : (6 m, 3) int64
+        Subdivision triangles, oriented as the input's (six per triangle, in
+        the input's triangle order).
+    E : (k, 2) int64
+        The mesh edges (input vertex ids, ``E[:, 0] < E[:, 1]``).
+    dim : (n + k + m,) int8
+        Dimension of the cell each subdivision vertex stands for.
+    f : (n + k + m,) float64
+        Lower-star extension of the input: each cell's largest vertex value.
+    g : (n + k + m,) float64
+        The simplified function, no ties.
+    threshold : float
+        P.
+    critical : (c,) int64
+        Subdivision vertices that are critical cells of the cancelled
+        gradient (kept minima, saddles, maxima, essential classes).
+    pairs_removed, pairs_kept : int
+        Finite persistence pairs with persistence < P (cancelled) and >= P.
+    max_abs_change : float
+        ``max |f - g|`` over all cells.
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    E: np.ndarray
+    dim: np.ndarray
+    f: np.ndarray
+    g: np.ndarray
+    threshold: float
+    critical: np.ndarray
+    pairs_removed: int
+    pairs_kept: int
+    max_abs_change: float
+
+
+@numba.njit(cache=True)
+def _vertex_root(E, v_e, v):
+    while v_e[v] >= 0:
+        e = v_e[v]
+        v = E[e, 0] + E[e, 1] - v
+    return v
+
+
+@numba.njit(cache=True)
+def _cancel_minima(E, v_e, e_v, minima, saddles):
+    """Reverse the vertex-edge path from each saddle edge down to its minimum.
+
+    Pairs are tried in the given order; a pair whose minimum is not yet the
+    root below either end of its edge is retried after the others. Returns
+    the number of pairs that could not be cancelled.
+    """
+    todo = np.ones(len(saddles), dtype=np.bool_)
+    left = len(saddles)
+    while left:
+        progress = False
+        for i in range(len(saddles)):
+            if not todo[i]:
+                continue
+            s = saddles[i]
+            start = -1
+            if _vertex_root(E, v_e, E[s, 0]) == minima[i]:
+                start = E[s, 0]
+            elif _vertex_root(E, v_e, E[s, 1]) == minima[i]:
+                start = E[s, 1]
+            if start < 0:
+                continue
+            v = start
+            prev = s
+            while True:
+                e = v_e[v]
+                v_e[v] = prev
+                e_v[prev] = v
+                if e < 0:
+                    break
+                prev = e
+                v = E[e, 0] + E[e, 1] - v
+            todo[i] = False
+            left -= 1
+            progress = True
+        if not progress:
+            return left
+    return 0
+
+
+@numba.njit(cache=True)
+def _triangle_root(ET, t_e, t):
+    """Follow triangle -> paired edge -> other triangle up to a critical
+    triangle (returned) or out across the boundary (-1)."""
+    while t_e[t] >= 0:
+        e = t_e[t]
+        if ET[e, 1] < 0:
+            return -1
+        t = ET[e, 0] + ET[e, 1] - t
+    return t
+
+
+@numba.njit(cache=True)
+def _cancel_maxima(ET, t_e, e_t, saddles, maxima):
+    """Reverse the edge-triangle path from each saddle edge up to its maximum
+    (the dual of :func:`_cancel_minima`); returns the pairs left."""
+    todo = np.ones(len(saddles), dtype=np.bool_)
+    left = len(saddles)
+    while left:
+        progress = False
+        for i in range(len(saddles)):
+            if not todo[i]:
+                continue
+            s = saddles[i]
+            start = -1
+            for side in range(2):
+                t0 = ET[s, side]
+                if t0 >= 0 and _triangle_root(ET, t_e, t0) == maxima[i]:
+                    start = t0
+                    break
+            if start < 0:
+                continue
+            t = start
+            prev = s
+            while True:
+                e = t_e[t]
+                t_e[t] = prev
+                e_t[prev] = t
+                if e < 0:
+                    break
+                prev = e
+                t = ET[e, 0] + ET[e, 1] - t
+            todo[i] = False
+            left -= 1
+            progress = True
+        if not progress:
+            return left
+    return 0
+
+
+@numba.njit(cache=True)
+def _cell_arcs(E, FE, v_e, e_t, n):
+    """Arcs (lower cell, upper cell) of the order V' puts on the cells (ids:
+    vertices, then n + edge, then n + k + triangle)."""
+    k = E.shape[0]
+    m = FE.shape[0]
+    lo = np.empty(2 * k + 3 * m, np.int64)
+    hi = np.empty(2 * k + 3 * m, np.int64)
+    a = 0
+    for e in range(k):
+        for j in range(2):
+            x = E[e, j]
+            if v_e[x] == e:
+                lo[a], hi[a] = n + e, x
+            else:
+                lo[a], hi[a] = x, n + e
+            a += 1
+    for t in range(m):
+        for j in range(3):
+            e = FE[t, j]
+            if e_t[e] == t:
+                lo[a], hi[a] = n + k + t, n + e
+            else:
+                lo[a], hi[a] = n + e, n + k + t
+            a += 1
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def _assign_cell_values(lo, hi, fc, delta):
+    """Values in [fc - delta, fc + delta] strictly increasing along every arc,
+    as close to fc as the arcs allow. Returns (g, ok); ok is False when the
+    arcs have a cycle."""
+    N = fc.shape[0]
+    out_ptr = np.zeros(N + 1, np.int64)
+    for a in range(lo.shape[0]):
+        out_ptr[lo[a] + 1] += 1
+    for c in range(N):
+        out_ptr[c + 1] += out_ptr[c]
+    out_nbr = np.empty(lo.shape[0], np.int64)
+    fill = out_ptr[:-1].copy()
+    indeg = np.zeros(N, np.int64)
+    for a in range(lo.shape[0]):
+        out_nbr[fill[lo[a]]] = hi[a]
+        fill[lo[a]] += 1
+        indeg[hi[a]] += 1
+    topo = np.empty(N, np.int64)
+    head = 0
+    tail = 0
+    for c in range(N):
+        if indeg[c] == 0:
+            topo[tail] = c
+            tail += 1
+    while head < tail:
+        c = topo[head]
+        head += 1
+        for p in range(out_ptr[c], out_ptr[c + 1]):
+            s = out_nbr[p]
+            indeg[s] -= 1
+            if indeg[s] == 0:
+                topo[tail] = s
+                tail += 1
+    g = np.empty(N)
+    if tail < N:
+        return g, False
+    cap = fc + delta
+    for i in range(N - 1, -1, -1):  # backward: the highest value the successors allow
+        c = topo[i]
+        for p in range(out_ptr[c], out_ptr[c + 1]):
+            below = np.nextafter(cap[out_nbr[p]], -np.inf)
+            if below < cap[c]:
+                cap[c] = below
+    floor = np.full(N, -np.inf)
+    for i in range(N):  # forward: closest to f above every predecessor
+        c = topo[i]
+        v = min(fc[c], cap[c])
+        g[c] = v if v > floor[c] else floor[c]
+        above = np.nextafter(g[c], np.inf)
+        for p in range(out_ptr[c], out_ptr[c + 1]):
+            s = out_nbr[p]
+            if above > floor[s]:
+                floor[s] = above
+    return g, True
+
+
+def barycentric_subdivision(V: np.ndarray, F: np.ndarray, E: np.ndarray, FE: np.ndarray) -> tuple[np.ndarray,
+                                                                                                   np.ndarray]:
+    """Vertices and triangles of the barycentric subdivision.
+
+    Parameters
+    ----------
+    V : (n, 3) positions; F : (m, 3) triangles; E : (k, 2) edges;
+    FE : (m, 3) edge of ``F[t, j] -> F[t, (j + 1) % 3]``.
+
+    Returns
+    -------
+    V_sd : (n + k + m, 3) vertices, edge midpoints, triangle centroids;
+    F_sd : (6 m, 3) triangles ``(corner, edge midpoint, centre)`` and
+    ``(edge midpoint, next corner, centre)`` for each edge of each triangle,
+    oriented as the triangle.
+    """
+    n, k, m = len(V), len(E), len(F)
+    V_sd = np.concatenate([V, 0.5 * (V[E[:, 0]] + V[E[:, 1]]), V[F].mean(axis=1)])
+    centre = n + k + np.arange(m)
+    parts = []
+    for j in range(3):
+        mid = n + FE[:, j]
+        parts.append(np.column_stack([F[:, j], mid, centre]))
+        parts.append(np.column_stack([mid, F[:, (j + 1) % 3], centre]))
+    F_sd = np.stack(parts, axis=1).reshape(-1, 3)
+    return V_sd, F_sd.astype(np.int64)
+
+
+def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold: float,
+                         path: str | None = None) -> BarycentricSimplification:
+    """Remove every persistence pair of f with persistence < threshold, with
+    ``||f - g||_inf <= threshold / 2`` on the barycentric subdivision.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+        Vertex positions (only used for the subdivision's positions).
+    F : (m, 3) int array
+        Triangles of a 2-manifold mesh (boundary and several components allowed).
+    f : (n,) float array
+        Vertex values.
+    threshold : float
+        Absolute persistence threshold P >= 0.
+    path : str, optional
+        File name for error messages.
+
+    Returns
+    -------
+    BarycentricSimplification
+
+    Raises
+    ------
+    RuntimeError
+        If a cancellation path is missing or the cancelled gradient has a
+        closed path (neither happens for a gradient built by
+        ProcessLowerStars and pairs from the elder rule).
+    """
+    f = np.asarray(f, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    n = len(f)
+    P = float(threshold)
+    order, rank = vertex_order(f)
+    cx = surface_complex(rank[F], n, path)
+    fr = f[order]
+    grad = discrete_gradient(cx, fr)
+    pp = lower_star_persistence(cx, fr)
+    p0 = fr[pp.edge_top[pp.min_saddle_edge]] - fr[pp.min_vertex]
+    p1 = fr[pp.triangle_top[pp.max_triangle]] - fr[pp.edge_top[pp.saddle_edge]]
+    v_e, e_v = grad.vertex_edge.copy(), grad.edge_vertex.copy()
+    e_t, t_e = grad.edge_triangle.copy(), grad.triangle_edge.copy()
+    cut0 = np.flatnonzero(p0 < P)
+    cut0 = cut0[np.lexsort((pp.min_saddle_edge[cut0], pp.edge_top[pp.min_saddle_edge[cut0]]))]
+    left = _cancel_minima(cx.E, v_e, e_v, pp.min_vertex[cut0], pp.min_saddle_edge[cut0])
+    cut1 = np.flatnonzero(p1 < P)
+    cut1 = cut1[np.lexsort((pp.saddle_edge[cut1], pp.edge_top[pp.saddle_edge[cut1]]))][::-1]
+    left += _cancel_maxima(cx.ET, t_e, e_t, pp.saddle_edge[cut1], pp.max_triangle[cut1])
+    if left:
+        raise RuntimeError(f"{left} persistence pairs have no gradient path to cancel along")
+    k, m = len(cx.E), len(cx.F)
+    fc = np.concatenate([fr, fr[pp.edge_top], fr[pp.triangle_top]])
+    lo, hi = _cell_arcs(cx.E, cx.FE, v_e, e_t, n)
+    g, ok = _assign_cell_values(lo, hi, fc, P / 2.0)
+    if not ok:
+        raise RuntimeError("the cancelled gradient has a closed path")
+    g = _make_strict(g, np.lexsort((np.arange(len(g)), g)))
+    critical = np.concatenate([np.flatnonzero(v_e < 0), n + np.flatnonzero((e_v < 0) & (e_t < 0)),
+                               n + k + np.flatnonzero(t_e < 0)])
+    # back to the input's vertex numbering (edges and triangles keep theirs)
+    E_in = np.sort(order[cx.E], axis=1)
+    V_sd, F_sd = barycentric_subdivision(np.asarray(V, dtype=np.float64), F, E_in, cx.FE)
+    to_input = np.concatenate([order, np.arange(n, n + k + m)])
+    f_out = np.empty_like(fc)
+    g_out = np.empty_like(g)
+    f_out[to_input] = fc
+    g_out[to_input] = g
+    dim = np.concatenate([np.zeros(n), np.ones(k), np.full(m, 2)]).astype(np.int8)
+    return BarycentricSimplification(
+        V=V_sd, F=F_sd, E=E_in, dim=dim, f=f_out, g=g_out, threshold=P,
+        critical=np.sort(to_input[critical]), pairs_removed=int(len(cut0) + len(cut1)),
+        pairs_kept=int(len(p0) + len(p1) - len(cut0) - len(cut1)),
+        max_abs_change=float(np.max(np.abs(g - fc))) if len(g) else 0.0,
+    )
