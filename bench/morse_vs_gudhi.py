@@ -73,6 +73,16 @@ def geoproc_run(V, F, f, P):
     return np.diff(t), kept, s
 
 
+def barycentric_run(V, F, f, P):
+    from geoproc.morse import barycentric_simplify
+
+    t = time.perf_counter()
+    b = barycentric_simplify(V, F, f, P)
+    t = time.perf_counter() - t
+    fe = np.concatenate([f, f[b.E].max(axis=1), f[F].max(axis=1)])
+    return t, b.pairs_kept, float(np.abs(b.g - fe).max() / P)
+
+
 def gudhi_run(V, F, f, P):
     import gudhi
 
@@ -100,12 +110,13 @@ def gudhi_run(V, F, f, P):
 def worker(side: str, level: int, repeat: int) -> dict:
     V, F, f = load(level)
     P = 0.01 * float(f.max() - f.min())
-    if side == "geoproc":  # compile and warm up numba on a small mesh first
+    if side != "gudhi":  # compile and warm up numba on a small mesh first
         import trimesh
 
         s = trimesh.creation.icosphere(subdivisions=2)
         sv = np.asarray(s.vertices)
-        geoproc_run(sv, np.asarray(s.faces, dtype=np.int64), sv[:, 2] + 0.1 * np.sin(7 * sv[:, 0]), 0.1)
+        run = geoproc_run if side == "geoproc" else barycentric_run
+        run(sv, np.asarray(s.faces, dtype=np.int64), sv[:, 2] + 0.1 * np.sin(7 * sv[:, 0]), 0.1)
     base = rss_mb()
     runs, kept = [], None
     for _ in range(repeat):
@@ -115,6 +126,11 @@ def worker(side: str, level: int, repeat: int) -> dict:
             extra = {"max_abs_change_over_P": float(s.max_abs_change / P),
                      "beyond_half": int(len(s.widened_vertices)),
                      "pairs_removed": s.pairs_removed}
+        elif side == "barycentric":
+            tb, pairs_kept, change = barycentric_run(V, F, f, P)
+            runs.append([tb])
+            kept = pairs_kept
+            extra = {"max_abs_change_over_P": change}
         else:
             phases, kept = gudhi_run(V, F, f, P)
             runs.append([float(x) for x in phases])
@@ -128,7 +144,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--levels", type=int, nargs="+", default=[0, 2])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench")
-    ap.add_argument("--worker", choices=["geoproc", "gudhi"], help=argparse.SUPPRESS)
+    ap.add_argument("--worker", choices=["geoproc", "barycentric", "gudhi"], help=argparse.SUPPRESS)
     ap.add_argument("--level", type=int, default=0, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.worker:
@@ -140,11 +156,12 @@ def main(argv: list[str]) -> int:
     rows = []
     for level in a.levels:
         res = {}
-        for side in ("geoproc", "gudhi"):
+        for side in ("geoproc", "barycentric", "gudhi"):
             out = subprocess.run([sys.executable, __file__, "--worker", side, "--level", str(level),
                                   "--repeat", str(a.repeat)], capture_output=True, text=True, check=True)
             res[side] = json.loads(out.stdout.strip().splitlines()[-1])
-        geo, gud = res["geoproc"], res["gudhi"]
+        geo, bar, gud = res["geoproc"], res["barycentric"], res["gudhi"]
+        tb = float(np.median([sum(r) for r in bar["runs"]]))
         tg = float(np.median([sum(r) for r in geo["runs"]]))
         tu = float(np.median([sum(r) for r in gud["runs"]]))
         ph = np.median(np.array(geo["runs"]), axis=0)
@@ -158,16 +175,22 @@ def main(argv: list[str]) -> int:
             "pairs_agree": geo["kept"] == gud["kept"],
             "max_abs_change_over_P": geo["max_abs_change_over_P"],
             "beyond_half": geo["beyond_half"],
+            "bary_s": tb, "bary_ratio": tb / tu, "bary_change": bar["max_abs_change_over_P"],
+            "bary_mb": f"{bar['rss_peak_mb']:.0f} (+{bar['rss_peak_mb'] - bar['rss_base_mb']:.0f})",
+            "bary_agree": bar["kept"] == sum(gud["kept"]),
         })
     head = ("| mesh | vertices | geoproc pipeline s | gudhi lower-star s | ratio | geoproc phases s | "
             "gudhi phases s | peak RSS MB geoproc (extra) | peak RSS MB gudhi (extra) | pairs >= P agree | "
-            "max abs change / P | vertices beyond P/2 |")
+            "max abs change / P | vertices beyond P/2 | --barycentric s | ratio | peak RSS MB (extra) | "
+            "pairs agree | max abs change / P |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         lines.append(f"| {r['mesh']} | {r['vertices']:,} | {r['geoproc_s']:.3f} | {r['gudhi_s']:.3f} | "
                      f"{r['ratio']:.2f}x | {r['phases']} | {r['gudhi_phases']} | {r['geoproc_mb']} | "
                      f"{r['gudhi_mb']} | {'yes' if r['pairs_agree'] else 'NO'} | "
-                     f"{r['max_abs_change_over_P']:.3f} | {r['beyond_half']:,} |")
+                     f"{r['max_abs_change_over_P']:.3f} | {r['beyond_half']:,} | {r['bary_s']:.3f} | "
+                     f"{r['bary_ratio']:.2f}x | {r['bary_mb']} | {'yes' if r['bary_agree'] else 'NO'} | "
+                     f"{r['bary_change']:.3f} |")
     table = "\n".join(lines)
     print(table)
     a.out.mkdir(parents=True, exist_ok=True)

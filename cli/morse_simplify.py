@@ -172,7 +172,8 @@ def morse_simplify(
         if beyond:
             run.note(f"{beyond} vertices moved by more than P/2 = {threshold / 2:.6g} "
                      f"(max |f - g| = {max_change:.6g}) where cancelled basins and peaks "
-                     "interact; the critical points are still exactly the kept ones")
+                     "interact; the critical points are still exactly the kept ones (--barycentric stays within P/2 "
+                     "on the barycentric subdivision)")
         if barycentric:
             out = Mesh(res.V, res.F, {name: g, f"{name}_original": f_ref, "cell_dim": res.dim.astype(np.float64)})
             run.metrics["subdivision_vertices"] = len(res.V)
