@@ -24,7 +24,8 @@ construction can be carried out cell by cell:
    successors allow within f + P/2, a forward pass the value closest to f
    above its predecessors, both strictly (one unit in the last place).
    Cancelling a pair of persistence p < P needs a drop of p < P along its
-   reversed path, so every value stays within f +- P/2.
+   reversed path, so every value stays within f +- P/2 (the passes use a box
+   narrower by 1e-9 P/2, so that breaking ties afterwards stays inside).
 5. g on the subdivision's vertices (the cells' barycentres) is piecewise
    linear, and its critical vertices are exactly the barycentres of the
    critical cells of V': a kept minimum vertex, a kept saddle edge's midpoint,
@@ -355,9 +356,17 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
     k, m = len(cx.E), len(cx.F)
     fc = np.concatenate([fr, fr[pp.edge_top], fr[pp.triangle_top]])
     lo, hi = _cell_arcs(cx.E, cx.FE, v_e, e_t, n)
-    g, ok = _assign_cell_values(lo, hi, fc, P / 2.0)
-    if not ok:
-        raise RuntimeError("the cancelled gradient has a closed path")
+    # The box is narrowed by a margin far below any value difference so that
+    # the tie-breaking below (one unit in the last place per tied cell) cannot
+    # leave it; a cancelled pair whose persistence is within that margin of P
+    # gets the full box.
+    margin = max(1e-9 * P / 2.0, 1024 * np.spacing(float(np.abs(fc).max())) if len(fc) else 0.0)
+    for half in (P / 2.0 - margin, P / 2.0) if P / 2.0 > margin else (P / 2.0,):
+        g, ok = _assign_cell_values(lo, hi, fc, half)
+        if not ok:
+            raise RuntimeError("the cancelled gradient has a closed path")
+        if (g >= fc - half).all():
+            break
     g = _make_strict(g, np.lexsort((np.arange(len(g)), g)))
     critical = np.concatenate([np.flatnonzero(v_e < 0), n + np.flatnonzero((e_v < 0) & (e_t < 0)),
                                n + k + np.flatnonzero(t_e < 0)])

@@ -118,3 +118,22 @@ def test_shared_meshes_reach_half_threshold(shared_data, name, axis, rel, seed):
     h = mesh.V[:, axis]
     f = h + 0.02 * (h.max() - h.min()) * np.random.default_rng(seed).standard_normal(len(h))
     check_barycentric(mesh.V, mesh.F, f, rel * (f.max() - f.min()))
+
+
+def test_plateaus_of_tied_values_stay_within_the_bound(make_fixtures):
+    # values rounded to 0.05: plateaus of equal values everywhere (ties broken by index)
+    V, F = make_fixtures.icosphere(4)
+    f = np.round(V[:, 2] + 0.2 * np.random.default_rng(4).standard_normal(len(V)), 1) / 2
+    assert len(np.unique(f)) < len(f) / 50
+    check_barycentric(V, F, f, 0.2)
+
+
+def test_armadillo_height_with_ties(shared_data):
+    # 1,284 repeated heights; breaking the ties of a plateau that sits at f + P/2
+    # once took 3 cells 6.5e-14 beyond the bound
+    mesh = load_mesh(shared_data / "meshes" / "armadillo.obj")
+    f = mesh.V[:, 1]
+    assert len(np.unique(f)) < len(f)
+    r = barycentric_simplify(mesh.V, mesh.F, f, 0.05 * (f.max() - f.min()))
+    fe = lower_star_extension(mesh.F, r.E, f)
+    assert np.abs(r.g - fe).max() <= r.threshold / 2
