@@ -15,6 +15,13 @@ Three ways to filter the normals share one pipeline (:func:`denoise_mesh`):
 
 Each outer iteration filters the normals ``normal_iterations`` times, then moves
 the vertices to fit them (Sun et al. 2007) and recomputes the normals.
+
+With the automatic schedule at strong noise, ``guided`` ends differently: on
+finely meshed surfaces the last round adds ``FINE_FINAL_PASSES`` guided passes
+with the narrower range kernel ``FINE_FINAL_SIGMA_R`` and fits twice; then the
+targets of faces the fit squashed against a crease become bisectors
+(:func:`geoproc.denoise.crease_targets.bisect_collapsed_targets`) and the
+vertices are fitted once more.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import numpy as np
 
 from geoproc.denoise import DEFAULT_METHOD, METHODS
 from geoproc.denoise.bilateral import bilateral_normal_filter, spatial_weights
+from geoproc.denoise.crease_targets import bisect_collapsed_targets
 from geoproc.denoise.face_geometry import (
     face_centroids,
     face_edge_neighbors,
@@ -113,6 +121,10 @@ class DenoiseParams:
 
 
 FEATURE_METHODS = ("l1", "dihedral", "none")
+# the last round of the automatic strong schedule on finely meshed surfaces:
+# extra guided passes with this narrower range kernel (see denoise_mesh)
+FINE_FINAL_PASSES = 2
+FINE_FINAL_SIGMA_R = 0.2
 
 
 def default_schedule(rough: float, coarseness_deg: float = 0.0) -> dict:
@@ -249,7 +261,19 @@ def denoise_mesh(
             fixed[on_boundary] = True
     X = np.array(V, dtype=np.float64, copy=True)
     N, A = face_normals_and_areas(X, F)
-    N_input = N.copy()
+    N_input, A_input = N.copy(), A.copy()
+    # automatic schedule at strong noise: the last round repairs faces the fit
+    # squashed against a crease; on finely meshed surfaces (the narrow-kernel
+    # branch) it first adds narrow guided passes and a second fit
+    strong = needs_schedule and method == "guided" and rough >= 0.18
+    fine = strong and float(np.clip((coarse - 3.5) / 1.5, 0.0, 1.0)) < 0.5
+
+    def fit(X, N):
+        X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input)
+        if p.unfold_rounds > 0:
+            return unfold_faces(X, F, N, edge_nb, fixed, N_input, p.unfold_rounds)
+        return X, 0
+
     if initial_normals is not None:
         N = np.asarray(initial_normals, dtype=np.float64)
     C = face_centroids(X, F)
@@ -262,6 +286,7 @@ def denoise_mesh(
     done = 0
     sparse = np.zeros(len(F))
     folded = 0
+    changed = np.zeros(len(F), dtype=bool)
     for o in range(outer):
         if o:
             N, A = face_normals_and_areas(X, F)
@@ -280,9 +305,16 @@ def denoise_mesh(
             done += 1
             if progress is not None:
                 progress(done / total)
-        X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input)
-        if p.unfold_rounds > 0:
-            X, folded = unfold_faces(X, F, N, edge_nb, fixed, N_input, p.unfold_rounds)
+        last = o == outer - 1
+        for _ in range(FINE_FINAL_PASSES if last and fine else 0):
+            G = guidance_normals(N, A, ring, edge_nb, inside)
+            N = bilateral_normal_filter(N, C, A, ring, sigma_s, FINE_FINAL_SIGMA_R, G, spatial=W)
+        X, folded = fit(X, N)
+        if last and fine:
+            X, folded = fit(X, N)
+        if last and strong:
+            N, changed = bisect_collapsed_targets(X, F, N, A_input, edge_nb)
+            X, folded = fit(X, N)
     info = {
         "noise_median_dihedral_deg": noise_deg,
         "noise_roughness": rough,
@@ -294,6 +326,7 @@ def denoise_mesh(
         "sigma_s": sigma_s,
         "unfold_rounds": p.unfold_rounds,
         "folded_faces": folded,
+        "crease_bisected_faces": int(changed.sum()),
     }
     if p.features == "l1":
         feature, fres = l1_feature_faces(X, F, tau=p.feature_tau)

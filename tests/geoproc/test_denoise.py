@@ -208,3 +208,27 @@ def test_shared_pairs(shared_data, name):
     res = denoise_mesh(a.V, a.F)
     e = denoise_errors(res.V, a.F, b.V)
     assert e["mean_normal_angle_deg"] < PAIR_TARGETS[name]
+
+
+def test_bisect_collapsed_targets_only_on_squashed_crease_faces():
+    from geoproc.denoise.crease_targets import bisect_collapsed_targets
+    from geoproc.denoise.face_geometry import face_edge_neighbors
+
+    # three faces in a strip; face 1 is squashed to a tenth of its area
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2, 1, 0.0]])
+    F = np.array([[0, 1, 2], [1, 3, 2], [1, 4, 3]])
+    _, A_input = face_normals_and_areas(V, F)
+    X = V.copy()
+    X[3] = [0.55, 0.55, 0.0]  # face 1 nearly degenerate, face 2 grows
+    up, side = np.array([0, 0, 1.0]), np.array([1.0, 0, 0])
+    enb = face_edge_neighbors(F)
+    for N1, expect in [(side, True), (np.array([0, np.sin(0.3), np.cos(0.3)]), False)]:
+        N = np.array([up, N1, up])
+        out, changed = bisect_collapsed_targets(X, F, N, A_input, enb)
+        assert changed.tolist() == [False, expect, False]
+        want = (N1 + up) / np.linalg.norm(N1 + up) if expect else N1
+        np.testing.assert_allclose(out[1], want, atol=1e-12)
+        np.testing.assert_array_equal(out[[0, 2]], N[[0, 2]])
+    # not collapsed: unchanged whatever the targets
+    _, changed = bisect_collapsed_targets(V, F, np.array([up, side, up]), A_input, enb)
+    assert not changed.any()
