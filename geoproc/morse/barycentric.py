@@ -292,15 +292,18 @@ def barycentric_subdivision(V: np.ndarray, F: np.ndarray, E: np.ndarray, FE: np.
     oriented as the triangle.
     """
     n, k, m = len(V), len(E), len(F)
-    V_sd = np.concatenate([V, 0.5 * (V[E[:, 0]] + V[E[:, 1]]), V[F].mean(axis=1)])
-    centre = n + k + np.arange(m)
-    parts = []
+    V_sd = np.empty((n + k + m, 3))
+    V_sd[:n] = V
+    np.add(V[E[:, 0]], V[E[:, 1]], out=V_sd[n:n + k])
+    V_sd[n:n + k] *= 0.5
+    V_sd[n + k:] = V[F].mean(axis=1)
+    F_sd = np.empty((m, 6, 3), dtype=np.int64)
+    F_sd[:, :, 2] = (n + k + np.arange(m))[:, None]
     for j in range(3):
-        mid = n + FE[:, j]
-        parts.append(np.column_stack([F[:, j], mid, centre]))
-        parts.append(np.column_stack([mid, F[:, (j + 1) % 3], centre]))
-    F_sd = np.stack(parts, axis=1).reshape(-1, 3)
-    return V_sd, F_sd.astype(np.int64)
+        F_sd[:, 2 * j, 0] = F[:, j]
+        F_sd[:, 2 * j, 1] = F_sd[:, 2 * j + 1, 0] = n + FE[:, j]
+        F_sd[:, 2 * j + 1, 1] = F[:, (j + 1) % 3]
+    return V_sd, F_sd.reshape(-1, 3)
 
 
 def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold: float,
