@@ -46,8 +46,10 @@ def denoise(
     sigma_r: Annotated[float | None, typer.Option("--sigma-r", help="Range kernel width on normal "
                                                   "differences (default: from the noise level).",
                                                   show_default=False)] = None,
-    sigma_s: Annotated[float, typer.Option("--sigma-s", help="Spatial kernel width, in mean distances "
-                                           "between adjacent face centroids.")] = 1.0,
+    sigma_s: Annotated[float | None, typer.Option("--sigma-s", help="Spatial kernel width, in mean "
+                                                  "distances between adjacent face centroids (default: from "
+                                                  "the mesh, 1, up to 2 on coarse meshes without creases).",
+                                                  show_default=False)] = None,
     pin_boundary: Annotated[bool, typer.Option("--pin-boundary", help="Keep boundary vertices fixed.")]
     = False,
     features: Annotated[str, typer.Option("--features", help="How the per-face 'feature' output is found: "
@@ -115,7 +117,7 @@ def denoise(
                         ("--vertex-iterations", vertex_iterations)):
             if v is not None and v < 0:
                 raise UsageError(f"{name} {v}: must be >= 0")
-        if (sigma_r is not None and sigma_r <= 0) or sigma_s <= 0:
+        if (sigma_r is not None and sigma_r <= 0) or (sigma_s is not None and sigma_s <= 0):
             raise UsageError("--sigma-r and --sigma-s must be > 0")
         if features not in ("l1", "dihedral"):
             raise UsageError(f"--features {features}: use l1 or dihedral")

@@ -82,7 +82,7 @@ class DenoiseParams:
         Range kernel width on normal differences (chord length, 0..2).
     sigma_s_scale : float
         Spatial kernel width as a multiple of the mean distance between the
-        centroids of edge-adjacent faces.
+        centroids of edge-adjacent faces (None: from the schedule, 1 to 2).
     pin_boundary : bool
         Keep boundary vertices fixed.
     patch_size : int
@@ -111,7 +111,7 @@ class DenoiseParams:
     normal_iterations: int | None = None
     vertex_iterations: int = 10
     sigma_r: float | None = None
-    sigma_s_scale: float = 1.0
+    sigma_s_scale: float | None = None
     pin_boundary: bool = False
     patch_size: int = 10
     features: str = "dihedral"
@@ -127,8 +127,8 @@ FINE_FINAL_PASSES = 2
 FINE_FINAL_SIGMA_R = 0.2
 
 
-def default_schedule(rough: float, coarseness_deg: float = 0.0) -> dict:
-    """Iteration counts and range width from the estimated noise level.
+def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: float = np.inf) -> dict:
+    """Iteration counts and kernel widths from the estimated noise level and shape.
 
     ``rough`` is :func:`geoproc.denoise.noise_level.roughness` of the input
     (about 0.1, 0.18, 0.25 and 0.35 for Gaussian noise of 0.1, 0.2, 0.3 and 0.5
@@ -139,31 +139,67 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0) -> dict:
     0.18 the filter fades out (``s = (rough - 0.03) / 0.15``) to nothing at all
     on a clean mesh.
 
-    ``coarseness_deg`` (:func:`coarseness_deg`) is the median dihedral angle
-    left after a plain smoothing: about 2-3 degrees on finely meshed surfaces,
-    5-7 on coarse curved ones, where a narrow range kernel and many passes
-    carve false creases. From 3.5 to 5 degrees the schedule moves to broad and
-    short (2 + t rounds of 2 + t passes, sigma_r 0.8 - 0.1 t).
+    ``coarseness_deg`` and ``tail_ratio`` come from
+    :func:`smoothed_dihedral_stats`: the median dihedral angle left after a
+    plain smoothing (about 2-3 degrees on finely meshed surfaces, 5-7 on
+    coarse curved ones, where a narrow range kernel and many passes carve
+    false creases) and the 99th percentile of those angles over the median
+    (at most 9.3 on the smooth organic benchmark meshes, at least 11.4 where
+    there are creases). From 3.5 to 5 degrees of coarseness the schedule moves
+    to broad and short (2 + t rounds of 2 + t passes, sigma_r 0.8 - 0.1 t).
+    Coarse meshes without creases (weight ``o = w_coarse (1 - w_sharp)``,
+    ``w_sharp = (tail_ratio - 9.5) / 1.5`` clipped to [0, 1]) move further, to
+    a plain bilateral filter: 2 s rounds of 2 s passes, sigma_r 1, a spatial
+    kernel of 2 centroid spacings, and guidance normals blended with the
+    normals themselves by ``o`` (``guidance_mix``; 1 is the plain bilateral
+    filter).
+
+    Returns
+    -------
+    dict with ``outer_iterations``, ``normal_iterations``, ``sigma_r``,
+    ``spatial_scale`` (sigma_s in centroid spacings) and ``guidance_mix``.
     """
-    if rough < 0.18:
-        s = float(np.clip((rough - 0.03) / 0.15, 0.0, 1.0))
-        return {"outer_iterations": int(round(2 * s)), "normal_iterations": int(round(2 * s)),
-                "sigma_r": 0.1 + 0.4 * s}
-    t = float(np.clip((rough - 0.18) / 0.025, 0.0, 1.0))
+    s = float(np.clip((rough - 0.03) / 0.15, 0.0, 1.0))
     w = float(np.clip((coarseness_deg - 3.5) / 1.5, 0.0, 1.0))
-    fine = (2 + 3 * t, 2 + 8 * t, 0.5 - 0.2 * t)
-    coarse = (2 + t, 2 + t, 0.8 - 0.1 * t)
-    mix = [(1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True)]
+    if rough < 0.18:
+        base = (2 * s, 2 * s, 0.1 + 0.4 * s)
+    else:
+        t = float(np.clip((rough - 0.18) / 0.025, 0.0, 1.0))
+        fine = (2 + 3 * t, 2 + 8 * t, 0.5 - 0.2 * t)
+        coarse = (2 + t, 2 + t, 0.8 - 0.1 * t)
+        base = tuple((1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True))
+    base = (round(base[0]), round(base[1]), base[2])
+    o = w * (1.0 - float(np.clip((tail_ratio - 9.5) / 1.5, 0.0, 1.0)))
+    organic = (2 * s, 2 * s, 1.0)
+    mix = [(1 - o) * a + o * b for a, b in zip(base, organic, strict=True)]
     return {"outer_iterations": int(round(mix[0])), "normal_iterations": int(round(mix[1])),
-            "sigma_r": mix[2]}
+            "sigma_r": mix[2], "spatial_scale": 1.0 + o, "guidance_mix": o}
 
 
-def coarseness_deg(V: np.ndarray, F: np.ndarray) -> float:
-    """Median dihedral angle (degrees) after a plain smoothing (bilateral normal
-    filter with a broad range kernel, 2 rounds of 3 passes): the curvature per
-    edge that the mesh keeps once the noise is gone."""
-    r = denoise_mesh(V, F, "bilateral", DenoiseParams(outer_iterations=2, normal_iterations=3, sigma_r=1.0))
-    return median_dihedral_deg(r.V, F)
+def smoothed_dihedral_stats(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> tuple[float,
+                                                                                                        float]:
+    """Dihedral angles left after a plain smoothing (bilateral normal filter
+    with a broad range kernel, 2 rounds of 3 passes).
+
+    Returns
+    -------
+    coarseness_deg : float
+        Their median in degrees: the curvature per edge that the mesh keeps
+        once the noise is gone.
+    tail_ratio : float
+        Their 99th percentile over the median: large where creases survive the
+        smoothing, small on smooth curved surfaces.
+    """
+    r = denoise_mesh(V, F, "bilateral", DenoiseParams(outer_iterations=2, normal_iterations=3, sigma_r=1.0,
+                                                      sigma_s_scale=1.0, features="none"))
+    N, _ = face_normals_and_areas(r.V, F)
+    enb = face_edge_neighbors(F) if edge_nb is None else edge_nb
+    i, k = np.nonzero(enb >= 0)
+    if len(i) == 0:
+        return 0.0, 0.0
+    ang = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", N[i], N[enb[i, k]]), -1.0, 1.0)))
+    med = float(np.median(ang))
+    return med, float(np.percentile(ang, 99) / max(med, 1e-9))
 
 
 @dataclass
@@ -182,6 +218,15 @@ class DenoiseResult:
     normals: np.ndarray
     feature: np.ndarray
     info: dict = field(default_factory=dict)
+
+
+def blend_guidance(G: np.ndarray, N: np.ndarray, mix: float) -> np.ndarray:
+    """(m, 3) unit normals ``normalize((1 - mix) G + mix N)``: guidance normals G
+    moved towards the filtered normals N (mix 1: the plain bilateral filter)."""
+    if mix <= 0.0:
+        return G
+    B = (1.0 - mix) * G + mix * N
+    return B / np.maximum(np.linalg.norm(B, axis=1, keepdims=True), 1e-300)
 
 
 def rpca_guidance(G: np.ndarray, patch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -247,8 +292,9 @@ def denoise_mesh(
     noise_deg = median_dihedral_deg(V, F, edge_nb)
     rough = roughness(V, F)
     needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
-    coarse = coarseness_deg(V, F) if needs_schedule and rough >= 0.18 else 0.0
-    sched = default_schedule(rough, coarse)
+    coarse, tail = smoothed_dihedral_stats(V, F, edge_nb) if needs_schedule and rough >= 0.1 else (0.0, np.inf)
+    sched = default_schedule(rough, coarse, tail)
+    mix = sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0
     outer = sched["outer_iterations"] if p.outer_iterations is None else p.outer_iterations
     inner = sched["normal_iterations"] if p.normal_iterations is None else p.normal_iterations
     sigma_r = sched["sigma_r"] if p.sigma_r is None else p.sigma_r
@@ -279,7 +325,7 @@ def denoise_mesh(
     C = face_centroids(X, F)
     i, k = np.nonzero(edge_nb >= 0)
     spacing = float(np.linalg.norm(C[i] - C[edge_nb[i, k]], axis=1).mean()) if len(i) else 1.0
-    sigma_s = p.sigma_s_scale * spacing
+    sigma_s = (sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale) * spacing
     patch = nearest_faces_in_ring(C, ring, p.patch_size) if method == "rpca" else None
     inside = patch_interior_edges(ring, edge_nb) if method != "bilateral" else None
     total = max(outer * inner, 1)
@@ -300,7 +346,7 @@ def denoise_mesh(
             elif method == "rpca":
                 G = G_round
             else:
-                G = guidance_normals(N, A, ring, edge_nb, inside)
+                G = blend_guidance(guidance_normals(N, A, ring, edge_nb, inside), N, mix)
             N = bilateral_normal_filter(N, C, A, ring, sigma_s, sigma_r, G, spatial=W)
             done += 1
             if progress is not None:
@@ -319,6 +365,8 @@ def denoise_mesh(
         "noise_median_dihedral_deg": noise_deg,
         "noise_roughness": rough,
         "coarseness_deg": coarse,
+        "dihedral_tail_ratio": tail if np.isfinite(tail) else None,
+        "guidance_mix": mix,
         "outer_iterations": outer,
         "normal_iterations": inner,
         "vertex_iterations": p.vertex_iterations,

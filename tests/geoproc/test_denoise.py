@@ -232,3 +232,25 @@ def test_bisect_collapsed_targets_only_on_squashed_crease_faces():
     # not collapsed: unchanged whatever the targets
     _, changed = bisect_collapsed_targets(V, F, np.array([up, side, up]), A_input, enb)
     assert not changed.any()
+
+
+def test_schedule_blends_to_plain_bilateral_on_coarse_smooth_meshes():
+    from geoproc.denoise.mesh_denoise import default_schedule
+
+    sharp = default_schedule(0.25, 6.0, tail_ratio=20.0)  # coarse with creases: the broad guided schedule
+    assert (sharp["outer_iterations"], sharp["normal_iterations"], sharp["guidance_mix"]) == (3, 3, 0.0)
+    assert sharp["sigma_r"] == pytest.approx(0.7) and sharp["spatial_scale"] == 1.0
+    smooth = default_schedule(0.25, 6.0, tail_ratio=5.0)  # coarse without creases: plain bilateral
+    assert (smooth["outer_iterations"], smooth["normal_iterations"], smooth["guidance_mix"]) == (2, 2, 1.0)
+    assert smooth["sigma_r"] == 1.0 and smooth["spatial_scale"] == 2.0
+    fine = default_schedule(0.25, 2.0, tail_ratio=5.0)  # finely meshed: unchanged whatever the tail
+    assert fine == default_schedule(0.25, 2.0) and fine["outer_iterations"] == 5
+    assert default_schedule(0.0, 6.0, 5.0)["outer_iterations"] == 0  # clean: nothing to do
+
+
+def test_dihedral_tail_separates_creases_from_curvature(make_fixtures, dfx):
+    from geoproc.denoise.mesh_denoise import smoothed_dihedral_stats
+
+    _, tail_sphere = smoothed_dihedral_stats(*make_fixtures.icosphere(3))
+    _, tail_cube = smoothed_dihedral_stats(*dfx.subdivided_cube(8))
+    assert tail_sphere < 3 and tail_cube > 11.5

@@ -70,8 +70,8 @@ def test_denoise_creates_no_flips_on_a_noisy_organic_mesh(shared_data):
 
     new_off, theta_off, _ = run(0)
     new_on, theta_on, info = run(5)
-    assert new_off >= 10  # without the repair the update folds faces here (15 at the time of writing)
+    assert new_off >= 5  # without the repair the update folds faces here (7 at the time of writing)
     assert new_on == 0
-    assert info["folded_faces"] <= 3  # a few may stay held by the guard (1 at the time of writing)
+    assert info["folded_faces"] <= 8  # a few may stay held by the guard (5 at the time of writing)
     assert theta_on <= theta_off + 0.05
-    assert theta_on == pytest.approx(8.7, abs=0.3)
+    assert theta_on == pytest.approx(8.0, abs=0.3)
