@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data"
 
 from geoproc.denoise import denoise_errors, denoise_mesh, detection_scores, rpca_outliers  # noqa: E402
-from geoproc.denoise.dynamic import coherent_refinement  # noqa: E402
+from geoproc.denoise.dynamic import coherent_heights  # noqa: E402
 from geoproc.denoise.metrics import flipped_faces  # noqa: E402
 from geoproc.mesh import load_mesh  # noqa: E402
 from geoproc.perturb import NoiseSpec, perturb_positions  # noqa: E402
@@ -181,11 +181,11 @@ def dynamic_table(step: int = 16) -> str:
         return float(np.mean([denoise_errors(X[t], F, V[t])["mean_normal_angle_deg"] for t in range(len(V))]))
 
     static, t_static = timed(lambda: np.stack([denoise_mesh(Vn[t], F).V for t in range(len(V))]))
-    (dyn, info), t_dyn = timed(lambda: coherent_refinement(static, F))
+    (dyn, info), t_dyn = timed(lambda: coherent_heights(static, F))
     rows = ["| elephant, σ 0.3 per frame | frames | θ° | time s |", "|---|---:|---:|---:|",
             f"| noisy | {len(V)} | {theta(Vn):.2f} | |",
             f"| static (guided), frame by frame | {len(V)} | {theta(static):.2f} | {t_static:.1f} |",
-            f"| dynamic (static + RPCA on stacked normals, rank {info['low_rank']}) | {len(V)} | "
+            f"| dynamic (static + RPCA on the normal heights, rank {info['low_rank']}) | {len(V)} | "
             f"{theta(dyn):.2f} | {t_static + t_dyn:.1f} |"]
     print("\n".join(rows[2:]), flush=True)
     return "\n".join(rows)

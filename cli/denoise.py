@@ -78,8 +78,10 @@ def denoise(
                                           "positions instead of the input ones: the merged projections "
                                           "onto the neighbourhoods' robust planes; for an animation, the "
                                           "robust low-rank trajectories.")] = False,
-    dynamic: Annotated[bool, typer.Option("--dynamic", help="Animation denoising with RPCA on the "
-                                          "stacked per-frame normals (Algorithm 4).")] = False,
+    dynamic: Annotated[bool, typer.Option("--dynamic", help="Animation denoising: every frame denoised, "
+                                          "then RPCA on the (vertices x frames) matrix of normal heights over "
+                                          "a smooth base keeps the temporally coherent detail (after "
+                                          "Algorithm 4).")] = False,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,

@@ -7,7 +7,7 @@ import pytest
 
 from geoproc.animation import Animation, animation_to_bytes, load_animation
 from geoproc.denoise import denoise_errors, denoise_mesh
-from geoproc.denoise.dynamic import coherent_normals, denoise_animation
+from geoproc.denoise.dynamic import coherent_heights, denoise_animation, normal_heights
 from geoproc.errors import InputError
 from geoproc.mesh import Mesh, save_mesh
 from tests.conftest import load_fixture_module
@@ -28,24 +28,38 @@ def test_dynamic_beats_frame_by_frame(dfx):
     static = np.stack([denoise_mesh(Vn[t], F).V for t in range(len(Vn))])
     dynamic, info = denoise_animation(Vn, F)
     assert info["rpca_converged"]
-    assert _theta(dynamic, F, V) < 0.95 * _theta(static, F, V)
+    # measured: 2.355 against 2.488 degrees
+    assert _theta(dynamic, F, V) < 0.97 * _theta(static, F, V)
     assert _theta(dynamic, F, V) < 0.35 * _theta(Vn, F, V)
 
 
-def test_coherent_normals_of_a_rigid_motion_are_exact(make_fixtures):
-    # a rotation about a fixed axis: every frame's normals are c_t u + s_t v + w,
-    # rank 3 over 20 frames, so RPCA gives them back unchanged (nothing sparse)
+def test_heights_of_a_rigid_motion_are_kept(make_fixtures):
+    # a rotation about a fixed axis moves the detail with the surface: every
+    # vertex keeps its height over time (rank 1), so nothing moves
     from scipy.spatial.transform import Rotation
 
     V0, F = make_fixtures.torus()
+    V0 = V0 * (1 + 0.02 * np.sin(7 * np.arctan2(V0[:, 1], V0[:, 0])))[:, None]  # some detail
     axis = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
     V = np.stack([Rotation.from_rotvec(a * axis).apply(V0) for a in np.linspace(0, 3.0, 20)])
-    N, info = coherent_normals(V, F)
-    assert info["low_rank"] == 3
-    from geoproc.denoise.face_geometry import face_normals_and_areas
+    H, _ = normal_heights(V, F)
+    assert np.abs(H - H[0]).max() < 1e-9 and np.abs(H).max() > 1e-3
+    out, info = coherent_heights(V, F)
+    assert info["low_rank"] == 1 and np.abs(out - V).max() < 1e-6
 
-    for t in range(len(V)):
-        assert np.allclose(N[t], face_normals_and_areas(V[t], F)[0], atol=1e-6)
+
+def test_heights_average_out_independent_noise(make_fixtures):
+    # a fixed shape with fresh noise along the normals in every frame: the
+    # coherent heights are close to the clean ones
+    from geoproc.perturb import NoiseSpec, perturb_positions
+
+    V0, F = make_fixtures.icosphere(3)
+    rng = np.random.default_rng(3)
+    V = np.stack([perturb_positions(V0, F, NoiseSpec(sigma=0.2), rng)[0] for _ in range(12)])
+    out, _ = coherent_heights(V, F)
+    before = np.abs(np.linalg.norm(V, axis=2) - 1).mean()
+    after = np.abs(np.linalg.norm(out, axis=2) - 1).mean()
+    assert after < 0.6 * before  # measured: 0.50
 
 
 def test_npz_roundtrip_and_deterministic_bytes(tmp_path, dfx):
