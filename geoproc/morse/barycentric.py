@@ -41,6 +41,7 @@ import numba
 import numpy as np
 
 from geoproc.morse.complex import surface_complex
+from geoproc.morse.dag import topological_order
 from geoproc.morse.gradient import discrete_gradient
 from geoproc.morse.order import vertex_order
 from geoproc.morse.persistence import lower_star_persistence
@@ -224,34 +225,7 @@ def _assign_cell_values(lo, hi, fc, delta):
     as close to fc as the arcs allow. Returns (g, ok); ok is False when the
     arcs have a cycle."""
     N = fc.shape[0]
-    out_ptr = np.zeros(N + 1, np.int64)
-    for a in range(lo.shape[0]):
-        out_ptr[lo[a] + 1] += 1
-    for c in range(N):
-        out_ptr[c + 1] += out_ptr[c]
-    out_nbr = np.empty(lo.shape[0], np.int64)
-    fill = out_ptr[:-1].copy()
-    indeg = np.zeros(N, np.int64)
-    for a in range(lo.shape[0]):
-        out_nbr[fill[lo[a]]] = hi[a]
-        fill[lo[a]] += 1
-        indeg[hi[a]] += 1
-    topo = np.empty(N, np.int64)
-    head = 0
-    tail = 0
-    for c in range(N):
-        if indeg[c] == 0:
-            topo[tail] = c
-            tail += 1
-    while head < tail:
-        c = topo[head]
-        head += 1
-        for p in range(out_ptr[c], out_ptr[c + 1]):
-            s = out_nbr[p]
-            indeg[s] -= 1
-            if indeg[s] == 0:
-                topo[tail] = s
-                tail += 1
+    out_ptr, out_nbr, topo, tail, _ = topological_order(lo, hi, N)
     g = np.empty(N)
     if tail < N:
         return g, False

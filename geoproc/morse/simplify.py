@@ -105,6 +105,7 @@ import numba
 import numpy as np
 
 from geoproc.morse.complex import SurfaceComplex
+from geoproc.morse.dag import topological_order
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.heap import heap_pop, heap_push
 from geoproc.morse.merge_forest import cone_adjacency, merge_forest
@@ -195,37 +196,7 @@ def _assign_values(f, half, down, up, keep_min, keep_max, pin, adj_ptr, adj_nbr)
                     A[c] = v
                     B[c] = w
                 c += 1
-    A = A[:c]
-    B = B[:c]
-    cnt = c
-    ptr = np.zeros(n + 1, np.int64)
-    indeg = np.zeros(n, np.int64)
-    for i in range(cnt):
-        ptr[A[i] + 1] += 1
-        indeg[B[i]] += 1
-    for v in range(n):
-        ptr[v + 1] += ptr[v]
-    pos = ptr[:-1].copy()
-    succ = np.empty(cnt, np.int64)
-    for i in range(cnt):
-        succ[pos[A[i]]] = B[i]
-        pos[A[i]] += 1
-    topo = np.empty(n, np.int64)
-    head = 0
-    tail = 0
-    for v in range(n):
-        if indeg[v] == 0:
-            topo[tail] = v
-            tail += 1
-    while head < tail:
-        a = topo[head]
-        head += 1
-        for j in range(ptr[a], ptr[a + 1]):
-            b = succ[j]
-            indeg[b] -= 1
-            if indeg[b] == 0:
-                topo[tail] = b
-                tail += 1
+    ptr, succ, topo, tail, indeg = topological_order(A[:c], B[:c], n)
     g = np.empty(n, np.float64)
     half_v = np.full(n, half)
     stuck = indeg > 0
