@@ -294,7 +294,9 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
     f : (n,) float array
         Vertex values.
     threshold : float
-        Absolute persistence threshold P >= 0.
+        Absolute persistence threshold P >= 0. With P = 0 nothing is removed
+        and g is the lower-star extension itself (its ties, a cell and its
+        highest vertex, broken by index as in every computation here).
     path : str, optional
         File name for error messages.
 
@@ -338,13 +340,16 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
     # leave it; a cancelled pair whose persistence is within that margin of P
     # gets the full box.
     margin = max(1e-9 * P / 2.0, 1024 * np.spacing(float(np.abs(fc).max())) if len(fc) else 0.0)
-    for half in (P / 2.0 - margin, P / 2.0) if P / 2.0 > margin else (P / 2.0,):
+    if P == 0.0:  # nothing to remove: g is f on the cells, ties broken by index as everywhere
+        g = fc.copy()
+    for half in (P / 2.0 - margin, P / 2.0) if P / 2.0 > margin else ((P / 2.0,) if P > 0.0 else ()):
         g, ok = _assign_cell_values(lo, hi, fc, half)
         if not ok:
             raise RuntimeError("the cancelled gradient has a closed path")
         if (g >= fc - half).all():
             break
-    g = _make_strict(g, np.lexsort((np.arange(len(g)), g)))
+    if P > 0.0:
+        g = _make_strict(g, np.lexsort((np.arange(len(g)), g)))
     critical = np.concatenate([np.flatnonzero(v_e < 0), n + np.flatnonzero((e_v < 0) & (e_t < 0)),
                                n + k + np.flatnonzero(t_e < 0)])
     # back to the input's vertex numbering (edges and triangles keep theirs)

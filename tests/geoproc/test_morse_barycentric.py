@@ -129,3 +129,11 @@ def test_armadillo_height_with_ties(shared_data):
     r = barycentric_simplify(mesh.V, mesh.F, f, 0.05 * (f.max() - f.min()))
     fe = lower_star_extension(mesh.F, r.E, f)
     assert np.abs(r.g - fe).max() <= r.threshold / 2
+
+
+def test_threshold_zero_gives_the_lower_star_extension(make_fixtures):
+    V, F = make_fixtures.icosphere(2)
+    f = V[:, 2] + 0.1 * np.random.default_rng(5).standard_normal(len(V))
+    r = barycentric_simplify(V, F, f, 0.0)
+    np.testing.assert_array_equal(r.g, lower_star_extension(F, r.E, f))
+    assert r.pairs_removed == 0 and r.max_abs_change == 0.0
