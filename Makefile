@@ -47,6 +47,7 @@ demo-info: $(FIXTURES) $(DEMO)/.dir
 demo-morse-simplify: $(FIXTURES) $(DEMO)/.dir
 	$(GEO) morse-simplify fixtures/data/torus.ply --field x --persistence 0.1 -o $(DEMO)/morse_torus.ply --critical $(DEMO)/morse_torus_critical.json --quiet --report $(DEMO)/morse_torus.json --check 'saddles_after==2'
 	$(GEO) morse-simplify fixtures/data/icosphere.ply --field mean-curvature --persistence 0.5 --relative -o $(DEMO)/morse_sphere.ply --diagram $(DEMO)/morse_sphere.png --quiet --report $(DEMO)/morse_sphere.json --check 'minima_after==12' --check 'maxima_after==1'
+	$(GEO) morse-simplify fixtures/data/icosphere.ply --field mean-curvature --persistence 0.5 --relative --barycentric -o $(DEMO)/morse_sphere_exact.ply --quiet --report $(DEMO)/morse_sphere_exact.json --check 'vertices_beyond_half_threshold==0' --check 'minima_after==12' --check 'maxima_after==1'
 
 demo-wos-solve: $(FIXTURES) $(DEMO)/.dir
 	$(PY) fixtures/wos_fixtures.py $(DEMO)/wos_inputs > /dev/null
