@@ -93,20 +93,34 @@ class BarycentricSimplification:
 
 
 @numba.njit(cache=True)
-def _vertex_root(E, v_e, v):
-    while v_e[v] >= 0:
-        e = v_e[v]
-        v = E[e, 0] + E[e, 1] - v
-    return v
+def _across(X, e, c):
+    """The cell on the other side of edge e from cell c (``X``: the edge's two
+    vertices, or its two triangles); -1 across a boundary edge."""
+    if X[e, 1] < 0:
+        return -1
+    return X[e, 0] + X[e, 1] - c
 
 
 @numba.njit(cache=True)
-def _cancel_minima(E, v_e, e_v, minima, saddles):
-    """Reverse the vertex-edge path from each saddle edge down to its minimum.
+def _root(X, cell_edge, c):
+    """Follow cell -> paired edge -> cell across it up to an unpaired cell (or -1)."""
+    while cell_edge[c] >= 0:
+        c = _across(X, cell_edge[c], c)
+        if c < 0:
+            return -1
+    return c
 
-    Pairs are tried in the given order; a pair whose minimum is not yet the
-    root below either end of its edge is retried after the others. Returns
-    the number of pairs that could not be cancelled.
+
+@numba.njit(cache=True)
+def _cancel_pairs(X, cell_edge, edge_cell, saddles, ends):
+    """Reverse the gradient path from each saddle edge to its partner cell.
+
+    Minimum side: ``X`` = the edges' vertices, ``cell_edge`` / ``edge_cell``
+    the vertex-edge pairs, ``ends`` the minima. Maximum side: ``X`` = the
+    edges' triangles (-1 on the boundary), the triangle-edge pairs, the maxima.
+    Pairs are tried in the given order; one whose partner is not yet the root
+    behind either side of its edge is retried after the others. Returns the
+    number of pairs that could not be cancelled.
     """
     todo = np.ones(len(saddles), dtype=np.bool_)
     left = len(saddles)
@@ -117,72 +131,23 @@ def _cancel_minima(E, v_e, e_v, minima, saddles):
                 continue
             s = saddles[i]
             start = -1
-            if _vertex_root(E, v_e, E[s, 0]) == minima[i]:
-                start = E[s, 0]
-            elif _vertex_root(E, v_e, E[s, 1]) == minima[i]:
-                start = E[s, 1]
-            if start < 0:
-                continue
-            v = start
-            prev = s
-            while True:
-                e = v_e[v]
-                v_e[v] = prev
-                e_v[prev] = v
-                if e < 0:
-                    break
-                prev = e
-                v = E[e, 0] + E[e, 1] - v
-            todo[i] = False
-            left -= 1
-            progress = True
-        if not progress:
-            return left
-    return 0
-
-
-@numba.njit(cache=True)
-def _triangle_root(ET, t_e, t):
-    """Follow triangle -> paired edge -> other triangle up to a critical
-    triangle (returned) or out across the boundary (-1)."""
-    while t_e[t] >= 0:
-        e = t_e[t]
-        if ET[e, 1] < 0:
-            return -1
-        t = ET[e, 0] + ET[e, 1] - t
-    return t
-
-
-@numba.njit(cache=True)
-def _cancel_maxima(ET, t_e, e_t, saddles, maxima):
-    """Reverse the edge-triangle path from each saddle edge up to its maximum
-    (the dual of :func:`_cancel_minima`); returns the pairs left."""
-    todo = np.ones(len(saddles), dtype=np.bool_)
-    left = len(saddles)
-    while left:
-        progress = False
-        for i in range(len(saddles)):
-            if not todo[i]:
-                continue
-            s = saddles[i]
-            start = -1
             for side in range(2):
-                t0 = ET[s, side]
-                if t0 >= 0 and _triangle_root(ET, t_e, t0) == maxima[i]:
-                    start = t0
+                c0 = X[s, side]
+                if c0 >= 0 and _root(X, cell_edge, c0) == ends[i]:
+                    start = c0
                     break
             if start < 0:
                 continue
-            t = start
+            c = start
             prev = s
             while True:
-                e = t_e[t]
-                t_e[t] = prev
-                e_t[prev] = t
+                e = cell_edge[c]
+                cell_edge[c] = prev
+                edge_cell[prev] = c
                 if e < 0:
                     break
                 prev = e
-                t = ET[e, 0] + ET[e, 1] - t
+                c = _across(X, e, c)
             todo[i] = False
             left -= 1
             progress = True
@@ -326,10 +291,10 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
     e_t, t_e = grad.edge_triangle.copy(), grad.triangle_edge.copy()
     cut0 = np.flatnonzero(p0 < P)
     cut0 = cut0[np.lexsort((pp.min_saddle_edge[cut0], pp.edge_top[pp.min_saddle_edge[cut0]]))]
-    left = _cancel_minima(cx.E, v_e, e_v, pp.min_vertex[cut0], pp.min_saddle_edge[cut0])
+    left = _cancel_pairs(cx.E, v_e, e_v, pp.min_saddle_edge[cut0], pp.min_vertex[cut0])
     cut1 = np.flatnonzero(p1 < P)
     cut1 = cut1[np.lexsort((pp.saddle_edge[cut1], pp.edge_top[pp.saddle_edge[cut1]]))][::-1]
-    left += _cancel_maxima(cx.ET, t_e, e_t, pp.saddle_edge[cut1], pp.max_triangle[cut1])
+    left += _cancel_pairs(cx.ET, t_e, e_t, pp.saddle_edge[cut1], pp.max_triangle[cut1])
     if left:
         raise RuntimeError(f"{left} persistence pairs have no gradient path to cancel along")
     k, m = len(cx.E), len(cx.F)
