@@ -101,7 +101,7 @@ def morse_simplify(
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
         from geoproc.morse import discrete_gradient, find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field
-        from geoproc.morse.barycentric import barycentric_simplify
+        from geoproc.morse.barycentric import barycentric_simplify, mesh_cell
         from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
         from geoproc.morse.diagram_plot import persistence_diagram_png
         from geoproc.morse.fields import field_name, vertex_field
@@ -186,6 +186,9 @@ def morse_simplify(
             doc = {"field": name, "threshold": threshold, "euler_characteristic": chi,
                    "before": critical_cells_table(cx, before, order),
                    "after": critical_cells_table(cx_after, after, order_after)}
+            if barycentric:  # which mesh cell each subdivision vertex stands for
+                for row in doc["after"]:
+                    row["mesh_cell"] = mesh_cell(res, m.F, row["vertex"])
             run.write_bytes(critical, json.dumps(json_safe(doc)).encode())
         if diagram is not None:
             with run.timer("diagram"):

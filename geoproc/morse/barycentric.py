@@ -214,6 +214,26 @@ def _assign_cell_values(lo, hi, fc, delta):
     return g, True
 
 
+def mesh_cell(result: BarycentricSimplification, F: np.ndarray, vertex: int) -> dict:
+    """The mesh cell a subdivision vertex stands for.
+
+    Parameters
+    ----------
+    result : the output of :func:`barycentric_simplify`; F : (m, 3) the input triangles;
+    vertex : a subdivision vertex id.
+
+    Returns
+    -------
+    dict with ``dimension`` (0, 1, 2) and ``vertices`` (the cell's input vertex ids).
+    """
+    n, k = len(result.V) - len(result.E) - len(F), len(result.E)
+    if vertex < n:
+        return {"dimension": 0, "vertices": [int(vertex)]}
+    if vertex < n + k:
+        return {"dimension": 1, "vertices": [int(x) for x in result.E[vertex - n]]}
+    return {"dimension": 2, "vertices": [int(x) for x in F[vertex - n - k]]}
+
+
 def barycentric_subdivision(V: np.ndarray, F: np.ndarray, E: np.ndarray, FE: np.ndarray) -> tuple[np.ndarray,
                                                                                                    np.ndarray]:
     """Vertices and triangles of the barycentric subdivision.

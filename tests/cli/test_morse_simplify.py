@@ -183,7 +183,14 @@ def test_barycentric_reaches_half_threshold_and_chains(cli, shared_data, tmp_pat
     # the minima of g on the subdivision, found from the output file alone
     grad = discrete_gradient(surface_complex(sd.F, len(g)), g)
     assert len(grad.critical_vertices) == m["minima_after"] and (dim[grad.critical_vertices] == 0).all()
-    assert len(json.loads(crit.read_text())["after"]) == 2 * m["pairs_kept"] + 2
+    after = json.loads(crit.read_text())["after"]
+    assert len(after) == 2 * m["pairs_kept"] + 2
+    for row in after:  # the mesh cell behind each critical subdivision vertex, at its barycentre
+        cell = row["mesh_cell"]
+        assert cell["dimension"] == dim[row["vertex"]] and len(cell["vertices"]) == cell["dimension"] + 1
+        np.testing.assert_allclose(sd.V[row["vertex"]], mesh.V[cell["vertices"]].mean(axis=0), atol=1e-9)
+    for d in (0, 1, 2):  # minima at mesh vertices, saddles at edge midpoints, maxima at triangle centres
+        assert {row["mesh_cell"]["dimension"] for row in after if row["dimension"] == d} == {d}
     # the output chains: the subdivided field is a valid input
     p = cli("morse-simplify", out, "--field", "h", "--persistence", "0.01", "--relative", "-o",
             tmp_path / "again.ply", "--report", tmp_path / "r2.json", "-q")
