@@ -135,9 +135,11 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: floa
     mean edge lengths; below 0.05 on clean meshes). From 0.18 to 0.205 the
     strength ``t = (rough - 0.18) / 0.025`` goes from light (2 rounds of 2
     passes, sigma_r 0.5: smooth organic surfaces at low noise lose detail under
-    stronger filtering) to strong (5 rounds of 10 passes, sigma_r 0.3). Below
-    0.18 the filter fades out (``s = (rough - 0.03) / 0.15``) to nothing at all
-    on a clean mesh.
+    stronger filtering) to strong (5 rounds of 10 passes, sigma_r 0.3). Where
+    creases survive the plain smoothing (``w_sharp`` below), the narrow range
+    kernel keeps them and the ramp starts at 0.16 instead. Below its start the
+    filter fades out (``s = (rough - 0.03) / 0.15``) to nothing at all on a
+    clean mesh.
 
     ``coarseness_deg`` and ``tail_ratio`` come from
     :func:`smoothed_dihedral_stats`: the median dihedral angle left after a
@@ -161,15 +163,17 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: floa
     """
     s = float(np.clip((rough - 0.03) / 0.15, 0.0, 1.0))
     w = float(np.clip((coarseness_deg - 3.5) / 1.5, 0.0, 1.0))
-    if rough < 0.18:
+    w_sharp = float(np.clip((tail_ratio - 9.5) / 1.5, 0.0, 1.0))
+    low = 0.18 - 0.02 * w_sharp  # with creases the strong schedule starts earlier
+    if rough < low:
         base = (2 * s, 2 * s, 0.1 + 0.4 * s)
     else:
-        t = float(np.clip((rough - 0.18) / 0.025, 0.0, 1.0))
+        t = float(np.clip((rough - low) / (0.205 - low), 0.0, 1.0))
         fine = (2 + 3 * t, 2 + 8 * t, 0.5 - 0.2 * t)
         coarse = (2 + t, 2 + t, 0.8 - 0.1 * t)
         base = tuple((1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True))
     base = (round(base[0]), round(base[1]), base[2])
-    o = w * (1.0 - float(np.clip((tail_ratio - 9.5) / 1.5, 0.0, 1.0)))
+    o = w * (1.0 - w_sharp)
     organic = (2 * s, 2 * s, 1.0)
     mix = [(1 - o) * a + o * b for a, b in zip(base, organic, strict=True)]
     return {"outer_iterations": int(round(mix[0])), "normal_iterations": int(round(mix[1])),

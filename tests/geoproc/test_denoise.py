@@ -246,6 +246,10 @@ def test_schedule_blends_to_plain_bilateral_on_coarse_smooth_meshes():
     fine = default_schedule(0.25, 2.0, tail_ratio=5.0)  # finely meshed: unchanged whatever the tail
     assert fine == default_schedule(0.25, 2.0) and fine["outer_iterations"] == 5
     assert default_schedule(0.0, 6.0, 5.0)["outer_iterations"] == 0  # clean: nothing to do
+    # low noise: light on a creaseless surface, already stronger where creases survive
+    light, creased = default_schedule(0.17, 2.0, tail_ratio=5.0), default_schedule(0.17, 2.0, tail_ratio=20.0)
+    assert (light["outer_iterations"], light["normal_iterations"]) == (2, 2)
+    assert creased["normal_iterations"] > 2 and creased["sigma_r"] < light["sigma_r"]
 
 
 def test_dihedral_tail_separates_creases_from_curvature(make_fixtures, dfx):
