@@ -49,6 +49,15 @@ from geoproc.denoise.vertex_update import unfold_faces, update_vertices
 from geoproc.mesh.topology import boundary_vertices
 
 
+def edge_dihedral_deg(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> np.ndarray:
+    """Angle in degrees between the normals of the two faces at each interior
+    edge (each edge once per side: (2 k,) for k interior edges)."""
+    N, _ = face_normals_and_areas(V, F)
+    enb = face_edge_neighbors(F) if edge_nb is None else edge_nb
+    i, k = np.nonzero(enb >= 0)
+    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", N[i], N[enb[i, k]]), -1.0, 1.0)))
+
+
 def median_dihedral_deg(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> float:
     """Median angle in degrees between the normals of edge-adjacent faces.
 
@@ -57,13 +66,8 @@ def median_dihedral_deg(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None
     ``19 deg at sigma=0.2`` and ``26 deg at sigma=0.3``: a noise-level estimate
     read from the mesh itself.
     """
-    N, _ = face_normals_and_areas(V, F)
-    enb = face_edge_neighbors(F) if edge_nb is None else edge_nb
-    i, k = np.nonzero(enb >= 0)
-    if len(i) == 0:
-        return 0.0
-    cos = np.clip(np.einsum("ij,ij->i", N[i], N[enb[i, k]]), -1.0, 1.0)
-    return float(np.degrees(np.median(np.arccos(cos))))
+    ang = edge_dihedral_deg(V, F, edge_nb)
+    return float(np.median(ang)) if len(ang) else 0.0
 
 
 @dataclass
@@ -196,12 +200,9 @@ def smoothed_dihedral_stats(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | 
     """
     r = denoise_mesh(V, F, "bilateral", DenoiseParams(outer_iterations=2, normal_iterations=3, sigma_r=1.0,
                                                       sigma_s_scale=1.0, features="none"))
-    N, _ = face_normals_and_areas(r.V, F)
-    enb = face_edge_neighbors(F) if edge_nb is None else edge_nb
-    i, k = np.nonzero(enb >= 0)
-    if len(i) == 0:
+    ang = edge_dihedral_deg(r.V, F, edge_nb)
+    if len(ang) == 0:
         return 0.0, 0.0
-    ang = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", N[i], N[enb[i, k]]), -1.0, 1.0)))
     med = float(np.median(ang))
     return med, float(np.percentile(ang, 99) / max(med, 1e-9))
 
