@@ -99,7 +99,7 @@ def morse_simplify(
     with command_run("morse-simplify", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
-        from geoproc.morse import discrete_gradient, find_closed_vpath, lower_star_persistence, surface_complex
+        from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field
         from geoproc.morse.barycentric import barycentric_simplify, mesh_cell
         from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
@@ -125,12 +125,9 @@ def morse_simplify(
         with run.timer("simplify"):  # gradient, pairs and simplification
             if barycentric:
                 res = barycentric_simplify(m.V, m.F, f, threshold, m.log.path or None)
-                cx = surface_complex(m.F, m.n_vertices, m.log.path or None)
-                grad, before = discrete_gradient(cx, f), lower_star_persistence(cx, f)
-                order = None
             else:
                 res = morse_simplify_field(m.F, f, threshold, m.log.path or None, exact_windows=exact_windows)
-                cx, grad, before, order = res.cx, res.gradient, res.pairs, res.order
+            cx, grad, before, order = res.cx, res.gradient, res.pairs, res.order
         cycle = find_closed_vpath(cx, grad)
         if cycle is not None:
             raise RuntimeError(f"the discrete gradient has a closed V-path of dimension {cycle[0]}")

@@ -40,11 +40,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from geoproc.morse.complex import surface_complex
+from geoproc.morse.complex import SurfaceComplex, surface_complex
 from geoproc.morse.dag import topological_order
-from geoproc.morse.gradient import discrete_gradient
+from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.order import vertex_order
-from geoproc.morse.persistence import lower_star_persistence
+from geoproc.morse.persistence import PersistencePairs, lower_star_persistence
 from geoproc.morse.simplify import _make_strict
 
 
@@ -77,6 +77,10 @@ class BarycentricSimplification:
         Finite persistence pairs with persistence < P (cancelled) and >= P.
     max_abs_change : float
         ``max |f - g|`` over all cells.
+    order, cx, gradient, pairs
+        As in :class:`geoproc.morse.MorseSimplification`: the vertex order,
+        and the complex, gradient and persistence pairs of f on the
+        relabelled mesh (``order[i]`` is the input vertex of relabelled i).
     """
 
     V: np.ndarray
@@ -90,6 +94,10 @@ class BarycentricSimplification:
     pairs_removed: int
     pairs_kept: int
     max_abs_change: float
+    order: np.ndarray
+    cx: SurfaceComplex
+    gradient: DiscreteGradient
+    pairs: PersistencePairs
 
 
 @numba.njit(cache=True)
@@ -351,4 +359,5 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
         critical=np.sort(to_input[critical]), pairs_removed=int(len(cut0) + len(cut1)),
         pairs_kept=int(len(p0) + len(p1) - len(cut0) - len(cut1)),
         max_abs_change=float(np.max(np.abs(g - fc))) if len(g) else 0.0,
+        order=order, cx=cx, gradient=grad, pairs=pp,
     )
