@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.errors import InputError, UsageError
+from geoproc.geodesic.intrinsic import OPERATORS
 from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass
 from geoproc.mesh.topology import face_areas, mean_edge_length, nonmanifold_edges, vertex_components
 from geoproc.mesh.validate import require_manifold
@@ -24,12 +25,11 @@ DEFAULT_LAPLACIAN = {
     "log-ode": "intrinsic-delaunay",
     "log-heat": "intrinsic-delaunay",
 }
-#: Methods that need an edge- and vertex-manifold mesh (MMP walks vertex fans).
-OPERATORS = ("auto", "extrinsic", "intrinsic")
 #: Where heat and log-heat take gradient, divergence and the Poisson Laplacian
 #: unless told otherwise: the paper's extrinsic operators for heat; for
 #: log-heat, intrinsic on meshes with slivers (geoproc.geodesic.intrinsic).
 DEFAULT_OPERATORS = {"heat": "extrinsic", "log-heat": "auto"}
+#: Methods that need an edge- and vertex-manifold mesh (MMP walks vertex fans).
 NEEDS_MANIFOLD = ("exact",)
 #: Methods that need every edge to have at most two faces (boundary detection,
 #: per-face gradients); a vertex joining separate fans is fine for them.

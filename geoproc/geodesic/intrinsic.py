@@ -18,6 +18,8 @@ import scipy.sparse as sp
 
 from geoproc.geodesic.operators import intrinsic_delaunay_mesh, stack_gradient_coefficients
 
+OPERATORS = ("auto", "extrinsic", "intrinsic")
+"""Where heat and log-heat take their gradient, divergence and Poisson Laplacian."""
 SLIVER_ANGLE_DEG = 5.0
 """A face with a corner angle below this (degrees) counts as a sliver."""
 SLIVER_SHARE = 0.005
@@ -80,7 +82,7 @@ def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str):
     ``operators``: ``"extrinsic"`` (None), ``"intrinsic"``, or ``"auto"``
     (intrinsic when at least :data:`SLIVER_SHARE` of the faces are slivers).
     """
-    if operators not in ("auto", "extrinsic", "intrinsic"):
+    if operators not in OPERATORS:
         raise ValueError(f"unknown operators {operators!r}")
     if operators == "intrinsic" or (operators == "auto" and sliver_share(V, F) >= SLIVER_SHARE):
         return intrinsic_delaunay_mesh(V, F)
