@@ -41,7 +41,7 @@ import numba
 import numpy as np
 
 from geoproc.morse.complex import SurfaceComplex, surface_complex
-from geoproc.morse.dag import topological_order
+from geoproc.morse.dag import topological_order, values_in_box
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.order import vertex_order
 from geoproc.morse.persistence import PersistencePairs, lower_star_persistence
@@ -198,28 +198,10 @@ def _assign_cell_values(lo, hi, fc, delta):
     as close to fc as the arcs allow. Returns (g, ok); ok is False when the
     arcs have a cycle."""
     N = fc.shape[0]
-    out_ptr, out_nbr, topo, tail, _ = topological_order(lo, hi, N)
-    g = np.empty(N)
-    if tail < N:
-        return g, False
-    cap = fc + delta
-    for i in range(N - 1, -1, -1):  # backward: the highest value the successors allow
-        c = topo[i]
-        for p in range(out_ptr[c], out_ptr[c + 1]):
-            below = np.nextafter(cap[out_nbr[p]], -np.inf)
-            if below < cap[c]:
-                cap[c] = below
-    floor = np.full(N, -np.inf)
-    for i in range(N):  # forward: closest to f above every predecessor
-        c = topo[i]
-        v = min(fc[c], cap[c])
-        g[c] = v if v > floor[c] else floor[c]
-        above = np.nextafter(g[c], np.inf)
-        for p in range(out_ptr[c], out_ptr[c + 1]):
-            s = out_nbr[p]
-            if above > floor[s]:
-                floor[s] = above
-    return g, True
+    ptr, succ, topo, count, _ = topological_order(lo, hi, N)
+    if count < N:
+        return np.empty(N), False
+    return values_in_box(fc, np.full(N, delta), ptr, succ, topo), True
 
 
 def mesh_cell(result: BarycentricSimplification, F: np.ndarray, vertex: int) -> dict:

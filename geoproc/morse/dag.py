@@ -1,4 +1,4 @@
-"""Topological order of a relation given as arcs, for the value assignments."""
+"""Topological order of a relation given as arcs, and values in a box that respect it."""
 
 from __future__ import annotations
 
@@ -53,3 +53,45 @@ def topological_order(A, B, n):
                 topo[count] = b
                 count += 1
     return ptr, succ, topo, count, indeg
+
+
+@numba.njit(cache=True)
+def values_in_box(f, half, ptr, succ, topo):
+    """Values within ``f +- half`` strictly increasing along every arc, as close to f as the arcs allow.
+
+    A backward pass gives each node the highest value its successors allow
+    (``hi <= f + half``, one unit in the last place below each successor's),
+    a forward pass the value ``min(f, hi)`` raised to one unit in the last
+    place above every predecessor's. When the box is wide enough for every
+    chain the result stays in it; otherwise it leaves it (below ``f - half``)
+    where a chain does not fit.
+
+    Parameters
+    ----------
+    f, half : (n,) float64 arrays
+        Target values and the half-width of each node's box.
+    ptr, succ, topo : from :func:`topological_order` (acyclic: every node in ``topo``).
+
+    Returns
+    -------
+    (n,) float64 values.
+    """
+    n = f.shape[0]
+    hi = f + half
+    for i in range(n - 1, -1, -1):
+        a = topo[i]
+        for j in range(ptr[a], ptr[a + 1]):
+            x = np.nextafter(hi[succ[j]], -np.inf)
+            if x < hi[a]:
+                hi[a] = x
+    g = np.empty(n)
+    for v in range(n):
+        g[v] = min(f[v], hi[v])
+    for i in range(n):
+        a = topo[i]
+        x = np.nextafter(g[a], np.inf)
+        for j in range(ptr[a], ptr[a + 1]):
+            b = succ[j]
+            if x > g[b]:
+                g[b] = x
+    return g

@@ -105,7 +105,7 @@ import numba
 import numpy as np
 
 from geoproc.morse.complex import SurfaceComplex
-from geoproc.morse.dag import topological_order
+from geoproc.morse.dag import topological_order, values_in_box
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.heap import heap_pop, heap_push
 from geoproc.morse.merge_forest import cone_adjacency, merge_forest
@@ -221,23 +221,7 @@ def _assign_values(f, half, down, up, keep_min, keep_max, pin, adj_ptr, adj_nbr)
         d = max(top[v] - f[v], f[v] - bot[v])
         if d >= 2.0 * half:
             half_v[v] = 0.5 * d * (1.0 + 1e-9) + 1e-300
-    hi = f + half_v
-    for i in range(n - 1, -1, -1):
-        a = topo[i]
-        for j in range(ptr[a], ptr[a + 1]):
-            x = np.nextafter(hi[succ[j]], -np.inf)
-            if x < hi[a]:
-                hi[a] = x
-    for v in range(n):
-        g[v] = min(f[v], hi[v])
-    for i in range(n):
-        a = topo[i]
-        for j in range(ptr[a], ptr[a + 1]):
-            b = succ[j]
-            x = np.nextafter(g[a], np.inf)
-            if x > g[b]:
-                g[b] = x
-    return g, half_v, stuck
+    return values_in_box(f, half_v, ptr, succ, topo), half_v, stuck
 
 
 @numba.njit(cache=True)
