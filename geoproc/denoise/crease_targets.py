@@ -55,3 +55,54 @@ def bisect_collapsed_targets(
     B = N[changed] + Nn[rows[changed], k[changed]]
     out[changed] = B / np.maximum(np.linalg.norm(B, axis=1, keepdims=True), 1e-300)
     return out, changed
+
+
+def input_side_targets(
+    N: np.ndarray,
+    N_input: np.ndarray,
+    neighbors: tuple[np.ndarray, np.ndarray],
+    max_angle_deg: float = 90.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Give faces the filter turned past a crease the target of their input's side.
+
+    A target more than ``max_angle_deg`` from the face's own input normal
+    means the filter put the face on the far side of a crease sharper than
+    that angle (on smooth parts of the surface the filtered normal stays near
+    the input normal's side). If a face of its neighbourhood has a target
+    within ``max_angle_deg`` of the face's input normal, the face takes the
+    one closest to it; otherwise (an input face folded by the noise, which
+    the filter turned back) its target is kept.
+
+    Parameters
+    ----------
+    N : (m, 3) float64 unit target normals.
+    N_input : (m, 3) float64 unit face normals of the input.
+    neighbors : (indptr, indices) CSR face neighbourhoods (the filter's, see
+        :func:`geoproc.denoise.face_geometry.face_ring_csr`).
+    max_angle_deg : float
+        Largest angle (degrees) kept between a target and its input normal.
+
+    Returns
+    -------
+    targets : (m, 3) float64 unit normals (a copy of N with the faces replaced).
+    changed : (m,) bool the faces replaced.
+    """
+    indptr, indices = neighbors
+    ct = np.cos(np.radians(max_angle_deg))
+    bad = np.flatnonzero(np.einsum("ij,ij->i", N, N_input) < ct)
+    out = N.copy()
+    changed = np.zeros(len(N), dtype=bool)
+    if len(bad) == 0:
+        return out, changed
+    counts = indptr[bad + 1] - indptr[bad]
+    owner = np.repeat(np.arange(len(bad)), counts)
+    cand = indices[np.concatenate([np.arange(indptr[f], indptr[f + 1]) for f in bad])]
+    score = np.einsum("ij,ij->i", N[cand], N_input[bad[owner]])
+    # best candidate per face: sort by (owner, -score), take each owner's first
+    order = np.lexsort((-score, owner))
+    first = order[np.r_[0, np.flatnonzero(np.diff(owner[order])) + 1]]
+    ok = score[first] > ct
+    faces = bad[owner[first[ok]]]
+    out[faces] = N[cand[first[ok]]]
+    changed[faces] = True
+    return out, changed

@@ -33,7 +33,7 @@ import numpy as np
 
 from geoproc.denoise import DEFAULT_METHOD, METHODS
 from geoproc.denoise.bilateral import bilateral_normal_filter, spatial_weights
-from geoproc.denoise.crease_targets import bisect_collapsed_targets
+from geoproc.denoise.crease_targets import bisect_collapsed_targets, input_side_targets
 from geoproc.denoise.face_geometry import (
     face_centroids,
     face_edge_neighbors,
@@ -109,6 +109,13 @@ class DenoiseParams:
         relaxations of the vertices of folded faces
         (:func:`geoproc.denoise.vertex_update.unfold_faces`); 0 turns the
         repair off.
+    input_side : bool
+        Before the last fit, a face whose target is more than 90 degrees from
+        its own input normal takes the neighbourhood target closest to that
+        normal, when one lies within 90 degrees
+        (:func:`geoproc.denoise.crease_targets.input_side_targets`): the
+        filter had put it on the far side of a crease sharper than a right
+        angle.
     """
 
     outer_iterations: int | None = None
@@ -122,6 +129,7 @@ class DenoiseParams:
     feature_tau: float = 0.12
     feature_angle_deg: float = 30.0
     unfold_rounds: int = 5
+    input_side: bool = True
 
 
 FEATURE_METHODS = ("l1", "dihedral", "none")
@@ -338,6 +346,7 @@ def denoise_mesh(
     sparse = np.zeros(len(F))
     folded = 0
     changed = np.zeros(len(F), dtype=bool)
+    sided = np.zeros(len(F), dtype=bool)
     for o in range(outer):
         if o:
             N, A = face_normals_and_areas(X, F)
@@ -360,12 +369,14 @@ def denoise_mesh(
         for _ in range(FINE_FINAL_PASSES if last and fine else 0):
             G = guidance_normals(N, A, ring, edge_nb, inside)
             N = bilateral_normal_filter(N, C, A, ring, sigma_s, FINE_FINAL_SIGMA_R, G, spatial=W)
-        X, folded = fit(X, N)
-        if last and fine:
-            X, folded = fit(X, N)
         if last and strong:
-            N, changed = bisect_collapsed_targets(X, F, N, A_input, edge_nb)
             X, folded = fit(X, N)
+            if fine:
+                X, folded = fit(X, N)
+            N, changed = bisect_collapsed_targets(X, F, N, A_input, edge_nb)
+        if last and p.input_side:
+            N, sided = input_side_targets(N, N_input, ring)
+        X, folded = fit(X, N)
     info = {
         "noise_median_dihedral_deg": noise_deg,
         "noise_roughness": rough,
@@ -380,6 +391,7 @@ def denoise_mesh(
         "unfold_rounds": p.unfold_rounds,
         "folded_faces": folded,
         "crease_bisected_faces": int(changed.sum()),
+        "input_side_faces": int(sided.sum()),
     }
     if p.features == "l1":
         feature, fres = l1_feature_faces(X, F, tau=p.feature_tau)

@@ -234,6 +234,32 @@ def test_bisect_collapsed_targets_only_on_squashed_crease_faces():
     assert not changed.any()
 
 
+def test_input_side_targets_returns_faces_turned_past_a_crease():
+    from geoproc.denoise.crease_targets import input_side_targets
+
+    up, side = np.array([0, 0, 1.0]), np.array([1.0, 0, 0])
+    tilt = np.array([np.sin(0.4), 0, np.cos(0.4)])  # 23 degrees from up
+    far = np.array([np.sin(np.radians(100)), 0, np.cos(np.radians(100))])  # 100 degrees from up
+    # face 0: input up, target turned to the far side of a 100-degree crease;
+    #   its neighbours hold `tilt` (the one closest to up) and `side`
+    # face 1: target within 90 degrees of its input: kept
+    # face 2: input folded (down) and turned back by the filter (up); no
+    #   neighbour target lies within 90 degrees of down: kept
+    N = np.array([far, tilt, up, side, up])
+    N_input = np.array([up, up, -up, side, up])
+    # CSR neighbourhoods, each face listing itself first
+    rows = [[0, 1, 3], [1, 0, 4], [2, 1, 4], [3, 0], [4, 1]]
+    indptr = np.cumsum([0] + [len(r) for r in rows])
+    indices = np.concatenate(rows)
+    out, changed = input_side_targets(N, N_input, (indptr, indices))
+    assert changed.tolist() == [True, False, False, False, False]
+    np.testing.assert_allclose(out[0], tilt, atol=1e-12)
+    np.testing.assert_array_equal(out[1:], N[1:])
+    # a wider bound keeps face 0 as it is
+    _, changed = input_side_targets(N, N_input, (indptr, indices), max_angle_deg=120.0)
+    assert not changed.any()
+
+
 def test_schedule_blends_to_plain_bilateral_on_coarse_smooth_meshes():
     from geoproc.denoise.mesh_denoise import default_schedule
 
