@@ -96,7 +96,8 @@ def input_side_targets(
         return out, changed
     counts = indptr[bad + 1] - indptr[bad]
     owner = np.repeat(np.arange(len(bad)), counts)
-    cand = indices[np.concatenate([np.arange(indptr[f], indptr[f + 1]) for f in bad])]
+    pos = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(indptr[bad], counts)
+    cand = indices[pos]
     score = np.einsum("ij,ij->i", N[cand], N_input[bad[owner]])
     # best candidate per face: sort by (owner, -score), take each owner's first
     order = np.lexsort((-score, owner))
