@@ -171,7 +171,9 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: floa
     Returns
     -------
     dict with ``outer_iterations``, ``normal_iterations``, ``sigma_r``,
-    ``spatial_scale`` (sigma_s in centroid spacings) and ``guidance_mix``.
+    ``spatial_scale`` (sigma_s in centroid spacings), ``guidance_mix`` and
+    ``coarse_weight`` (the weight of the broad and short branch, 0 on finely
+    meshed surfaces, 1 on coarse ones).
     """
     s = float(np.clip((rough - 0.03) / 0.15, 0.0, 1.0))
     w = float(np.clip((coarseness_deg - 3.5) / 1.5, 0.0, 1.0))
@@ -189,7 +191,7 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: floa
     organic = (2 * s, 2 * s, 1.0)
     mix = [(1 - o) * a + o * b for a, b in zip(base, organic, strict=True)]
     return {"outer_iterations": int(round(mix[0])), "normal_iterations": int(round(mix[1])),
-            "sigma_r": mix[2], "spatial_scale": 1.0 + o, "guidance_mix": o}
+            "sigma_r": mix[2], "spatial_scale": 1.0 + o, "guidance_mix": o, "coarse_weight": w}
 
 
 def smoothed_dihedral_stats(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> tuple[float,
@@ -325,7 +327,7 @@ def denoise_mesh(
     # squashed against a crease; on finely meshed surfaces (the narrow-kernel
     # branch) it first adds narrow guided passes and a second fit
     strong = needs_schedule and method == "guided" and rough >= 0.18
-    fine = strong and float(np.clip((coarse - 3.5) / 1.5, 0.0, 1.0)) < 0.5
+    fine = strong and sched["coarse_weight"] < 0.5
 
     def fit(X, N):
         X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input)
