@@ -139,34 +139,74 @@ FINE_FINAL_PASSES = 2
 FINE_FINAL_SIGMA_R = 0.2
 
 
+def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low: float) -> dict:
+    """The schedule below the strong ramp (``rough < low``): weak noise.
+
+    ``u = (rough - r0) / (low - r0)`` measures the noise across this range;
+    ``r0`` is 0.03 on finely meshed surfaces and 0.045 on coarse ones, whose
+    curvature alone reads as roughness up to about 0.045 (the clean 7k-face
+    bunny). Below ``r0`` nothing is filtered; over the next 0.02 the range
+    kernel widens from nothing (``fade``).
+
+    - Surfaces with creases (``sharp_weight`` 1): 3 rounds of 3 to 5 passes,
+      sigma_r 0.2 to 0.35; creases stand far above weak noise, so many passes
+      with a narrow kernel flatten the noise and keep them.
+    - Smooth surfaces: 1 round of 1 pass rising to 2 rounds of 2 passes;
+      sigma_r 0.45 to 0.5 when finely meshed, 0.45 widening to 1 on coarse
+      meshes (the strong branch's plain bilateral filter).
+
+    Weak noise needs no guidance: the filter is the plain bilateral one
+    (``guidance_mix`` 1). On finely meshed smooth surfaces the guidance comes
+    in from u = 0.75 to 0.95, and coarse smooth ones move to 2 centroid
+    spacings, so that the schedule meets the strong branch at ``low``.
+    """
+    w, ws = coarse_weight, sharp_weight
+    r0 = 0.03 + 0.015 * w
+    u = float(np.clip((rough - r0) / (low - r0), 0.0, 1.0))
+    fade = float(np.clip((rough - r0) / 0.02, 0.0, 1.0))
+    fine = (1 + (u - 0.1), 1 + (u + 0.2), 0.45 + 0.05 * u)
+    coarse = (1 + (u - 0.1), 1 + (u + 0.2), float(np.interp(u, [0.0, 0.4], [0.45, 1.0])))
+    sharp = (3, 3 + 2 * u, 0.2 + 0.15 * u)
+    smooth = [(1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True)]
+    rounds, passes, sigma_r = ((1 - ws) * a + ws * b for a, b in zip(smooth, sharp, strict=True))
+    if fade <= 0.0:
+        rounds = passes = 0
+    organic = w * (1.0 - ws)
+    ramp = float(np.clip((u - 0.75) / 0.2, 0.0, 1.0))
+    return {"outer_iterations": int(round(rounds)), "normal_iterations": int(round(passes)),
+            "sigma_r": sigma_r * fade, "spatial_scale": 1.0 + organic * ramp,
+            "guidance_mix": 1.0 - (1.0 - organic) * (1.0 - ws) * ramp, "coarse_weight": w}
+
+
 def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: float = np.inf) -> dict:
     """Iteration counts and kernel widths from the estimated noise level and shape.
 
     ``rough`` is :func:`geoproc.denoise.noise_level.roughness` of the input
-    (about 0.1, 0.18, 0.25 and 0.35 for Gaussian noise of 0.1, 0.2, 0.3 and 0.5
-    mean edge lengths; below 0.05 on clean meshes). From 0.18 to 0.205 the
-    strength ``t = (rough - 0.18) / 0.025`` goes from light (2 rounds of 2
-    passes, sigma_r 0.5: smooth organic surfaces at low noise lose detail under
-    stronger filtering) to strong (5 rounds of 10 passes, sigma_r 0.3). Where
-    creases survive the plain smoothing (``w_sharp`` below), the narrow range
-    kernel keeps them and the ramp starts at 0.16 instead. Below its start the
-    filter fades out (``s = (rough - 0.03) / 0.15``) to nothing at all on a
-    clean mesh.
-
+    (about 0.05, 0.1, 0.18, 0.25 and 0.35 for Gaussian noise of 0.05, 0.1,
+    0.2, 0.3 and 0.5 mean edge lengths; below 0.05 on clean meshes).
     ``coarseness_deg`` and ``tail_ratio`` come from
     :func:`smoothed_dihedral_stats`: the median dihedral angle left after a
-    plain smoothing (about 2-3 degrees on finely meshed surfaces, 5-7 on
+    plain smoothing (about 1-3 degrees on finely meshed surfaces, 5-7 on
     coarse curved ones, where a narrow range kernel and many passes carve
     false creases) and the 99th percentile of those angles over the median
     (at most 9.3 on the smooth organic benchmark meshes, at least 11.4 where
-    there are creases). From 3.5 to 5 degrees of coarseness the schedule moves
-    to broad and short (2 + t rounds of 2 + t passes, sigma_r 0.8 - 0.1 t).
-    Coarse meshes without creases (weight ``o = w_coarse (1 - w_sharp)``,
-    ``w_sharp = (tail_ratio - 9.5) / 1.5`` clipped to [0, 1]) move further, to
-    a plain bilateral filter: 2 s rounds of 2 s passes, sigma_r 1, a spatial
-    kernel of 2 centroid spacings, and guidance normals blended with the
-    normals themselves by ``o`` (``guidance_mix``; 1 is the plain bilateral
-    filter).
+    there are creases); they set ``w = (coarseness_deg - 3.5) / 1.5`` and
+    ``w_sharp = (tail_ratio - 9.5) / 1.5``, both clipped to [0, 1].
+
+    Below ``low = 0.18 - 0.02 w_sharp`` (creases start the strong schedule
+    earlier) the noise is weak: :func:`light_schedule`. From ``low`` to 0.205
+    the strength ``t = (rough - low) / (0.205 - low)`` goes to strong: 5
+    rounds of 10 passes with sigma_r 0.3, starting from 2 rounds of 2 passes
+    with sigma_r 0.5 on smooth surfaces (smooth organic surfaces at moderate
+    noise lose detail under stronger filtering) and from 3 rounds of 5
+    passes with sigma_r 0.35 where there are creases (where the light
+    schedule ends). From 3.5 to 5 degrees of coarseness the schedule moves to
+    broad and short (2 + t rounds of 2 + t passes, sigma_r 0.8 - 0.1 t).
+    Coarse meshes without creases (weight ``o = w (1 - w_sharp)``) move
+    further, to a plain bilateral filter: 2 rounds of 2 passes, sigma_r 1, a
+    spatial kernel of 2 centroid spacings, and guidance normals blended with
+    the normals themselves by ``o`` (``guidance_mix``; 1 is the plain
+    bilateral filter).
 
     Returns
     -------
@@ -175,20 +215,19 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: floa
     ``coarse_weight`` (the weight of the broad and short branch, 0 on finely
     meshed surfaces, 1 on coarse ones).
     """
-    s = float(np.clip((rough - 0.03) / 0.15, 0.0, 1.0))
     w = float(np.clip((coarseness_deg - 3.5) / 1.5, 0.0, 1.0))
     w_sharp = float(np.clip((tail_ratio - 9.5) / 1.5, 0.0, 1.0))
-    low = 0.18 - 0.02 * w_sharp  # with creases the strong schedule starts earlier
+    low = 0.18 - 0.02 * w_sharp
     if rough < low:
-        base = (2 * s, 2 * s, 0.1 + 0.4 * s)
-    else:
-        t = float(np.clip((rough - low) / (0.205 - low), 0.0, 1.0))
-        fine = (2 + 3 * t, 2 + 8 * t, 0.5 - 0.2 * t)
-        coarse = (2 + t, 2 + t, 0.8 - 0.1 * t)
-        base = tuple((1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True))
+        return light_schedule(rough, w, w_sharp, low)
+    t = float(np.clip((rough - low) / (0.205 - low), 0.0, 1.0))
+    start = [(1 - w_sharp) * a + w_sharp * b for a, b in zip((2, 2, 0.5), (3, 5, 0.35), strict=True)]
+    fine = [(1 - t) * a + t * b for a, b in zip(start, (5, 10, 0.3), strict=True)]
+    coarse = (2 + t, 2 + t, 0.8 - 0.1 * t)
+    base = tuple((1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True))
     base = (round(base[0]), round(base[1]), base[2])
     o = w * (1.0 - w_sharp)
-    organic = (2 * s, 2 * s, 1.0)
+    organic = (2, 2, 1.0)
     mix = [(1 - o) * a + o * b for a, b in zip(base, organic, strict=True)]
     return {"outer_iterations": int(round(mix[0])), "normal_iterations": int(round(mix[1])),
             "sigma_r": mix[2], "spatial_scale": 1.0 + o, "guidance_mix": o, "coarse_weight": w}
@@ -307,7 +346,7 @@ def denoise_mesh(
     noise_deg = median_dihedral_deg(V, F, edge_nb)
     rough = roughness(V, F)
     needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
-    coarse, tail = smoothed_dihedral_stats(V, F, edge_nb) if needs_schedule and rough >= 0.1 else (0.0, np.inf)
+    coarse, tail = smoothed_dihedral_stats(V, F, edge_nb) if needs_schedule and rough >= 0.03 else (0.0, np.inf)
     sched = default_schedule(rough, coarse, tail)
     mix = sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0
     outer = sched["outer_iterations"] if p.outer_iterations is None else p.outer_iterations

@@ -59,6 +59,21 @@ def test_noisy_cube_gets_sharp_edges_back(noisy_cube):
     assert recall > 0.9 and precision > 0.8
 
 
+@pytest.mark.parametrize("surface, before_min, ratio", [("cube", 4.0, 0.15), ("icosphere", 4.0, 0.5)])
+def test_weak_noise_is_removed_too(dfx, make_fixtures, surface, before_min, ratio):
+    # noise of 0.05 mean edge lengths: the light schedule still filters it, on
+    # a surface with creases (the cube) and on a smooth curved one
+    from geoproc.perturb import NoiseSpec, perturb_positions
+
+    V, F = dfx.subdivided_cube(16) if surface == "cube" else make_fixtures.icosphere(4)
+    Vn, _ = perturb_positions(V, F, NoiseSpec(sigma=0.05), np.random.default_rng(1))
+    before = denoise_errors(Vn, F, V)["mean_normal_angle_deg"]
+    res = denoise_mesh(Vn, F)
+    assert before > before_min
+    assert denoise_errors(res.V, F, V)["mean_normal_angle_deg"] < ratio * before
+    assert not flipped_faces(res.V, F, V).size
+
+
 @pytest.mark.parametrize("method", ["bilateral", "rpca"])
 def test_other_methods_also_recover_the_cube(noisy_cube, method):
     Vn, F, V = noisy_cube
@@ -276,6 +291,25 @@ def test_schedule_blends_to_plain_bilateral_on_coarse_smooth_meshes():
     light, creased = default_schedule(0.17, 2.0, tail_ratio=5.0), default_schedule(0.17, 2.0, tail_ratio=20.0)
     assert (light["outer_iterations"], light["normal_iterations"]) == (2, 2)
     assert creased["normal_iterations"] > 2 and creased["sigma_r"] < light["sigma_r"]
+
+
+
+@pytest.mark.parametrize("coarseness, tail", [(2.0, 5.0), (6.0, 5.0), (2.0, 20.0)])
+def test_light_schedule_meets_the_strong_one(coarseness, tail):
+    # no jump in strength where weak noise turns strong (rough = low)
+    from geoproc.denoise.mesh_denoise import default_schedule
+
+    low = 0.18 - 0.02 * float(np.clip((tail - 9.5) / 1.5, 0.0, 1.0))
+    a, b = default_schedule(low - 1e-9, coarseness, tail), default_schedule(low, coarseness, tail)
+    for key in ("outer_iterations", "normal_iterations", "spatial_scale"):
+        assert a[key] == b[key]
+    assert a["sigma_r"] == pytest.approx(b["sigma_r"], abs=1e-6)
+    if tail < 9.5:  # smooth: the guidance comes in before low; with creases it starts at low
+        assert a["guidance_mix"] == pytest.approx(b["guidance_mix"])
+    # and the light schedule grows with the noise
+    steps = [default_schedule(r, coarseness, tail) for r in np.linspace(0.0, low - 1e-9, 12)]
+    work = [s["outer_iterations"] * s["normal_iterations"] for s in steps]
+    assert work[0] == 0 and all(x <= y for x, y in zip(work, work[1:], strict=False))
 
 
 def test_dihedral_tail_separates_creases_from_curvature(make_fixtures, dfx):
