@@ -146,7 +146,8 @@ def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low:
     ``r0`` is 0.03 on finely meshed surfaces and 0.045 on coarse ones, whose
     curvature alone reads as roughness up to about 0.045 (the clean 7k-face
     bunny). Below ``r0`` nothing is filtered; over the next 0.02 the range
-    kernel widens from nothing (``fade``).
+    kernel widens from 0.1 (``fade``; also the width used below ``r0`` when
+    the caller sets the rounds and passes itself).
 
     - Surfaces with creases (``sharp_weight`` 1): 3 rounds of 3 to 5 passes,
       sigma_r 0.2 to 0.35; creases stand far above weak noise, so many passes
@@ -174,7 +175,7 @@ def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low:
     organic = w * (1.0 - ws)
     ramp = float(np.clip((u - 0.75) / 0.2, 0.0, 1.0))
     return {"outer_iterations": int(round(rounds)), "normal_iterations": int(round(passes)),
-            "sigma_r": sigma_r * fade, "spatial_scale": 1.0 + organic * ramp,
+            "sigma_r": max(sigma_r * fade, 0.1), "spatial_scale": 1.0 + organic * ramp,
             "guidance_mix": 1.0 - (1.0 - organic) * (1.0 - ws) * ramp, "coarse_weight": w}
 
 
