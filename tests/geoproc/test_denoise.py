@@ -293,7 +293,6 @@ def test_schedule_blends_to_plain_bilateral_on_coarse_smooth_meshes():
     assert creased["normal_iterations"] > 2 and creased["sigma_r"] < light["sigma_r"]
 
 
-
 @pytest.mark.parametrize("coarseness, tail", [(2.0, 5.0), (6.0, 5.0), (2.0, 20.0)])
 def test_light_schedule_meets_the_strong_one(coarseness, tail):
     # no jump in strength where weak noise turns strong (rough = low)
