@@ -165,10 +165,10 @@ def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low:
     r0 = 0.03 + 0.015 * w
     u = float(np.clip((rough - r0) / (low - r0), 0.0, 1.0))
     fade = float(np.clip((rough - r0) / 0.02, 0.0, 1.0))
-    fine = (1 + (u - 0.1), 1 + (u + 0.2), 0.45 + 0.05 * u)
-    coarse = (1 + (u - 0.1), 1 + (u + 0.2), float(np.interp(u, [0.0, 0.4], [0.45, 1.0])))
+    # smooth surfaces: the same counts finely meshed or coarse, only sigma_r differs
+    smooth_sigma_r = (1 - w) * (0.45 + 0.05 * u) + w * float(np.interp(u, [0.0, 0.4], [0.45, 1.0]))
+    smooth = (1 + (u - 0.1), 1 + (u + 0.2), smooth_sigma_r)
     sharp = (3, 3 + 2 * u, 0.2 + 0.15 * u)
-    smooth = [(1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True)]
     rounds, passes, sigma_r = ((1 - ws) * a + ws * b for a, b in zip(smooth, sharp, strict=True))
     if fade <= 0.0:
         rounds = passes = 0
@@ -382,7 +382,9 @@ def denoise_mesh(
     spacing = float(np.linalg.norm(C[i] - C[edge_nb[i, k]], axis=1).mean()) if len(i) else 1.0
     sigma_s = (sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale) * spacing
     patch = nearest_faces_in_ring(C, ring, p.patch_size) if method == "rpca" else None
-    inside = patch_interior_edges(ring, edge_nb) if method != "bilateral" else None
+    # guidance blended away entirely (mix 1) is the plain bilateral filter: no guidance to compute
+    plain = method == "bilateral" or mix >= 1.0
+    inside = None if plain else patch_interior_edges(ring, edge_nb)
     total = max(outer * inner, 1)
     done = 0
     sparse = np.zeros(len(F))
@@ -397,7 +399,7 @@ def denoise_mesh(
         if method == "rpca":
             G_round, sparse = rpca_guidance(guidance_normals(N, A, ring, edge_nb, inside), patch)
         for _ in range(inner):
-            if method == "bilateral":
+            if plain:
                 G = None
             elif method == "rpca":
                 G = G_round
