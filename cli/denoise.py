@@ -33,8 +33,9 @@ def denoise(
     method: Annotated[str, typer.Option("--method", help=f"Normal filter: {', '.join(METHODS)}.")]
     = DEFAULT_METHOD,
     reference: Annotated[str | None, typer.Option("--reference", help="Clean version with the same "
-                                                  "connectivity (mesh, or .npz with --dynamic): report "
-                                                  "the error metrics.", metavar="CLEAN")] = None,
+                                                  "faces in the same order (mesh, or .npz with --dynamic; "
+                                                  "its vertices may be numbered otherwise, as in an STL "
+                                                  "copy): report the error metrics.", metavar="CLEAN")] = None,
     rounds: Annotated[int | None, typer.Option("--rounds", help="Rounds of normal filtering + vertex "
                                                "update (default: from the estimated noise level).",
                                                show_default=False)] = None,
@@ -142,7 +143,7 @@ def denoise(
 def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     from geoproc.denoise.mesh_denoise import denoise_mesh
     from geoproc.denoise.metrics import denoise_errors, flipped_faces
-    from geoproc.denoise.validate import require_edge_manifold, require_same_connectivity
+    from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
 
     mesh = run.load_mesh(input, clean=not no_clean)
     path = mesh.log.path or None
@@ -150,11 +151,11 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
         raise InputError(path, "is a point cloud (no faces); use --outliers for point clouds")
     require_triangle_mesh(mesh)
     require_edge_manifold(mesh.F, path)
-    ref = None
+    ref_V = None
     if reference is not None:
         ref = load_mesh(reference, clean=not no_clean)
         run.add_input(reference)
-        require_same_connectivity(mesh.F, len(mesh.V), ref.F, len(ref.V), reference)
+        ref_V = reference_in_input_order(mesh.F, len(mesh.V), ref.F, ref.V, reference)
     with run.timer("denoise"), run.progress(f"denoise ({method})") as update:
         res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
     out = Mesh(res.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields))
@@ -162,12 +163,12 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
                         "feature_faces": int(res.feature.sum())})
     run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
-    if ref is not None:
+    if ref_V is not None:
         with run.timer("metrics"):
-            run.metrics.update(denoise_errors(res.V, mesh.F, ref.V))
-            before = set(flipped_faces(mesh.V, mesh.F, ref.V).tolist())
-            after = flipped_faces(res.V, mesh.F, ref.V)
-            run.metrics["input_mean_normal_angle_deg"] = denoise_errors(mesh.V, mesh.F, ref.V)[
+            run.metrics.update(denoise_errors(res.V, mesh.F, ref_V))
+            before = set(flipped_faces(mesh.V, mesh.F, ref_V).tolist())
+            after = flipped_faces(res.V, mesh.F, ref_V)
+            run.metrics["input_mean_normal_angle_deg"] = denoise_errors(mesh.V, mesh.F, ref_V)[
                 "mean_normal_angle_deg"]
             run.metrics["input_flipped_faces"] = len(before)
             run.metrics["new_flipped_faces"] = int(sum(1 for f in after.tolist() if f not in before))
@@ -228,7 +229,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
 def _dynamic(run, input, output, reference, method, dp) -> None:
     from geoproc.denoise.dynamic import denoise_animation
     from geoproc.denoise.metrics import denoise_errors
-    from geoproc.denoise.validate import require_edge_manifold, require_same_connectivity
+    from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
 
     if input == "-" or not is_animation_path(input):
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
@@ -237,20 +238,20 @@ def _dynamic(run, input, output, reference, method, dp) -> None:
     anim = run.load_animation(input)
     require_triangle_mesh(Mesh(anim.V[0], anim.F, log=_log(anim.path)))
     require_edge_manifold(anim.F, anim.path)
-    ref = None
+    ref_V = None
     if reference is not None:
         ref = run.load_animation(reference)
         if ref.V.shape != anim.V.shape:
             raise InputError(reference, f"reference has {ref.V.shape[0]} frames of {ref.V.shape[1]} "
                              f"vertices; the input {anim.V.shape[0]} of {anim.V.shape[1]}")
-        require_same_connectivity(anim.F, anim.V.shape[1], ref.F, ref.V.shape[1], reference)
+        ref_V = reference_in_input_order(anim.F, anim.V.shape[1], ref.F, ref.V, reference)
     with run.timer("denoise"), run.progress("denoise (dynamic)") as update:
         V, info = denoise_animation(anim.V, anim.F, method, dp, progress=update)
     run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]), "faces": len(anim.F)})
     run.metrics.update({k: v for k, v in info.items() if np.isscalar(v)})
-    if ref is not None:
+    if ref_V is not None:
         with run.timer("metrics"):
-            per = [denoise_errors(V[t], anim.F, ref.V[t]) for t in range(anim.n_frames)]
+            per = [denoise_errors(V[t], anim.F, ref_V[t]) for t in range(anim.n_frames)]
             for key in ("mean_normal_angle_deg", "hausdorff", "vertex_rmse"):
                 run.metrics[key] = float(np.mean([p[key] for p in per]))
             run.metrics["max_normal_angle_deg"] = float(max(p["max_normal_angle_deg"] for p in per))

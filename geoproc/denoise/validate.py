@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from geoproc.errors import InputError
-from geoproc.mesh.topology import nonmanifold_edges
+from geoproc.mesh.topology import face_list_renumbering, nonmanifold_edges
 
 
 def require_edge_manifold(F: np.ndarray, path: str | None) -> None:
@@ -18,8 +18,38 @@ def require_edge_manifold(F: np.ndarray, path: str | None) -> None:
                          f"(first: edge {a}-{b}); denoising needs at most two faces per edge")
 
 
-def require_same_connectivity(F: np.ndarray, n: int, F_ref: np.ndarray, n_ref: int, path: str | None) -> None:
-    """Refuse a reference whose vertex count or faces differ from the input's."""
-    if n_ref != n or F_ref.shape != F.shape or (F_ref != F).any():
+def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np.ndarray,
+                             path: str | None) -> np.ndarray:
+    """Reference positions numbered as the input's vertices.
+
+    The reference must be the same mesh as the input: the same faces in the
+    same order. Its vertices may be numbered differently (an STL copy of the
+    input, whose merged vertices follow the order of first use); they are then
+    renumbered to match (:func:`geoproc.mesh.topology.face_list_renumbering`).
+
+    Parameters
+    ----------
+    F : (m, 3) int input faces over ``n`` vertices.
+    F_ref : (m', 3) int reference faces.
+    V_ref : (..., n', 3) float reference positions (one mesh, or frames of one).
+
+    Returns
+    -------
+    (..., n, 3) float: ``V_ref`` with its vertices in the input's order.
+
+    Raises
+    ------
+    InputError
+        When the counts differ, or the face lists differ beyond a renumbering.
+    """
+    n_ref = V_ref.shape[-2]
+    if n_ref != n or len(F_ref) != len(F):
         raise InputError(path, f"reference connectivity differs from the input ({n_ref} vertices, "
                          f"{len(F_ref)} faces vs {n}, {len(F)}); load both with the same --no-clean setting")
+    if np.array_equal(F_ref, F):
+        return V_ref
+    r = face_list_renumbering(F, n, F_ref, n_ref)
+    if r is None:
+        raise InputError(path, f"reference connectivity differs from the input: the same counts ({n} vertices, "
+                         f"{len(F)} faces) but other faces, even with its vertices renumbered")
+    return V_ref[..., r, :]

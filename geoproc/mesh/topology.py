@@ -193,3 +193,38 @@ def degenerate_faces(V: np.ndarray, F: np.ndarray, rel_tol: float = 1e-12) -> np
     repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
     tiny = face_areas(V, F) <= rel_tol * max(diag2, np.finfo(float).tiny)
     return np.flatnonzero(repeated | tiny)
+
+
+def face_list_renumbering(F: np.ndarray, n: int, F_ref: np.ndarray, n_ref: int) -> np.ndarray | None:
+    """The vertex renumbering that turns ``F`` into ``F_ref``, if there is one.
+
+    Two files of one mesh can list the same faces in the same order and
+    still number the vertices differently: STL stores every corner on its
+    own, so merging them numbers the vertices in order of first use.
+
+    Parameters
+    ----------
+    F : (m, 3) int array, the faces of a mesh with ``n`` vertices.
+    F_ref : (m, 3) int array, the faces of a mesh with ``n_ref`` vertices.
+
+    Returns
+    -------
+    (n,) int array ``r`` with ``r[F] == F_ref`` (vertex ``i`` is vertex
+    ``r[i]`` of the other mesh; vertices no face uses are paired in index
+    order), or None when the vertex or face counts differ or no one-to-one
+    renumbering maps every face of ``F`` onto the face of ``F_ref`` at the
+    same row.
+    """
+    F = np.asarray(F, dtype=np.int64)
+    F_ref = np.asarray(F_ref, dtype=np.int64)
+    if n != n_ref or F.shape != F_ref.shape:
+        return None
+    r = np.full(n, -1, dtype=np.int64)
+    r[F.ravel()] = F_ref.ravel()
+    if (r[F] != F_ref).any():
+        return None
+    used = r >= 0
+    if len(np.unique(r[used])) != int(used.sum()):
+        return None
+    r[~used] = np.setdiff1d(np.arange(n_ref), r[used])
+    return r

@@ -154,6 +154,39 @@ def test_animation_with_differing_connectivity(cli, make_fixtures, tmp_path):
     assert _one_line_error(p) and "connectivity" in p.stderr and not out.exists()
 
 
+def test_stl_input_is_matched_to_its_reference(cli, cube_pair, tmp_path):
+    # STL keeps no shared vertices: merged on loading, they come in order of
+    # first use, not in the reference's order; the face lists still match row by row
+    import trimesh
+
+    noisy, clean = cube_pair
+    m = load_mesh(noisy)
+    stl = tmp_path / "noisy.stl"
+    trimesh.Trimesh(m.V, m.F, process=False).export(stl)
+    assert not np.array_equal(load_mesh(stl).F, m.F)
+    out, rep = tmp_path / "d.ply", tmp_path / "r.json"
+    p = cli("denoise", stl, "--reference", clean, "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    met = _metrics(rep)
+    # the noisy positions against the clean ones, as numbered in the PLY files (STL stores float32)
+    direct = denoise_errors(m.V, m.F, load_mesh(clean).V)["mean_normal_angle_deg"]
+    assert met["input_mean_normal_angle_deg"] == pytest.approx(direct, rel=1e-4)
+    assert met["mean_normal_angle_deg"] < 0.15 * met["input_mean_normal_angle_deg"]
+    assert met["new_flipped_faces"] == 0
+
+
+def test_reference_with_other_faces_at_equal_counts(cli, cube_pair, tmp_path):
+    noisy, clean = cube_pair
+    c = load_mesh(clean)
+    F = c.F.copy()
+    F[[0, 1]] = F[[1, 0]]
+    other = tmp_path / "other.ply"
+    save_mesh(other, Mesh(c.V, F))
+    out = tmp_path / "o.ply"
+    p = cli("denoise", noisy, "--reference", other, "-o", out)
+    assert _one_line_error(p) and "other faces" in p.stderr and not out.exists()
+
+
 def test_reference_with_other_connectivity(cli, cube_pair, fixture_dir, tmp_path):
     noisy, _ = cube_pair
     out, rep = tmp_path / "o.ply", tmp_path / "r.json"

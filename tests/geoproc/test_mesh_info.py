@@ -145,3 +145,32 @@ def test_vertex_fans_and_components_of_disjoint_parts(make_fixtures):
     count, labels = vertex_components(F, n)
     assert count == 2 and set(labels[: len(V1)]) == {0} and set(labels[len(V1):]) == {1}
     assert (vertex_fans(F, n) == 1).all()
+
+
+def test_face_list_renumbering_recovers_a_permutation(make_fixtures):
+    from geoproc.mesh.topology import face_list_renumbering
+
+    V, F = make_fixtures.icosphere(2)
+    n = len(V)
+    perm = np.random.default_rng(0).permutation(n)  # input vertex i is reference vertex perm[i]
+    F_in = np.argsort(perm)[F]
+    r = face_list_renumbering(F_in, n, F, n)
+    assert r is not None and np.array_equal(r, perm) and np.array_equal(r[F_in], F)
+    assert np.array_equal(face_list_renumbering(F, n, F, n), np.arange(n))
+    # corners rotated in one face, two faces swapped, other counts: no renumbering
+    rotated = F.copy()
+    rotated[5] = rotated[5, [1, 2, 0]]
+    assert face_list_renumbering(rotated, n, F, n) is None
+    assert face_list_renumbering(F[[1, 0, *range(2, len(F))]], n, F, n) is None
+    assert face_list_renumbering(F, n + 1, F, n) is None and face_list_renumbering(F[1:], n, F, n) is None
+
+
+def test_face_list_renumbering_pairs_unused_vertices_in_order():
+    from geoproc.mesh.topology import face_list_renumbering
+
+    F_in = np.array([[0, 1, 2]])
+    F_ref = np.array([[3, 2, 0]])
+    r = face_list_renumbering(F_in, 5, F_ref, 5)
+    assert np.array_equal(r, [3, 2, 0, 1, 4])
+    # two input vertices onto one reference vertex: not one-to-one
+    assert face_list_renumbering(np.array([[0, 1, 2], [0, 2, 3]]), 4, np.array([[0, 1, 2], [0, 2, 1]]), 4) is None
