@@ -234,6 +234,37 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: floa
             "sigma_r": mix[2], "spatial_scale": 1.0 + o, "guidance_mix": o, "coarse_weight": w}
 
 
+@dataclass(frozen=True)
+class FilterPlan:
+    """What :func:`filter_and_fit` runs: the parameters :func:`denoise_mesh`
+    settles from :class:`DenoiseParams` and :func:`default_schedule`.
+
+    Attributes
+    ----------
+    outer_iterations, normal_iterations : int
+        Rounds, and filter passes per round.
+    sigma_r : float
+        Range kernel width (chord length).
+    spatial_scale : float
+        Spatial kernel width in mean centroid spacings.
+    guidance_mix : float
+        ``guided`` only: guidance blended with the normals (1: the plain bilateral filter).
+    strong : bool
+        End with the crease repair of the automatic schedule at strong noise.
+    fine : bool
+        With ``strong``, on a finely meshed surface: first the narrow guided
+        passes and a second fit.
+    """
+
+    outer_iterations: int
+    normal_iterations: int
+    sigma_r: float
+    spatial_scale: float
+    guidance_mix: float = 0.0
+    strong: bool = False
+    fine: bool = False
+
+
 def smoothed_dihedral_stats(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> tuple[float,
                                                                                                         float]:
     """Dihedral angles left after a plain smoothing (bilateral normal filter
@@ -248,9 +279,10 @@ def smoothed_dihedral_stats(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | 
         Their 99th percentile over the median: large where creases survive the
         smoothing, small on smooth curved surfaces.
     """
-    r = denoise_mesh(V, F, "bilateral", DenoiseParams(outer_iterations=2, normal_iterations=3, sigma_r=1.0,
-                                                      sigma_s_scale=1.0, features="none"))
-    ang = edge_dihedral_deg(r.V, F, edge_nb)
+    enb = face_edge_neighbors(F) if edge_nb is None else edge_nb
+    plain = FilterPlan(outer_iterations=2, normal_iterations=3, sigma_r=1.0, spatial_scale=1.0)
+    r = filter_and_fit(V, F, "bilateral", DenoiseParams(features="none"), plain, enb)
+    ang = edge_dihedral_deg(r.V, F, enb)
     if len(ang) == 0:
         return 0.0, 0.0
     med = float(np.median(ang))
@@ -342,17 +374,60 @@ def denoise_mesh(
     p = DenoiseParams() if params is None else params
     if p.features not in FEATURE_METHODS:
         raise ValueError(f"unknown feature method {p.features!r}")
-    n = len(V)
     edge_nb = face_edge_neighbors(F)
     noise_deg = median_dihedral_deg(V, F, edge_nb)
     rough = roughness(V, F)
     needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
     coarse, tail = smoothed_dihedral_stats(V, F, edge_nb) if needs_schedule and rough >= 0.03 else (0.0, np.inf)
     sched = default_schedule(rough, coarse, tail)
-    mix = sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0
-    outer = sched["outer_iterations"] if p.outer_iterations is None else p.outer_iterations
-    inner = sched["normal_iterations"] if p.normal_iterations is None else p.normal_iterations
-    sigma_r = sched["sigma_r"] if p.sigma_r is None else p.sigma_r
+    # automatic schedule at strong noise: the last round repairs faces the fit
+    # squashed against a crease; on finely meshed surfaces (the narrow-kernel
+    # branch) it first adds narrow guided passes and a second fit
+    strong = needs_schedule and method == "guided" and rough >= 0.18
+    plan = FilterPlan(
+        outer_iterations=sched["outer_iterations"] if p.outer_iterations is None else p.outer_iterations,
+        normal_iterations=sched["normal_iterations"] if p.normal_iterations is None else p.normal_iterations,
+        sigma_r=sched["sigma_r"] if p.sigma_r is None else p.sigma_r,
+        spatial_scale=sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale,
+        guidance_mix=sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0,
+        strong=strong, fine=strong and sched["coarse_weight"] < 0.5)
+    res = filter_and_fit(V, F, method, p, plan, edge_nb, progress, initial_normals)
+    res.info = {"noise_median_dihedral_deg": noise_deg, "noise_roughness": rough, "coarseness_deg": coarse,
+                "dihedral_tail_ratio": tail if np.isfinite(tail) else None, **res.info}
+    return res
+
+
+def filter_and_fit(
+    V: np.ndarray,
+    F: np.ndarray,
+    method: str,
+    p: DenoiseParams,
+    plan: FilterPlan,
+    edge_nb: np.ndarray,
+    progress: Callable[[float], None] | None = None,
+    initial_normals: np.ndarray | None = None,
+) -> DenoiseResult:
+    """The rounds of :func:`denoise_mesh` once its parameters are settled.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 positions; F : (m, 3) int64 triangles.
+    method : {"bilateral", "guided", "rpca"}
+    p : DenoiseParams
+        Read for what the plan does not hold: vertex sweeps, boundary
+        pinning, patch size, fold repair, input-side step, features.
+    plan : FilterPlan
+    edge_nb : (m, 3) int64 :func:`face_edge_neighbors` of F.
+    progress, initial_normals : as for :func:`denoise_mesh`.
+
+    Returns
+    -------
+    DenoiseResult whose ``info`` holds the parameters used (not the input's
+    noise statistics, which :func:`denoise_mesh` adds).
+    """
+    n = len(V)
+    outer, inner, sigma_r = plan.outer_iterations, plan.normal_iterations, plan.sigma_r
+    mix, strong, fine = plan.guidance_mix, plan.strong, plan.fine
     ring = face_ring_csr(F, n, 1)
     fixed = None
     if p.pin_boundary:
@@ -363,11 +438,6 @@ def denoise_mesh(
     X = np.array(V, dtype=np.float64, copy=True)
     N, A = face_normals_and_areas(X, F)
     N_input, A_input = N.copy(), A.copy()
-    # automatic schedule at strong noise: the last round repairs faces the fit
-    # squashed against a crease; on finely meshed surfaces (the narrow-kernel
-    # branch) it first adds narrow guided passes and a second fit
-    strong = needs_schedule and method == "guided" and rough >= 0.18
-    fine = strong and sched["coarse_weight"] < 0.5
 
     def fit(X, N):
         X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input)
@@ -380,7 +450,7 @@ def denoise_mesh(
     C = face_centroids(X, F)
     i, k = np.nonzero(edge_nb >= 0)
     spacing = float(np.linalg.norm(C[i] - C[edge_nb[i, k]], axis=1).mean()) if len(i) else 1.0
-    sigma_s = (sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale) * spacing
+    sigma_s = plan.spatial_scale * spacing
     patch = nearest_faces_in_ring(C, ring, p.patch_size) if method == "rpca" else None
     # guidance blended away entirely (mix 1) is the plain bilateral filter: no guidance to compute
     plain = method == "bilateral" or mix >= 1.0
@@ -422,10 +492,6 @@ def denoise_mesh(
             N, sided = input_side_targets(N, N_input, ring)
         X, folded = fit(X, N)
     info = {
-        "noise_median_dihedral_deg": noise_deg,
-        "noise_roughness": rough,
-        "coarseness_deg": coarse,
-        "dihedral_tail_ratio": tail if np.isfinite(tail) else None,
         "guidance_mix": mix,
         "outer_iterations": outer,
         "normal_iterations": inner,
