@@ -9,7 +9,7 @@ import numpy as np
 import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
-from geoproc.denoise import DEFAULT_METHOD, METHODS
+from geoproc.denoise import COHERENCE, DEFAULT_METHOD, METHODS
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh import Mesh, load_mesh
 from geoproc.mesh.validate import require_triangle_mesh
@@ -83,6 +83,12 @@ def denoise(
                                           "then RPCA on the (vertices x frames) matrix of normal heights over "
                                           "a smooth base keeps the temporally coherent detail (after "
                                           "Algorithm 4).")] = False,
+    coherence: Annotated[str | None, typer.Option("--coherence", help="--dynamic: what RPCA makes "
+                                                  "coherent over time: heights (the vertices' normal "
+                                                  "heights over a smooth base; lower error) or normals "
+                                                  "(the stacked face normals, then 3 vertex-update sweeps "
+                                                  "per frame: the review's Algorithm 4 as written). "
+                                                  "Default: heights.", show_default=False)] = None,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,
@@ -103,6 +109,7 @@ def denoise(
               "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "features": features,
               "feature_tau": feature_tau, "feature_angle": feature_angle, "outliers": outliers,
               "k": k, "threshold": threshold, "keep_all": keep_all, "refined": refined, "dynamic": dynamic,
+              "coherence": coherence if coherence is not None or not dynamic else "heights",
               "clean": not no_clean}
     with command_run("denoise", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
@@ -112,6 +119,10 @@ def denoise(
             raise UsageError("--outliers and --dynamic cannot be combined")
         if refined and not outliers:
             raise UsageError("--refined applies to --outliers")
+        if coherence is not None and not dynamic:
+            raise UsageError("--coherence applies to --dynamic")
+        if coherence is not None and coherence not in COHERENCE:
+            raise UsageError(f"--coherence {coherence}: use one of {', '.join(COHERENCE)}")
         threshold_set = threshold is not None
         if threshold_set and threshold < 0:
             raise UsageError(f"--threshold {threshold}: must be >= 0")
@@ -131,7 +142,7 @@ def denoise(
                            pin_boundary=pin_boundary, features=features, feature_tau=feature_tau,
                            feature_angle_deg=feature_angle)
         if dynamic:
-            _dynamic(run, input, output, reference, method, dp)
+            _dynamic(run, input, output, reference, method, dp, coherence or "heights")
         elif outliers and input != "-" and is_animation_path(input):
             _animation_outliers(run, input, output, threshold_set, threshold, refined)
         elif outliers:
@@ -226,7 +237,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
     run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, fields, output)))
 
 
-def _dynamic(run, input, output, reference, method, dp) -> None:
+def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     from geoproc.denoise.dynamic import denoise_animation
     from geoproc.denoise.metrics import denoise_errors
     from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
@@ -246,7 +257,7 @@ def _dynamic(run, input, output, reference, method, dp) -> None:
                              f"vertices; the input {anim.V.shape[0]} of {anim.V.shape[1]}")
         ref_V = reference_in_input_order(anim.F, anim.V.shape[1], ref.F, ref.V, reference)
     with run.timer("denoise"), run.progress("denoise (dynamic)") as update:
-        V, info = denoise_animation(anim.V, anim.F, method, dp, progress=update)
+        V, info = denoise_animation(anim.V, anim.F, method, dp, progress=update, coherence=coherence)
     run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]), "faces": len(anim.F)})
     run.metrics.update({k: v for k, v in info.items() if np.isscalar(v)})
     if ref_V is not None:

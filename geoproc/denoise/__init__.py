@@ -1,7 +1,8 @@
 """Feature-preserving denoising: meshes (bilateral, guided and RPCA-guided normal
 filtering with the vertex update; l1 feature identification), point-cloud
 outliers (RPCA on neighbourhoods; on the animation matrix for time-varying
-clouds) and animations (RPCA on the stacked per-frame normals).
+clouds) and animations (RPCA on the vertices' normal heights over time, or on
+the stacked per-frame face normals as in the review's Algorithm 4).
 
 Names are loaded on first use (PEP 562), so importing the package does not
 compile or load the numba kernels until a function is needed.
@@ -13,6 +14,7 @@ import importlib
 
 METHODS = ("bilateral", "guided", "rpca")
 DEFAULT_METHOD = "guided"
+COHERENCE = ("heights", "normals")  # what --dynamic makes coherent over time; the first is the default
 
 _NAMES = {
     "DenoiseParams": "mesh_denoise",
@@ -20,6 +22,7 @@ _NAMES = {
     "denoise_mesh": "mesh_denoise",
     "median_dihedral_deg": "mesh_denoise",
     "denoise_errors": "metrics",
+    "denoise_animation": "dynamic",
     "L1FeatureResult": "features",
     "l1_feature_vertices": "features",
     "AnimationOutlierResult": "outliers",
@@ -31,7 +34,7 @@ _NAMES = {
     "rpca": "rpca",
 }
 
-__all__ = ["DEFAULT_METHOD", "METHODS", *_NAMES]
+__all__ = ["COHERENCE", "DEFAULT_METHOD", "METHODS", *_NAMES]
 
 
 def __getattr__(name: str):

@@ -93,14 +93,19 @@ def test_outliers_f1_and_outputs(cli, dfx, tmp_path):
     assert len(allp.V) == len(P) and {"outlier_score", "outlier_detected"} <= set(allp.vertex_fields)
 
 
-def test_dynamic_npz(cli, dfx, tmp_path):
+@pytest.mark.parametrize("coherence", [None, "normals"])
+def test_dynamic_npz(cli, dfx, tmp_path, coherence):
     Vn, F, V = dfx.noisy_wave(frames=3)
     src, ref = tmp_path / "noisy.npz", tmp_path / "clean.npz"
     src.write_bytes(animation_to_bytes(Animation(Vn, F)))
     ref.write_bytes(animation_to_bytes(Animation(V, F)))
     out, rep = tmp_path / "d.npz", tmp_path / "r.json"
-    p = cli("denoise", src, "--dynamic", "--reference", ref, "-o", out, "--report", rep)
+    extra = [] if coherence is None else ["--coherence", coherence]
+    p = cli("denoise", src, "--dynamic", *extra, "--reference", ref, "-o", out, "--report", rep)
     assert p.returncode == 0, p.stderr
+    report = json.loads(rep.read_text())
+    assert report["params"]["coherence"] == (coherence or "heights")
+    assert report["metrics"]["coherence"] == (coherence or "heights")
     a = load_animation(out)
     theta = np.mean([denoise_errors(a.V[t], F, V[t])["mean_normal_angle_deg"] for t in range(3)])
     assert _metrics(rep)["mean_normal_angle_deg"] == pytest.approx(theta, rel=1e-9)
@@ -141,6 +146,15 @@ def test_point_cloud_without_outliers_flag(cli, fixture_dir, tmp_path):
     out = tmp_path / "o.ply"
     p = cli("denoise", fixture_dir / "points.ply", "-o", out)
     assert _one_line_error(p) and "--outliers" in p.stderr and not out.exists()
+
+
+@pytest.mark.parametrize("args", [["--coherence", "normals"], ["--dynamic", "--coherence", "frames"]])
+def test_coherence_usage(cli, dfx, tmp_path, args):
+    Vn, F, _ = dfx.noisy_wave(frames=3)
+    src, out = tmp_path / "noisy.npz", tmp_path / "d.npz"
+    src.write_bytes(animation_to_bytes(Animation(Vn, F)))
+    p = cli("denoise", src, *args, "-o", out)
+    assert _one_line_error(p) and "--coherence" in p.stderr and not out.exists()
 
 
 def test_animation_with_differing_connectivity(cli, make_fixtures, tmp_path):
