@@ -104,7 +104,7 @@ def coherent_normals(V: np.ndarray, F: np.ndarray, lam: float | None = None) -> 
     ----------
     V : (T, n, 3) float64 positions per frame; F : (m, 3) int64 triangles.
     lam : float, optional
-        RPCA sparsity weight (default ``1/sqrt(3m)``).
+        RPCA sparsity weight (default ``1/sqrt(max(3m, T))``).
 
     Returns
     -------
