@@ -104,12 +104,13 @@ def denoise(
     """
     from geoproc.denoise.mesh_denoise import DenoiseParams
 
+    coherence_used = coherence if coherence is not None or not dynamic else COHERENCE[0]
     params = {"input": input, "method": method, "reference": reference, "rounds": rounds,
               "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
               "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "features": features,
               "feature_tau": feature_tau, "feature_angle": feature_angle, "outliers": outliers,
               "k": k, "threshold": threshold, "keep_all": keep_all, "refined": refined, "dynamic": dynamic,
-              "coherence": coherence if coherence is not None or not dynamic else "heights",
+              "coherence": coherence_used,
               "clean": not no_clean}
     with command_run("denoise", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
@@ -142,7 +143,7 @@ def denoise(
                            pin_boundary=pin_boundary, features=features, feature_tau=feature_tau,
                            feature_angle_deg=feature_angle)
         if dynamic:
-            _dynamic(run, input, output, reference, method, dp, coherence or "heights")
+            _dynamic(run, input, output, reference, method, dp, coherence_used)
         elif outliers and input != "-" and is_animation_path(input):
             _animation_outliers(run, input, output, threshold_set, threshold, refined)
         elif outliers:
