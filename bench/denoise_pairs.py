@@ -40,7 +40,7 @@ SHARED = ROOT.parent / "shared" / "data"
 
 from geoproc.denoise import denoise_errors, denoise_mesh, detection_scores, rpca_outliers  # noqa: E402
 from geoproc.denoise.dynamic import coherent_heights, coherent_normal_fit  # noqa: E402
-from geoproc.denoise.metrics import flipped_faces  # noqa: E402
+from geoproc.denoise.metrics import flipped_faces, new_flipped_faces  # noqa: E402
 from geoproc.mesh import load_mesh  # noqa: E402
 from geoproc.perturb import NoiseSpec, perturb_positions  # noqa: E402
 
@@ -128,17 +128,15 @@ def mesh_table(quick: bool) -> str:
             "fewest peer new flips | θ ratio | target | time / two-step | bilateral θ° | rpca θ° |",
             "|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---|---:|---:|---:|"]
     for name, Vn, F, V in inputs(quick):
-        noisy_flips = set(flipped_faces(Vn, F, V).tolist())
+        noisy_flips = flipped_faces(Vn, F, V)
         res, t_ours = timed(lambda Vn=Vn, F=F: denoise_mesh(Vn, F))
         e = denoise_errors(res.V, F, V)
-        def new_flips(X, F=F, V=V, noisy_flips=noisy_flips):
-            return sum(1 for f in flipped_faces(X, F, V).tolist() if f not in noisy_flips)
-
-        new = new_flips(res.V)
+        new = new_flipped_faces(res.V, F, V, noisy_flips)
         peer = {}
         for pname, fn in peer_fns.items():
             Vp, tp = timed(lambda fn=fn, Vn=Vn, F=F: fn(Vn, F))
-            peer[pname] = (denoise_errors(Vp, F, V)["mean_normal_angle_deg"], tp, new_flips(Vp))
+            peer[pname] = (denoise_errors(Vp, F, V)["mean_normal_angle_deg"], tp,
+                           new_flipped_faces(Vp, F, V, noisy_flips))
         best = min(peer, key=lambda k: peer[k][0])
         ratio = e["mean_normal_angle_deg"] / peer[best][0]
         sharp = name.startswith(SHARP)
@@ -178,10 +176,9 @@ def weak_table() -> str:
     rows = ["| input | noisy θ° | geoproc θ° | new flips | best peer | peer θ° | θ ratio |",
             "|---|---:|---:|---:|---|---:|---:|"]
     for name, Vn, F, V in weak_inputs():
-        noisy_flips = set(flipped_faces(Vn, F, V).tolist())
         res = denoise_mesh(Vn, F)
         e = denoise_errors(res.V, F, V)["mean_normal_angle_deg"]
-        new = sum(1 for f in flipped_faces(res.V, F, V).tolist() if f not in noisy_flips)
+        new = new_flipped_faces(res.V, F, V, flipped_faces(Vn, F, V))
         peer = {k: denoise_errors(fn(Vn, F), F, V)["mean_normal_angle_deg"] for k, fn in peer_fns.items()}
         best = min(peer, key=peer.get)
         ratio = f"{e / peer[best]:.2f}" if peer[best] > 0 else "-"

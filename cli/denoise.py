@@ -154,7 +154,7 @@ def denoise(
 
 def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     from geoproc.denoise.mesh_denoise import denoise_mesh
-    from geoproc.denoise.metrics import denoise_errors, flipped_faces
+    from geoproc.denoise.metrics import denoise_errors, flipped_faces, new_flipped_faces
     from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
 
     mesh = run.load_mesh(input, clean=not no_clean)
@@ -178,12 +178,11 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     if ref_V is not None:
         with run.timer("metrics"):
             run.metrics.update(denoise_errors(res.V, mesh.F, ref_V))
-            before = set(flipped_faces(mesh.V, mesh.F, ref_V).tolist())
-            after = flipped_faces(res.V, mesh.F, ref_V)
+            before = flipped_faces(mesh.V, mesh.F, ref_V)
             run.metrics["input_mean_normal_angle_deg"] = denoise_errors(mesh.V, mesh.F, ref_V)[
                 "mean_normal_angle_deg"]
             run.metrics["input_flipped_faces"] = len(before)
-            run.metrics["new_flipped_faces"] = int(sum(1 for f in after.tolist() if f not in before))
+            run.metrics["new_flipped_faces"] = new_flipped_faces(res.V, mesh.F, ref_V, before)
     run.write_mesh(output, out)
 
 

@@ -22,6 +22,18 @@ def flipped_faces(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> np.ndarray
     return np.flatnonzero(np.einsum("ij,ij->i", N, N_ref) < 0.0)
 
 
+def new_flipped_faces(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray, input_flipped: np.ndarray) -> int:
+    """How many faces are flipped in V (:func:`flipped_faces` against V_ref)
+    that were not already flipped in the input.
+
+    Parameters
+    ----------
+    V : (n, 3) result positions; F : (m, 3) triangles; V_ref : (n, 3) reference positions.
+    input_flipped : (k,) int the input's :func:`flipped_faces` against the same reference.
+    """
+    return int(np.setdiff1d(flipped_faces(V, F, V_ref), input_flipped).size)
+
+
 def two_sided_hausdorff(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray, F_ref: np.ndarray) -> float:
     """Two-sided Hausdorff distance between two surfaces, from vertices to surfaces
     (the largest vertex-to-surface distance either way), in length units."""

@@ -16,7 +16,7 @@ from geoproc.denoise.face_geometry import (
     face_ring_csr,
 )
 from geoproc.denoise.guidance import guidance_normals, patch_consistency, patch_interior_edges
-from geoproc.denoise.metrics import flipped_faces, two_sided_hausdorff
+from geoproc.denoise.metrics import flipped_faces, new_flipped_faces, two_sided_hausdorff
 from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.vertex_update import update_vertices
 from geoproc.mesh import load_mesh
@@ -198,6 +198,11 @@ def test_metrics_against_analytic_values(make_fixtures):
     N, _ = face_normals_and_areas(V, F)
     expected = np.flatnonzero(N[:, 0] ** 2 + N[:, 1] ** 2 > N[:, 2] ** 2)
     assert np.array_equal(flipped_faces(V * [1, 1, -1], F, V), expected)
+    # new flips: those of the mirror not already flipped in the input
+    none = np.zeros(0, dtype=np.int64)
+    assert new_flipped_faces(V * [1, 1, -1], F, V, none) == len(expected) > 10
+    assert new_flipped_faces(V * [1, 1, -1], F, V, expected[::2]) == len(expected) - len(expected[::2])
+    assert new_flipped_faces(V, F, V, expected) == 0
 
 
 def test_face_geometry_pieces(make_fixtures):
