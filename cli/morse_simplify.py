@@ -136,9 +136,11 @@ def morse_simplify(
                 cx_after = surface_complex(res.F, len(res.g))
                 after = lower_star_persistence(cx_after, res.g)
                 order_after, f_ref, g = None, res.f, res.g
+                max_change = res.max_abs_change
             else:
                 cx_after, order_after, f_ref, g = res.cx, res.order, f, res.g
                 after = lower_star_persistence(cx_after, res.simplification.g)
+                max_change = res.simplification.max_abs_change
         chi = cx.euler_characteristic
         c_before = critical_counts(before)
         c_after = critical_counts(after)
@@ -151,7 +153,6 @@ def morse_simplify(
         pers = finite_persistence(before)
         half_tol = threshold / 2.0 * (1 + 1e-12)
         beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol))
-        max_change = float(np.max(np.abs(g - f_ref))) if len(g) else 0.0
         b0, b1, b2 = before.betti
         run.metrics.update({
             "vertices": m.n_vertices,
