@@ -29,7 +29,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from geoproc.denoise import COHERENCE
-from geoproc.denoise.face_geometry import face_normals_and_areas
+from geoproc.denoise.face_geometry import face_normals_and_areas, vertex_normals
 from geoproc.denoise.mesh_denoise import DEFAULT_METHOD, DenoiseParams, denoise_mesh
 from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import update_vertices
@@ -40,7 +40,7 @@ def normal_heights(V: np.ndarray, F: np.ndarray, smoothing: float = 0.5) -> tupl
 
     The base of a frame is ``(I + smoothing L)^-1 X`` with the uniform graph
     Laplacian L (degree minus adjacency); its area-weighted vertex normals
-    (libigl) give the direction.
+    (:func:`geoproc.denoise.face_geometry.vertex_normals`) give the direction.
 
     Parameters
     ----------
@@ -60,10 +60,8 @@ def normal_heights(V: np.ndarray, F: np.ndarray, smoothing: float = 0.5) -> tupl
     Nv = np.empty((T, n, 3))
     for t in range(T):
         base = np.column_stack([solve(np.ascontiguousarray(V[t][:, k])) for k in range(3)])
-        N = np.asarray(igl.per_vertex_normals(base, F), dtype=np.float64)
-        N[~np.isfinite(N).all(axis=1)] = 0.0
-        Nv[t] = N
-        H[t] = np.einsum("ij,ij->i", V[t] - base, N)
+        Nv[t] = vertex_normals(base, F)
+        H[t] = np.einsum("ij,ij->i", V[t] - base, Nv[t])
     return H, Nv
 
 

@@ -96,3 +96,11 @@ def vertex_face_incidence(F: np.ndarray, n: int) -> sp.csr_matrix:
     """(n, m) 0/1 CSR matrix: vertex v is a corner of face f."""
     m = len(F)
     return sp.csr_matrix((np.ones(3 * m), (F.reshape(-1), np.repeat(np.arange(m), 3))), shape=(n, m))
+
+
+def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(n, 3) area-weighted unit vertex normals (zero for unreferenced vertices)."""
+    N, A = face_normals_and_areas(V, F)
+    W = vertex_face_incidence(F, len(V)) @ (N * np.maximum(A, 1e-300)[:, None])
+    norm = np.linalg.norm(W, axis=1, keepdims=True)
+    return np.where(norm > 0, W / np.maximum(norm, 1e-300), 0.0)

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.denoise.face_geometry import face_normals_and_areas, vertex_face_incidence
+from geoproc.denoise.face_geometry import vertex_normals
 from geoproc.mesh.topology import unique_edges
 
 #: default cut on |J| (local mean edge lengths): a crease of about 24 degrees on a regular mesh
@@ -74,14 +74,6 @@ class L1FeatureResult:
     tau: float
     iterations: int
     converged: bool
-
-
-def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(n, 3) area-weighted unit vertex normals (zero for unreferenced vertices)."""
-    N, A = face_normals_and_areas(V, F)
-    W = vertex_face_incidence(F, len(V)) @ (N * np.maximum(A, 1e-300)[:, None])
-    norm = np.linalg.norm(W, axis=1, keepdims=True)
-    return np.where(norm > 0, W / np.maximum(norm, 1e-300), 0.0)
 
 
 def normal_laplacian(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix, float]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from geoproc.denoise.face_geometry import vertex_normals
 from geoproc.mesh.topology import unique_edges
 
 
@@ -18,8 +19,6 @@ def roughness(V: np.ndarray, F: np.ndarray) -> float:
     vertices, divided by the mean edge length: near 0 on clean meshes however
     curved, and growing in proportion to the noise.
     """
-    import igl
-
     n = len(V)
     E, _, _ = unique_edges(F)
     E = E[E[:, 0] != E[:, 1]]
@@ -33,8 +32,6 @@ def roughness(V: np.ndarray, F: np.ndarray) -> float:
     deg = np.asarray(A.sum(axis=1)).ravel()
     used = deg > 0
     deg[~used] = 1.0
-    N = np.asarray(igl.per_vertex_normals(V, F), dtype=np.float64)
-    N[~np.isfinite(N).all(axis=1)] = 0.0
-    h = np.einsum("ij,ij->i", N, V - (A @ V) / deg[:, None])
+    h = np.einsum("ij,ij->i", vertex_normals(V, F), V - (A @ V) / deg[:, None])
     r = np.abs(h - (A @ h) / deg)
     return float(np.percentile(r[used], 25) * (0.6745 / 0.3186) / le)

@@ -14,6 +14,7 @@ from geoproc.denoise.face_geometry import (
     face_edge_neighbors,
     face_normals_and_areas,
     face_ring_csr,
+    vertex_normals,
 )
 from geoproc.denoise.guidance import guidance_normals, patch_consistency, patch_interior_edges
 from geoproc.denoise.metrics import flipped_faces, new_flipped_faces, two_sided_hausdorff
@@ -213,6 +214,11 @@ def test_face_geometry_pieces(make_fixtures):
     assert A.sum() == pytest.approx(4 * np.pi, rel=0.05)
     enb = face_edge_neighbors(F)
     assert (enb >= 0).all()  # closed surface
+    # vertex normals of the unit sphere are radial; a vertex no face uses gets 0
+    Nv = vertex_normals(np.vstack([V, [[2.0, 0.0, 0.0]]]), F)
+    assert np.einsum("ij,ij->i", Nv[:-1], V).min() > 0.999
+    assert np.linalg.norm(Nv[:-1], axis=1) == pytest.approx(1.0, abs=1e-12)
+    assert not Nv[-1].any()
 
 
 # ---- the shared benchmark pairs (slow: the figures of bench/denoise_pairs.py) ---------------
