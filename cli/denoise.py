@@ -82,7 +82,8 @@ def denoise(
     dynamic: Annotated[bool, typer.Option("--dynamic", help="Animation denoising: every frame denoised, "
                                           "then RPCA on the (vertices x frames) matrix of normal heights over "
                                           "a smooth base keeps the temporally coherent detail (after "
-                                          "Algorithm 4).")] = False,
+                                          "Algorithm 4; --coherence normals runs Algorithm 4 as "
+                                          "written).")] = False,
     coherence: Annotated[str | None, typer.Option("--coherence", help="--dynamic: what RPCA makes "
                                                   "coherent over time: heights (the vertices' normal "
                                                   "heights over a smooth base; lower error) or normals "
