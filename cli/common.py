@@ -21,6 +21,7 @@ evaluates ``--check`` gates (exit 1 on a miss).
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 import time
@@ -34,7 +35,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from geoproc.errors import GeoprocError, InputError, UsageError
-from geoproc.fileio import sha256_bytes, sha256_file, write_bytes_atomic
+from geoproc.fileio import sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import WRITE_FORMATS
 from geoproc.report import build_report, evaluate_checks, parse_check
@@ -193,17 +194,35 @@ class Run:
                 raise UsageError(f"{name}: output folder '{folder}' does not exist")
 
     def _commit(self, report: Path | None) -> None:
+        """Write every queued output and the report, all or none.
+
+        The files are staged beside their destinations and renamed only once
+        all of them are written (so an unwritable report leaves no mesh
+        behind); standard output gets its bytes after the staging succeeded.
+        """
         self._check_output_folders()
+        files = [(name, data) for name, data in self._outputs if name != "-"]
+        self.timings["total"] = time.perf_counter() - self._t0
+        if report is not None:
+            rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings)
+            files.append((os.fspath(report), report_json(rep).encode()))
+        try:
+            write_files_atomic(files)
+        except OSError as exc:
+            name = exc.filename or "output"
+            raise UsageError(f"{name}: cannot write: {exc.strerror or exc}") from None
         for name, data in self._outputs:
             if name == "-":
                 sys.stdout.buffer.write(data)
                 sys.stdout.buffer.flush()
-            else:
-                write_bytes_atomic(name, data)
-        self.timings["total"] = time.perf_counter() - self._t0
-        if report is not None:
-            rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings)
-            write_bytes_atomic(report, report_json(rep).encode())
+
+
+def _require_finite_options(params: dict) -> None:
+    """Refuse nan or inf in a numeric option (every float parameter is the
+    option of the same name, ``sigma_r`` for ``--sigma-r``)."""
+    for key, value in params.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise UsageError(f"--{key.replace('_', '-')} {value}: must be a finite number")
 
 
 @contextlib.contextmanager
@@ -224,6 +243,7 @@ def command_run(
     run = Run(command, dict(params), quiet)
     try:
         parsed = [parse_check(c) for c in (checks or [])]
+        _require_finite_options(params)
         if report is not None and not os.path.isdir(os.path.dirname(os.path.abspath(report))):
             raise UsageError(f"--report {report}: folder does not exist")
         yield run

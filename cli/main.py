@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Annotated
 
 import typer
 
 import geoproc
 from geoproc_cli import denoise, geodesic, info, morse_simplify, perturb, wos_solve
+from geoproc_cli.common import EXIT_BAD_INPUT
 
 app = typer.Typer(
     name="geoproc",
@@ -44,8 +46,29 @@ def _root(
 
 
 def main() -> None:
-    """Console-script entry point."""
-    app()
+    """Console-script entry point.
+
+    Usage errors the option parser finds (unknown option, value out of range,
+    missing argument) are one line, ``error: <problem> (see '<command> --help')``,
+    with exit code 2, like the errors of the subcommands themselves.
+    """
+    try:
+        code = app(standalone_mode=False)
+    except typer.Abort:
+        print("error: aborted", file=sys.stderr)
+        sys.exit(EXIT_BAD_INPUT)
+    except Exception as exc:  # the parser's usage errors (click's ClickException family)
+        if not callable(getattr(exc, "format_message", None)):
+            raise
+        if type(exc).__name__ == "NoArgsIsHelpError":  # bare `geoproc`: the help text
+            print(exc.format_message(), file=sys.stderr)
+            sys.exit(EXIT_BAD_INPUT)
+        ctx = getattr(exc, "ctx", None)
+        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        message = " ".join(exc.format_message().split())
+        print(f"error: {message}{hint}", file=sys.stderr)
+        sys.exit(EXIT_BAD_INPUT)
+    sys.exit(code if isinstance(code, int) else 0)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.errors import UsageError
+from geoproc.mesh.validate import require_triangle_mesh
 from geoproc.perturb import NoiseSpec, noise_scale, perturb_positions
 from geoproc_cli.common import (
     CheckOpt,
@@ -27,7 +28,8 @@ def perturb(
     output: Annotated[str, typer.Option("--output", "-o", help="Output file: a mesh (.ply keeps the "
                                         "'outlier' property; - is binary PLY on stdout), or .npz for an "
                                         "animation.", metavar="OUT")],
-    seed: Annotated[int, typer.Option("--seed", help="Random seed: the same seed gives the same bytes.")],
+    seed: Annotated[int, typer.Option("--seed", help="Random seed, 0 to 2^64 - 1: the same seed gives the same bytes.",
+                                      min=0, max=2**64 - 1)],
     noise: Annotated[float, typer.Option("--noise", help="Gaussian noise standard deviation, in mean edge "
                                          "lengths (mean nearest-neighbour distance for a point cloud).",
                                          metavar="SIGMA")] = 0.3,
@@ -89,6 +91,8 @@ def perturb(
             run.write_bytes(output, animation_to_bytes(out))
             return
         mesh = run.load_mesh(input, clean=not no_clean)
+        if not mesh.is_point_cloud:
+            require_triangle_mesh(mesh)  # normals, and the edge-length unit, need a face of some area
         with run.timer("compute"):
             V, flag = perturb_positions(mesh.V, mesh.F, spec, rng, mesh.log.path)
         out = mesh.copy()

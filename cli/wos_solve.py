@@ -58,8 +58,8 @@ def wos_solve(
         show_default=False)] = None,
     ridge: Annotated[float, typer.Option("--ridge", help="Ridge weight of the fit (on unit-RMS "
                                          "kernel columns).")] = 0.1,
-    seed: Annotated[int, typer.Option("--seed", help="Random seed; same seed, same output bytes.",
-                                      min=0)] = 0,
+    seed: Annotated[int, typer.Option("--seed", help="Random seed, 0 to 2^64 - 1; same seed, same output bytes.",
+                                      min=0, max=2**64 - 1)] = 0,
     exact: Annotated[bool, typer.Option(
         "--exact", help="Declare --boundary harmonic, hence the exact solution: report rmse, "
         "max_abs_error and bias over grid points inside and farther than 2 epsilon from the "

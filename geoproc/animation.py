@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.errors import InputError
+from geoproc.mesh.read import MAX_COORDINATE
 
 
 @dataclass
@@ -66,9 +67,12 @@ def load_animation(path: str | os.PathLike) -> Animation:
     for key in ("vertices", "faces"):
         if key not in data:
             raise InputError(name, f"missing array '{key}' (an animation needs 'vertices' (frames, n, 3) and 'faces')")
-    V = np.asarray(data.pop("vertices"), dtype=np.float64)
+    try:
+        V = np.asarray(data.pop("vertices"), dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(name, "'vertices' is not numeric") from None
     F = np.asarray(data.pop("faces"))
-    if V.ndim != 3 or V.shape[2] != 3 or V.shape[0] < 1:
+    if V.ndim != 3 or V.shape[2] != 3 or V.shape[0] < 1 or V.shape[1] < 1:
         raise InputError(name, f"'vertices' has shape {V.shape}; expected (frames, n, 3)")
     if F.ndim == 3:
         if (F != F[:1]).any():
@@ -90,6 +94,10 @@ def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
     if not np.isfinite(V).all():
         t, i = (int(x) for x in np.argwhere(~np.isfinite(V).all(axis=2))[0])
         raise InputError(name, f"non-finite position (frame {t}, vertex {i})")
+    big = float(np.abs(V).max())
+    if big > MAX_COORDINATE:
+        raise InputError(name, f"coordinates as large as {big:.3g} overflow squared lengths "
+                         f"(each must stay within +-{MAX_COORDINATE:.0e})")
     if len(F) and (F.min() < 0 or F.max() >= V.shape[1]):
         raise InputError(name, f"face index out of range (valid 0..{V.shape[1] - 1})")
 

@@ -7,6 +7,7 @@ never leaves a partial output behind.
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import os
 import tempfile
@@ -35,6 +36,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, _umask_mode())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -42,10 +44,58 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
         raise
 
 
+def _umask_mode() -> int:
+    """0o666 less the process umask: the mode ``open`` would give a new file."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]]) -> None:
+    """Write several files all or none: each goes to a temporary file beside its
+    destination first, and only when every one is written are they renamed.
+
+    A destination that is a folder, or a write that fails (permissions, disk
+    full), raises OSError before any destination changes; the temporary files
+    are removed. New files get the usual mode (0o666 less the umask).
+
+    Parameters
+    ----------
+    files : list of (path, bytes)
+    """
+    staged: list[tuple[str, str]] = []
+    mode = _umask_mode()
+    path = ""
+    try:
+        for path, data in files:
+            path = os.fspath(path)
+            if os.path.isdir(path):
+                raise IsADirectoryError(errno.EISDIR, "is a folder", path)
+            fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp",
+                                       dir=os.path.dirname(os.path.abspath(path)))
+            staged.append((tmp, path))
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(tmp, mode)
+        for tmp, path in staged:
+            os.replace(tmp, path)
+    except OSError as exc:  # name the destination, not the temporary file
+        for tmp, _ in staged:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
+        raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
+    except BaseException:
+        for tmp, _ in staged:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
+        raise
+
+
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through :func:`atomic_write`."""
-    with atomic_write(path, "wb") as fh:
-        fh.write(data)
+    """Write ``data`` to ``path`` atomically (see :func:`write_files_atomic`)."""
+    write_files_atomic([(path, data)])
 
 
 def sha256_bytes(data: bytes) -> str:

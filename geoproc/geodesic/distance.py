@@ -82,13 +82,14 @@ def diffusion_time(h: float, time_factor: float | None = 1.0, time: float | None
 
 def check_sources(sources, n: int, F: np.ndarray, path: str | None) -> np.ndarray:
     """Sources as an int array: at least one, each in [0, n) and used by a face."""
-    src = np.unique(np.asarray(sources, dtype=np.int64).reshape(-1))
-    if len(src) == 0:
+    raw = [int(s) for s in np.asarray(sources, dtype=object).reshape(-1)]
+    if len(raw) == 0:
         raise UsageError("give at least one source vertex (--source I or --sources-file F)")
-    bad = src[(src < 0) | (src >= n)]
-    if len(bad):
-        raise InputError(path, f"source vertex {int(bad[0])} is out of range "
+    bad = [s for s in raw if not 0 <= s < n]
+    if bad:
+        raise InputError(path, f"source vertex {bad[0]} is out of range "
                                f"(the mesh has {n} vertices, numbered from 0)")
+    src = np.unique(np.asarray(raw, dtype=np.int64))
     used = np.zeros(n, dtype=bool)
     used[F.reshape(-1)] = True
     iso = src[~used[src]]

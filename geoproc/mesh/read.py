@@ -110,8 +110,12 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
     return mesh
 
 
+MAX_COORDINATE = 1e150  # squared distances of larger coordinates overflow float64
+
+
 def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: bool = False) -> None:
-    """Raise InputError for an empty mesh, non-finite positions or bad indices.
+    """Raise InputError for an empty mesh, non-finite or overflowing positions
+    (beyond :data:`MAX_COORDINATE`) or bad indices.
 
     Parameters
     ----------
@@ -132,6 +136,10 @@ def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: 
         raise InputError(
             path, f"{int(bad.sum())} vertices have non-finite coordinates (first: vertex {first})"
         )
+    big = float(np.abs(V).max())
+    if big > MAX_COORDINATE:
+        raise InputError(path, f"coordinates as large as {big:.3g} overflow squared lengths "
+                         f"(each must stay within +-{MAX_COORDINATE:.0e})")
     if len(F):
         out = (F < 0) | (F >= len(V))
         if out.any():
@@ -218,9 +226,16 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
     return Mesh(V, F, vfields, ffields), polys
 
 
+_OBJ_ZERO_INDEX = re.compile(rb"^[ \t]*f[ \t](?:[^\n#]*?[ \t])?0(?:/[^\s#]*)?(?=[ \t\r#]|$)", re.M)
+
+
 def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     import trimesh
 
+    if fmt == "obj":
+        data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
+        if _OBJ_ZERO_INDEX.search(data):
+            _raise_obj_index_error(data, path)  # OBJ counts from 1; trimesh would take 0 as -1
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh")
     except IndexError as exc:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import stat
 from pathlib import Path
 
 import pytest
@@ -171,3 +173,59 @@ def test_dash_output_is_binary_ply_on_stdout(fixture_dir):
 def test_missing_output_folder_is_a_usage_error(fixture_dir, tmp_path):
     res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(tmp_path / "x" / "o.ply")])
     assert res.exit_code == 2 and not Path(tmp_path / "x").exists()
+
+
+def test_unwritable_report_leaves_no_output_and_files_get_the_umask_mode(fixture_dir, tmp_path):
+    out, folder = tmp_path / "o.ply", tmp_path / "r.json"
+    folder.mkdir()  # the report path is a folder: nothing may be written
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(out),
+                                          "--report", str(folder)])
+    assert res.exit_code == 2 and "cannot write" in res.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"] and list(folder.iterdir()) == []
+    as_ply = tmp_path / "d.ply"
+    as_ply.mkdir()
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(as_ply)])
+    assert res.exit_code == 2 and "is a folder" in res.output and list(as_ply.iterdir()) == []
+    as_ply.rmdir()
+    old = os.umask(0o022)
+    try:
+        res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(out)])
+    finally:
+        os.umask(old)
+    assert res.exit_code == 0 and stat.S_IMODE(out.stat().st_mode) == 0o644
+
+
+def test_parser_errors_and_non_finite_options_are_one_line_usage_errors(cli, fixture_dir, tmp_path):
+    mesh = str(fixture_dir / "cube.ply")
+    for args in (["perturb", mesh, "--seed", "-1", "-o", tmp_path / "o.ply"],
+                 ["perturb", mesh, "--seed", "1", "--bogus", "-o", tmp_path / "o.ply"],
+                 ["perturb", mesh, "--seed", "1", "--noise", "inf", "-o", tmp_path / "o.ply"],
+                 ["denoise", mesh, "--sigma-r", "nan", "-o", tmp_path / "o.ply"],
+                 ["geodesic", mesh, "-s", "99999999999999999999", "-o", tmp_path / "o.ply"]):
+        p = cli(*args)
+        lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+        assert p.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: "), (args, p.stderr)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_overflowing_coordinates_and_obj_index_zero_are_refused(cli, tmp_path):
+    big = tmp_path / "big.obj"
+    big.write_text("v 1e200 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n")
+    p = cli("perturb", big, "--seed", "1", "-o", tmp_path / "o.ply")
+    assert p.returncode == 2 and "overflow" in _one_error_line(p.stderr, str(big))
+    zero = tmp_path / "zero.obj"
+    zero.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
+    assert "references vertex 0" in _one_error_line(cli("info", zero).stderr, str(zero))
+    flat = tmp_path / "flat.obj"
+    flat.write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
+    for cmd in (["perturb", flat, "--seed", "1"], ["geodesic", flat, "-s", "0"]):
+        p = cli(*cmd, "-o", tmp_path / "o.ply")
+        assert p.returncode == 2 and "zero area" in _one_error_line(p.stderr, str(flat))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.obj", "flat.obj", "zero.obj"]
+
+
+def test_obj_comments_and_latin1_text_are_read(tmp_path):
+    path = tmp_path / "c.obj"
+    path.write_bytes(b"# caf\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0 # corner\nv 1 1 0\nf 1 2 3 # first\nf 2 4 3\n")
+    m = load_mesh(path)
+    assert m.F.tolist() == [[0, 1, 2], [1, 3, 2]]

@@ -115,7 +115,7 @@ def _isolated_vertex_mesh(make_fixtures, tmp_path):
 BAD = [
     (["-s", "441"], "grid.ply", "source vertex 441 is out of range"),
     (["-s", "0", "--time", "0"], "grid.ply", "--time must be a positive finite number"),
-    (["-s", "0", "--time", "nan"], "grid.ply", "--time must be a positive finite number"),
+    (["-s", "0", "--time", "nan"], "grid.ply", "--time nan: must be a finite number"),
     (["-s", "0", "--time-factor", "-2"], "grid.ply", "--time-factor must be a positive"),
     (["-s", "0", "-m", "varadhan", "--steps", "0"], "grid.ply", "--steps must be at least 1"),
     (["-s", "0"], "fin.obj", "non-manifold"),

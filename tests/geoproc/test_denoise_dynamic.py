@@ -136,3 +136,13 @@ def test_npz_errors(tmp_path):
     np.savez(tmp_path / "differ.npz", vertices=np.zeros((2, 3, 3)), faces=F)
     with pytest.raises(InputError, match="different connectivity"):
         load_animation(tmp_path / "differ.npz")
+    F1 = np.array([[0, 1, 2]])
+    np.savez(tmp_path / "text.npz", vertices=np.full((2, 3, 3), "a"), faces=F1)
+    with pytest.raises(InputError, match="not numeric"):
+        load_animation(tmp_path / "text.npz")
+    np.savez(tmp_path / "novertex.npz", vertices=np.zeros((2, 0, 3)), faces=F1)
+    with pytest.raises(InputError, match="expected \\(frames, n, 3\\)"):
+        load_animation(tmp_path / "novertex.npz")
+    np.savez(tmp_path / "huge.npz", vertices=np.full((2, 3, 3), 1e300), faces=F1)
+    with pytest.raises(InputError, match="overflow"):
+        load_animation(tmp_path / "huge.npz")
