@@ -12,7 +12,6 @@ import typer
 
 from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.distance import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, METHODS
-from geoproc.mesh.validate import require_triangle_mesh
 from geoproc_cli.common import (
     CheckOpt,
     DebugOpt,
@@ -143,7 +142,6 @@ def geodesic(
         if not srcs:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
         m = run.load_mesh(mesh, clean=not no_clean)
-        require_triangle_mesh(m)
         if m.log.merged_vertices or m.log.removed_unreferenced:
             run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
         with run.progress(f"geodesic {m_name}", 1.0) as update:

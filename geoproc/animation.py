@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.errors import InputError
-from geoproc.mesh.read import MAX_COORDINATE
+from geoproc.mesh.read import require_coordinates_in_range
 
 
 @dataclass
@@ -94,10 +94,7 @@ def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
     if not np.isfinite(V).all():
         t, i = (int(x) for x in np.argwhere(~np.isfinite(V).all(axis=2))[0])
         raise InputError(name, f"non-finite position (frame {t}, vertex {i})")
-    big = float(np.abs(V).max())
-    if big > MAX_COORDINATE:
-        raise InputError(name, f"coordinates as large as {big:.3g} overflow squared lengths "
-                         f"(each must stay within +-{MAX_COORDINATE:.0e})")
+    require_coordinates_in_range(V, name)
     if len(F) and (F.min() < 0 or F.max() >= V.shape[1]):
         raise InputError(name, f"face index out of range (valid 0..{V.shape[1] - 1})")
 

@@ -1,7 +1,8 @@
 """File helpers: atomic writes and content hashes.
 
-Every file geoproc writes goes through :func:`atomic_write`, so a failed run
-never leaves a partial output behind.
+Every file geoproc writes goes to a temporary file beside its destination and
+is renamed only when complete (:func:`write_files_atomic`, :func:`atomic_write`),
+so a failed run never leaves a partial output behind.
 """
 
 from __future__ import annotations
@@ -13,6 +14,25 @@ import os
 import tempfile
 from collections.abc import Iterator
 from typing import IO
+
+
+def _temp_beside(path: str) -> tuple[int, str]:
+    """Open a temporary file in the folder of ``path``: (descriptor, name)."""
+    return tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp",
+                            dir=os.path.dirname(os.path.abspath(path)))
+
+
+def _discard(temps: list[str]) -> None:
+    for tmp in temps:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+
+
+def _umask_mode() -> int:
+    """0o666 less the process umask: the mode ``open`` would give a new file."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
 
 
 @contextlib.contextmanager
@@ -29,8 +49,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
         ``"wb"`` (default) or ``"w"`` (UTF-8 text).
     """
     path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp", dir=folder)
+    fd, tmp = _temp_beside(path)
     try:
         with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as fh:
             yield fh
@@ -39,16 +58,8 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
         os.chmod(tmp, _umask_mode())
         os.replace(tmp, path)
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        _discard([tmp])
         raise
-
-
-def _umask_mode() -> int:
-    """0o666 less the process umask: the mode ``open`` would give a new file."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
 
 
 def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]]) -> None:
@@ -56,8 +67,9 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]]) -> None:
     destination first, and only when every one is written are they renamed.
 
     A destination that is a folder, or a write that fails (permissions, disk
-    full), raises OSError before any destination changes; the temporary files
-    are removed. New files get the usual mode (0o666 less the umask).
+    full), raises OSError naming that destination before any destination
+    changes; the temporary files are removed. New files get the usual mode
+    (0o666 less the umask).
 
     Parameters
     ----------
@@ -71,8 +83,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]]) -> None:
             path = os.fspath(path)
             if os.path.isdir(path):
                 raise IsADirectoryError(errno.EISDIR, "is a folder", path)
-            fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp",
-                                       dir=os.path.dirname(os.path.abspath(path)))
+            fd, tmp = _temp_beside(path)
             staged.append((tmp, path))
             with os.fdopen(fd, "wb") as fh:
                 fh.write(data)
@@ -81,15 +92,10 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]]) -> None:
             os.chmod(tmp, mode)
         for tmp, path in staged:
             os.replace(tmp, path)
-    except OSError as exc:  # name the destination, not the temporary file
-        for tmp, _ in staged:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-        raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
-    except BaseException:
-        for tmp, _ in staged:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
+    except BaseException as exc:
+        _discard([tmp for tmp, _ in staged])
+        if isinstance(exc, OSError):  # name the destination, not the temporary file
+            raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
         raise
 
 

@@ -164,6 +164,9 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     n = len(V)
+    area = face_areas(V, F)
+    if not (area > 0).any():
+        raise InputError(path, "degenerate mesh: every face has zero area")
     src = check_sources(sources, n, F, path)
     h = mean_edge_length(V, F)
     t = None if method == "exact" else diffusion_time(h, time_factor, time)
@@ -179,7 +182,6 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
             a, b = (int(x) for x in bad[0])
             raise InputError(path, f"non-manifold: {len(bad)} edges have more than two faces "
                                    f"(first: edge {a}-{b}); method '{method}' needs an edge-manifold mesh")
-    area = face_areas(V, F)
     if (area <= 0).any() and (method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"):
         k = int(np.flatnonzero(area <= 0)[0])
         raise InputError(path, f"{int((area <= 0).sum())} faces have zero area (first: face {k}); "

@@ -113,6 +113,15 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
 MAX_COORDINATE = 1e150  # squared distances of larger coordinates overflow float64
 
 
+def require_coordinates_in_range(V: np.ndarray, path: str) -> None:
+    """Raise InputError when a finite coordinate of V (any shape) exceeds
+    :data:`MAX_COORDINATE` in magnitude (its squared lengths would overflow)."""
+    big = float(np.abs(V).max()) if V.size else 0.0
+    if big > MAX_COORDINATE:
+        raise InputError(path, f"coordinates as large as {big:.3g} overflow squared lengths "
+                         f"(each must stay within +-{MAX_COORDINATE:.0e})")
+
+
 def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: bool = False) -> None:
     """Raise InputError for an empty mesh, non-finite or overflowing positions
     (beyond :data:`MAX_COORDINATE`) or bad indices.
@@ -136,10 +145,7 @@ def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: 
         raise InputError(
             path, f"{int(bad.sum())} vertices have non-finite coordinates (first: vertex {first})"
         )
-    big = float(np.abs(V).max())
-    if big > MAX_COORDINATE:
-        raise InputError(path, f"coordinates as large as {big:.3g} overflow squared lengths "
-                         f"(each must stay within +-{MAX_COORDINATE:.0e})")
+    require_coordinates_in_range(V, path)
     if len(F):
         out = (F < 0) | (F >= len(V))
         if out.any():
