@@ -48,7 +48,8 @@ stdout = Console(highlight=False, soft_wrap=True)
 
 ReportOpt = Annotated[
     Path | None,
-    typer.Option("--report", help="Write a JSON metric report here (schema: geoproc/report/report.schema.json).",
+    typer.Option("--report", help="Write a JSON metric report here (schema: geoproc/report/report.schema.json); "
+                 "- writes it to standard output.",
                  metavar="FILE.json", show_default=False),
 ]
 CheckOpt = Annotated[
@@ -81,6 +82,7 @@ class Run:
         self.metrics: dict = {}
         self.timings: dict[str, float] = {}
         self._outputs: list[tuple[str, bytes]] = []
+        self._notes: list[str] = []
         self._t0 = time.perf_counter()
 
     # ---- inputs ---------------------------------------------------------
@@ -140,9 +142,15 @@ class Run:
                       if log.merged_vertices or log.removed_unreferenced else f"{log.path}: " + ", ".join(notes))
 
     def note(self, text: str) -> None:
-        """A one-line remark on stderr (silenced by --quiet)."""
+        """A one-line remark for stderr (silenced by --quiet), shown when the run
+        ends without an error, so that a failed run prints its error line alone."""
         if not self.quiet:
+            self._notes.append(text)
+
+    def _flush_notes(self) -> None:
+        for text in self._notes:
             stderr.print(f"note: {text}", markup=False)
+        self._notes.clear()
 
     # ---- timing and progress -------------------------------------------
     @contextlib.contextmanager
@@ -205,7 +213,12 @@ class Run:
         self.timings["total"] = time.perf_counter() - self._t0
         if report is not None:
             rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings)
-            files.append((os.fspath(report), report_json(rep).encode()))
+            if os.fspath(report) == "-":
+                if any(name == "-" for name, _ in self._outputs):
+                    raise UsageError("--report - and -o - both write to standard output; give one a file name")
+                self._outputs.append(("-", report_json(rep).encode()))
+            else:
+                files.append((os.fspath(report), report_json(rep).encode()))
         try:
             write_files_atomic(files)
         except OSError as exc:
@@ -244,11 +257,13 @@ def command_run(
     try:
         parsed = [parse_check(c) for c in (checks or [])]
         _require_finite_options(params)
-        if report is not None and not os.path.isdir(os.path.dirname(os.path.abspath(report))):
+        if report is not None and os.fspath(report) != "-" \
+                and not os.path.isdir(os.path.dirname(os.path.abspath(report))):
             raise UsageError(f"--report {report}: folder does not exist")
         yield run
         failures = evaluate_checks(parsed, run.metrics)  # raises on unknown metric names
         run._commit(report)
+        run._flush_notes()
     except typer.Exit:
         raise
     except InputError as exc:
@@ -261,6 +276,11 @@ def command_run(
         raise _fail(str(exc), EXIT_BAD_INPUT) from None
     except KeyboardInterrupt:
         raise _fail("interrupted", 130) from None
+    except MemoryError as exc:  # a request too large for this machine (grid size, step count)
+        if debug:
+            traceback.print_exc()
+        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else "the request is too large"
+        raise _fail(f"out of memory: {detail}", EXIT_BAD_INPUT) from None
     except Exception as exc:  # a bug: keep the one-line contract, offer the traceback
         if debug:
             traceback.print_exc()

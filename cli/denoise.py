@@ -37,13 +37,13 @@ def denoise(
                                                   "its vertices may be numbered otherwise, as in an STL "
                                                   "copy): report the error metrics.", metavar="CLEAN")] = None,
     rounds: Annotated[int | None, typer.Option("--rounds", help="Rounds of normal filtering + vertex "
-                                               "update (default: from the estimated noise level).",
-                                               show_default=False)] = None,
+                                               "update, 0 to 1000 (default: from the estimated noise level).",
+                                               min=0, max=1000, show_default=False)] = None,
     normal_iterations: Annotated[int | None, typer.Option("--normal-iterations", help="Filter passes per "
-                                                          "round (default: from the noise level).",
-                                                          show_default=False)] = None,
+                                                          "round, 0 to 10000 (default: from the noise level).",
+                                                          min=0, max=10000, show_default=False)] = None,
     vertex_iterations: Annotated[int, typer.Option("--vertex-iterations", help="Vertex-update sweeps "
-                                                   "per round.")] = 10,
+                                                   "per round, 0 to 10000.", min=0, max=10000)] = 10,
     sigma_r: Annotated[float | None, typer.Option("--sigma-r", help="Range kernel width on normal "
                                                   "differences (default: from the noise level).",
                                                   show_default=False)] = None,
@@ -129,10 +129,6 @@ def denoise(
         if threshold_set and threshold < 0:
             raise UsageError(f"--threshold {threshold}: must be >= 0")
         threshold = 0.5 if threshold is None else threshold
-        for name, v in (("--rounds", rounds), ("--normal-iterations", normal_iterations),
-                        ("--vertex-iterations", vertex_iterations)):
-            if v is not None and v < 0:
-                raise UsageError(f"{name} {v}: must be >= 0")
         if (sigma_r is not None and sigma_r <= 0) or (sigma_s is not None and sigma_s <= 0):
             raise UsageError("--sigma-r and --sigma-s must be > 0")
         if features not in ("l1", "dihedral"):

@@ -11,6 +11,7 @@ import numpy as np
 import typer
 
 from geoproc.errors import InputError, UsageError
+from geoproc.fileio import read_input_bytes
 from geoproc.geodesic.distance import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, METHODS
 from geoproc_cli.common import (
     CheckOpt,
@@ -48,18 +49,16 @@ class Reference(StrEnum):
 def read_sources_file(path: str) -> list[int]:
     """Vertex indices from a text file: integers separated by spaces, commas or
     newlines; ``#`` starts a comment."""
-    if not os.path.isfile(path):
-        raise InputError(path, "no such file")
+    text = read_input_bytes(path, "file of source indices").decode("utf-8", errors="replace")
     out = []
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for lineno, line in enumerate(fh, 1):
-            for tok in re.split(r"[\s,]+", line.split("#", 1)[0].strip()):
-                if not tok:
-                    continue
-                try:
-                    out.append(int(tok))
-                except ValueError:
-                    raise InputError(path, f"line {lineno}: '{tok}' is not a vertex index") from None
+    for lineno, line in enumerate(text.splitlines(), 1):
+        for tok in re.split(r"[\s,]+", line.split("#", 1)[0].strip()):
+            if not tok:
+                continue
+            try:
+                out.append(int(tok))
+            except ValueError:
+                raise InputError(path, f"line {lineno}: '{tok}' is not a vertex index") from None
     if not out:
         raise InputError(path, "no vertex indices in the file")
     return out
@@ -83,7 +82,7 @@ def geodesic(
     time: Annotated[float | None, typer.Option("--time", "-t", help="Absolute diffusion time (area unit); "
                     "overrides --time-factor.", show_default=False)] = None,
     steps: Annotated[int, typer.Option("--steps", "-n", help="Backward-Euler steps to reach t "
-                     "(varadhan, log-ode, log-splitting, log-heat).")] = 1,
+                     "(varadhan, log-ode, log-splitting, log-heat), 1 to 100000.", min=1, max=100000)] = 1,
     laplacian: Annotated[Laplacian | None, typer.Option("--laplacian", help="Default: cotan for heat, "
                          "varadhan, log-splitting; intrinsic-delaunay for log-ode and log-heat.",
                          show_default=False)] = None,

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
+from geoproc.errors import UsageError
 from geoproc.mesh import mesh_info
 from geoproc.report import json_safe
 from geoproc_cli.common import (
@@ -44,6 +45,9 @@ def info(
     params = {"mesh": mesh, "clean": not no_clean}
     with command_run("info", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
+        if report is not None and str(report) == "-":
+            raise UsageError("--report -: the summary already goes to standard output "
+                             "(--json prints it as JSON); give the report a file name")
         m = run.load_mesh(mesh, clean=not no_clean)
         with run.timer("compute"):
             summary = mesh_info(m)

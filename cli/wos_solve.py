@@ -46,15 +46,18 @@ def wos_solve(
         "--method", help="naive: plain walks; cv-green / cv-angle: fit a control variate of "
         "Green / segment-angle kernels, then walk the residual; npass: cv-green refined by Adam "
         "on fresh walk batches.")] = Method.naive,
-    walks: Annotated[int, typer.Option("--walks", help="Walks per grid point.", min=1)] = 128,
-    grid: Annotated[int, typer.Option("--grid", help="Pixels along the bounding box's longer side.",
-                                      min=1)] = 256,
+    walks: Annotated[int, typer.Option("--walks", help="Walks per grid point (1 to 10^7).", min=1,
+                                       max=10**7)] = 128,
+    grid: Annotated[int, typer.Option("--grid", help="Pixels along the bounding box's longer "
+                                      "side (1 to 8192).", min=1, max=8192)] = 256,
     epsilon: Annotated[float, typer.Option("--epsilon", help="Stopping distance to the Dirichlet "
                                            "boundary, in domain length units.")] = 1e-3,
-    kernels: Annotated[int, typer.Option("--kernels", help="Control-variate kernels.", min=1)] = 80,
-    fit_walks: Annotated[int, typer.Option("--fit-walks", help="Walks per fit point.", min=1)] = 128,
+    kernels: Annotated[int, typer.Option("--kernels", help="Control-variate kernels (1 to 10000).",
+                                         min=1, max=10000)] = 80,
+    fit_walks: Annotated[int, typer.Option("--fit-walks", help="Walks per fit point (1 to 10^7).",
+                                           min=1, max=10**7)] = 128,
     fit_points: Annotated[int | None, typer.Option(
-        "--fit-points", help="Fit points spread in the domain [default: 8 x kernels].", min=1,
+        "--fit-points", help="Fit points spread in the domain, 1 to 10^6 [default: 8 x kernels].", min=1, max=10**6,
         show_default=False)] = None,
     ridge: Annotated[float, typer.Option("--ridge", help="Ridge weight of the fit (on unit-RMS "
                                          "kernel columns).")] = 0.1,
@@ -78,8 +81,8 @@ def wos_solve(
     """Solve the Laplace equation on a 2D domain by Walk on Spheres (Dirichlet) or Walk on
     Stars (mixed Dirichlet/Neumann), optionally with a harmonic control variate.
 
-    The report holds walks, total_steps, steps_per_second, fit_seconds and
-    residual_seconds (and rmse, max_abs_error, bias with --exact); all are
+    The report holds walks, total_steps, steps_per_second, residual_seconds and,
+    with a control variate, fit_seconds (and rmse, max_abs_error, bias with --exact); all are
     metrics for --check, e.g. --check 'rmse<=0.01'.
     """
     params = {"domain": domain, "boundary": boundary, "neumann": neumann, "method": method.value,

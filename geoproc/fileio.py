@@ -15,6 +15,8 @@ import tempfile
 from collections.abc import Iterator
 from typing import IO
 
+from geoproc.errors import InputError
+
 
 def _temp_beside(path: str) -> tuple[int, str]:
     """Open a temporary file in the folder of ``path``: (descriptor, name)."""
@@ -102,6 +104,26 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]]) -> None:
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (see :func:`write_files_atomic`)."""
     write_files_atomic([(path, data)])
+
+
+def require_input_file(path: str, what: str = "file") -> None:
+    """Raise InputError naming ``path`` when it does not exist or is a folder
+    (``what`` names the kind of file expected, e.g. ``"mesh file"``)."""
+    if os.path.isdir(path):
+        raise InputError(path, f"is a directory, not a {what}")
+    if not os.path.exists(path):
+        raise InputError(path, "no such file")
+
+
+def read_input_bytes(path: str, what: str = "file") -> bytes:
+    """The content of the input file ``path``; InputError naming it when it is
+    missing, a folder or unreadable (permissions, I/O errors)."""
+    require_input_file(path, what)
+    try:
+        with open(path, "rb") as fh:
+            return fh.read()
+    except OSError as exc:
+        raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
 
 
 def sha256_bytes(data: bytes) -> str:

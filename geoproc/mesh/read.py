@@ -13,10 +13,12 @@ from __future__ import annotations
 import io
 import os
 import re
+import warnings
 
 import numpy as np
 
 from geoproc.errors import InputError
+from geoproc.fileio import read_input_bytes, require_input_file
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
 
@@ -55,9 +57,9 @@ def load_mesh(path: str | os.PathLike, clean: bool = True, stdin_bytes: bytes | 
         data = stdin_bytes
         fmt = sniff_format(data, name)
     else:
-        _require_readable_file(name)
+        require_input_file(name, "mesh file")
         fmt = format_from_extension(name)
-        data = _read_bytes(name)
+        data = read_input_bytes(name, "mesh file")
     return read_mesh_bytes(data, fmt, name, clean=clean)
 
 
@@ -157,22 +159,6 @@ def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: 
             )
 
 
-def _require_readable_file(path: str) -> None:
-    if not os.path.exists(path):
-        raise InputError(path, "no such file")
-    if os.path.isdir(path):
-        raise InputError(path, "is a directory, not a mesh file")
-
-
-def _read_bytes(path: str) -> bytes:
-    _require_readable_file(path)
-    try:
-        with open(path, "rb") as fh:
-            return fh.read()
-    except OSError as exc:
-        raise InputError(path, f"cannot read: {exc.strerror or exc}") from exc
-
-
 def _fan_triangulate(faces: list) -> tuple[np.ndarray, int]:
     """Split polygons (lists of vertex indices) into triangle fans.
 
@@ -194,7 +180,11 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
     from plyfile import PlyData
 
     try:
-        ply = PlyData.read(io.BytesIO(data))
+        with warnings.catch_warnings():  # plyfile warns (multi-line) about empty list rows
+            warnings.simplefilter("ignore")
+            ply = PlyData.read(io.BytesIO(data))
+    except UnicodeDecodeError:
+        raise InputError(path, "unparseable PLY: the header is not ASCII text") from None
     except Exception as exc:  # plyfile raises several types for malformed data
         raise InputError(path, f"unparseable PLY: {_one_line(exc)}") from exc
     names = [e.name for e in ply.elements]
@@ -222,6 +212,7 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
         short = [i for i, f in enumerate(faces) if len(f) < 3]
         if short:
             raise InputError(path, f"face {short[0]} has fewer than 3 corners")
+        _require_integer_indices(faces, path)
         F, polys = _fan_triangulate(faces)
         if polys == 0:
             ffields = {
@@ -232,18 +223,45 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
     return Mesh(V, F, vfields, ffields), polys
 
 
+def _require_integer_indices(faces: list, path: str) -> None:
+    """Raise InputError when a PLY face list stored as floats holds a
+    non-integer vertex index (such as 1.5)."""
+    if not faces or np.asarray(faces[0]).dtype.kind != "f":
+        return
+    flat = np.concatenate(faces)
+    bad = flat != np.round(flat)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        face = int(np.searchsorted(np.cumsum([len(f) for f in faces]), first, side="right"))
+        raise InputError(path, f"face {face} has a non-integer vertex index {flat[first]:g}")
+
+
 _OBJ_ZERO_INDEX = re.compile(rb"^[ \t]*f[ \t](?:[^\n#]*?[ \t])?0(?:/[^\s#]*)?(?=[ \t\r#]|$)", re.M)
+_OBJ_FACE_LINE = re.compile(rb"^([ \t]*f[ \t][^\r\n]*)", re.M)
+_OBJ_CORNER_SUFFIX = re.compile(rb"/[^\s]*")
+
+
+def _obj_positions_only(data: bytes) -> bytes:
+    """OBJ text with comments removed and the texture/normal references of face
+    corners dropped (``f 1/4/2 ...`` becomes ``f 1 ...``), so trimesh keeps one
+    vertex per stored position, in file order, instead of splitting vertices at
+    texture seams."""
+    data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
+    return _OBJ_FACE_LINE.sub(lambda m: _OBJ_CORNER_SUFFIX.sub(b"", m.group(1)), data)
 
 
 def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     import trimesh
 
+    options = {}
     if fmt == "obj":
-        data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
+        data = _obj_positions_only(data)
         if _OBJ_ZERO_INDEX.search(data):
             _raise_obj_index_error(data, path)  # OBJ counts from 1; trimesh would take 0 as -1
+        options = {"maintain_order": True}  # keep unreferenced vertices: clean_mesh drops them
+    off_polygons = _off_polygons(data, path) if fmt == "off" else None
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh")
+        loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh", **options)
     except IndexError as exc:
         if fmt == "obj":
             _raise_obj_index_error(data, path)
@@ -259,48 +277,51 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         raise InputError(path, "mesh has no faces (vertices only; store a point cloud as PLY)")
     if V.size == 0 and len(data.strip()) > 0 and fmt != "obj":
         raise InputError(path, f"unparseable {fmt.upper()}: no vertices could be read")
-    if fmt == "off" and _off_declared_faces(data) == len(F):
-        return Mesh(V, F), 0  # every stored face was a triangle
-    return Mesh(V, F), _count_polygons(data, fmt)
+    if off_polygons is not None:
+        return Mesh(V, F), off_polygons
+    return Mesh(V, F), _count_obj_polygons(data)
 
 
-def _off_declared_faces(data: bytes) -> int | None:
-    """The face count in an OFF header, read from the first lines only."""
-    tokens: list[bytes] = []
-    for line in data[:4096].splitlines():
-        line = line.split(b"#")[0].strip()
-        if line:
-            tokens.extend(line.split())
-        if len(tokens) >= 3 and not tokens[0][:1].isdigit():
-            break
-    nums = [t for t in tokens if t[:1].isdigit()]
+def _off_polygons(data: bytes, path: str) -> int | None:
+    """Check that an OFF file holds the vertex and face lines its header declares
+    and that each face line lists as many indices as its leading count; return
+    the number of faces with more than three corners.
+
+    Returns None when the header cannot be read (trimesh then names the problem).
+    Raises InputError for a file shorter than its header says or a short face line.
+    """
+    text = re.sub(rb"#[^\r\n]*", b"", data) if b"#" in data else data
+    lines = [ln for ln in text.splitlines() if not ln.isspace() and ln]
+    if not lines or not lines[0].split()[0].upper().endswith(b"OFF"):
+        return None
+    counts, start = lines[0].split()[1:], 1
+    if not counts and len(lines) > 1:
+        counts, start = lines[1].split(), 2
     try:
-        return int(nums[1])
+        nv, nf = int(counts[0]), int(counts[1])
     except (IndexError, ValueError):
         return None
-
-
-def _count_polygons(data: bytes, fmt: str) -> int:
-    """Faces with more than three corners as stored in an OBJ or OFF file."""
-    if fmt == "obj":
-        four = rb"^[ \t]*f(?:[ \t]+[^\s#]+){4}"
-        return len(re.findall(four, data, flags=re.M))
-    if fmt == "off":
-        lines = [ln for ln in data.decode("latin-1").splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-        if not lines:
-            return 0
-        first = lines[0].split()
-        rest = first[1:] if len(first) > 1 else []
-        start = 1
-        if not rest:
-            rest, start = lines[1].split(), 2
+    have = len(lines) - start
+    if nv < 0 or nf < 0 or have < nv + nf:
+        raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
+                         f"but only {max(have, 0)} lines follow it (one per vertex, then one per face)")
+    polygons = 0
+    for i, line in enumerate(lines[start + nv: start + nv + nf]):
+        tokens = line.split()
         try:
-            nv, nf = int(rest[0]), int(rest[1])
-        except (IndexError, ValueError):
-            return 0
-        face_lines = lines[start + nv : start + nv + nf]
-        return sum(1 for ln in face_lines if ln.split() and int(ln.split()[0]) > 3)
-    return 0
+            corners = int(tokens[0])
+        except ValueError:
+            raise InputError(path, f"OFF face {i}: '{tokens[0].decode('latin-1')}' is not a corner count") from None
+        if len(tokens) - 1 < corners:
+            raise InputError(path, f"OFF face {i} declares {corners} corners but lists {len(tokens) - 1}")
+        polygons += corners > 3
+    return polygons
+
+
+def _count_obj_polygons(data: bytes) -> int:
+    """Faces with more than three corners as stored in an OBJ file."""
+    four = rb"^[ \t]*f(?:[ \t]+[^\s#]+){4}"
+    return len(re.findall(four, data, flags=re.M))
 
 
 def _raise_obj_index_error(data: bytes, path: str) -> None:

@@ -55,10 +55,13 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
     option : str
         Option name used in error messages.
     """
+    too_deep = UsageError(f"{option} '{_shorten(text)}': expression nested too deeply")
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
         raise UsageError(f"{option} '{text}': not a valid expression ({exc.msg})") from None
+    except (RecursionError, MemoryError):  # the parser's own nesting limit
+        raise too_deep from None
     unknown = sorted({n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
                      - set(FUNCTIONS) - set(CONSTANTS) - set(VARIABLES))
     if unknown:
@@ -107,11 +110,19 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
             raise UsageError(f"{option} '{text}': '{what}' is not allowed "
                              "(numbers, x, y, + - * / **, and the listed functions only)")
 
-    visit(tree)
+    try:
+        visit(tree)
+    except RecursionError:
+        raise too_deep from None
     code_a = np.asarray(code, dtype=np.int64)
     if _stack_depth(code_a) > _MAX_STACK:
-        raise UsageError(f"{option} '{text}': expression nested too deeply")
+        raise too_deep
     return Expression(text, code_a, np.asarray(consts, dtype=np.float64))
+
+
+def _shorten(text: str, limit: int = 60) -> str:
+    """``text`` cut to ``limit`` characters for a one-line message."""
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _stack_depth(code: np.ndarray) -> int:

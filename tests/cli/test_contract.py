@@ -110,15 +110,25 @@ def test_stdin_input_and_clean_stdout(cli, fixture_dir):
     assert info["genus"] == 1
 
 
-def test_notes_go_to_stderr_and_quiet_silences_them(cli, shared_data):
-    spot = shared_data / "meshes" / "spot.obj"
-    p = cli("info", spot, "--json")
-    assert "merged 295 coincident vertices" in p.stderr
-    assert json.loads(p.stdout)["vertices"] == 2930
-    q = cli("info", spot, "--json", "--quiet")
-    assert q.stderr == "" and json.loads(q.stdout)["vertices"] == 2930
-    raw = cli("info", spot, "--json", "--no-clean", "--quiet")
-    assert json.loads(raw.stdout)["vertices"] == 3225
+def test_notes_go_to_stderr_and_quiet_silences_them(cli, tmp_path):
+    path = tmp_path / "dup.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 0 0\nv 9 9 9\nv 1 1 0\nf 1 2 3\nf 4 6 3\n")
+    p = cli("info", path, "--json")
+    assert p.returncode == 0 and p.stderr.splitlines() == [
+        f"note: {path}: merged 1 coincident vertices, dropped 1 unreferenced vertices "
+        "(--no-clean keeps the mesh as stored)"]
+    assert json.loads(p.stdout)["vertices"] == 4
+    q = cli("info", path, "--json", "--quiet")
+    assert q.stderr == "" and json.loads(q.stdout)["vertices"] == 4
+    raw = cli("info", path, "--json", "--no-clean", "--quiet")
+    assert json.loads(raw.stdout)["vertices"] == 6
+
+
+def test_a_failed_run_prints_its_error_line_alone(cli, tmp_path):
+    path = tmp_path / "points.obj"  # merging leaves one point: notes, then a degenerate mesh
+    path.write_text("v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n")
+    p = cli("geodesic", path, "-s", "0", "-o", tmp_path / "d.ply")
+    assert p.returncode == 2 and "every face has zero area" in _one_error_line(p.stderr, str(path))
 
 
 def test_every_option_of_every_command_has_help():
@@ -139,7 +149,7 @@ def _toy_app() -> typer.Typer:
     toy = typer.Typer()
 
     @toy.command()
-    def flip(mesh: str, output: str = typer.Option(..., "-o"), fail: bool = False,
+    def flip(mesh: str, output: str = typer.Option(..., "-o"), fail: bool = False, huge: bool = False,
              report: ReportOpt = None, check: CheckOpt = None) -> None:
         with command_run("flip", {"fail": fail}, report=report, checks=check) as run:
             m = run.load_mesh(mesh)
@@ -147,6 +157,8 @@ def _toy_app() -> typer.Typer:
             run.metrics["faces"] = len(m.F)
             if fail:
                 raise InputError(mesh, "refused after writing")
+            if huge:
+                raise MemoryError("Unable to allocate 74.5 GiB for an array")
 
     return toy
 
@@ -201,7 +213,9 @@ def test_parser_errors_and_non_finite_options_are_one_line_usage_errors(cli, fix
                  ["perturb", mesh, "--seed", "1", "--bogus", "-o", tmp_path / "o.ply"],
                  ["perturb", mesh, "--seed", "1", "--noise", "inf", "-o", tmp_path / "o.ply"],
                  ["denoise", mesh, "--sigma-r", "nan", "-o", tmp_path / "o.ply"],
-                 ["geodesic", mesh, "-s", "99999999999999999999", "-o", tmp_path / "o.ply"]):
+                 ["geodesic", mesh, "-s", "99999999999999999999", "-o", tmp_path / "o.ply"],
+                 ["denoise", mesh, "--vertex-iterations", "99999999999999999999", "-o", tmp_path / "o.ply"],
+                 ["wos-solve", mesh, "--grid", "100000", "--boundary", "x", "-o", tmp_path / "u.exr"]):
         p = cli(*args)
         lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
         assert p.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: "), (args, p.stderr)
@@ -229,3 +243,25 @@ def test_obj_comments_and_latin1_text_are_read(tmp_path):
     path.write_bytes(b"# caf\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0 # corner\nv 1 1 0\nf 1 2 3 # first\nf 2 4 3\n")
     m = load_mesh(path)
     assert m.F.tolist() == [[0, 1, 2], [1, 3, 2]]
+
+
+def test_out_of_memory_is_one_line_exit_2(fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(out), "--huge"])
+    assert res.exit_code == 2 and not out.exists()
+    assert res.output.strip() == "error: out of memory: Unable to allocate 74.5 GiB for an array"
+
+
+def test_report_dash_goes_to_stdout_alone(cli, fixture_dir, tmp_path):
+    mesh, out = fixture_dir / "cube.ply", tmp_path / "o.ply"
+    p = cli("perturb", mesh, "--seed", "1", "-o", out, "--report", "-")
+    assert p.returncode == 0 and out.exists() and not (tmp_path / "-").exists()
+    rep = json.loads(p.stdout)
+    validate_report(rep)
+    assert rep["command"] == "perturb" and rep["params"]["seed"] == 1
+    out.unlink()
+    for args in (["perturb", mesh, "--seed", "1", "-o", "-", "--report", "-"], ["info", mesh, "--report", "-"]):
+        p = cli(*args, cwd=tmp_path)
+        assert p.returncode == 2 and p.stdout == b"" and list(tmp_path.iterdir()) == []
+        lines = p.stderr.splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error: --report -") and "standard output" in lines[0]

@@ -117,7 +117,9 @@ BAD = [
     (["-s", "0", "--time", "0"], "grid.ply", "--time must be a positive finite number"),
     (["-s", "0", "--time", "nan"], "grid.ply", "--time nan: must be a finite number"),
     (["-s", "0", "--time-factor", "-2"], "grid.ply", "--time-factor must be a positive"),
-    (["-s", "0", "-m", "varadhan", "--steps", "0"], "grid.ply", "--steps must be at least 1"),
+    (["-s", "0", "-m", "varadhan", "--steps", "0"], "grid.ply", "'-n': Input should be greater than or equal to 1"),
+    (["-s", "0", "-m", "log-ode", "-n", "100001"], "grid.ply", "'-n': Input should be less than or equal to 100000"),
+    (["--sources-file", "."], "grid.ply", "error: .: is a directory, not a file of source indices"),
     (["-s", "0"], "fin.obj", "non-manifold"),
     (["-s", "0", "-m", "exact"], "bowtie.obj", "non-manifold"),
     (["-s", "0"], "points.ply", "point cloud"),
@@ -152,7 +154,18 @@ def test_log_ode_with_negative_cotan_weights_exits_2(cli, make_fixtures, tmp_pat
     out = tmp_path / "d.ply"
     p = cli("geodesic", path, "-s", "0", "-m", "log-ode", "--laplacian", "cotan", "-o", out)
     assert p.returncode == 2
-    assert "intrinsic-delaunay" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    W = V * [1.0, 1.0, 0.05]
+    weight: dict[tuple[int, int], float] = {}
+    for f in F:  # cot of the angle at each corner, added to the opposite edge
+        for k in range(3):
+            a, b, c = f[k], f[(k + 1) % 3], f[(k + 2) % 3]
+            u, v = W[b] - W[a], W[c] - W[a]
+            key = (min(b, c), max(b, c))
+            weight[key] = weight.get(key, 0.0) + u @ v / np.linalg.norm(np.cross(u, v))
+    negative = sum(w < 0 for w in weight.values())
+    assert negative > 0 and p.stderr.strip().splitlines() == [
+        f"error: {path}: {negative} edges have negative cotangent weights, and the log-ODE needs "
+        "non-negative ones; use --laplacian intrinsic-delaunay"]
     assert not out.exists()
 
 

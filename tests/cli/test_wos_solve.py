@@ -30,6 +30,7 @@ def inputs(tmp_path_factory):
         (d / f"{name}.json").write_text(json.dumps(doc))
     wf.write_mask(d / "mask.png", wf.disk_mask(64, 24.0, 8.0))
     wf.write_mask(d / "blank.png", np.zeros((32, 32), bool))
+    (d / "folder.json").mkdir()
     return d
 
 
@@ -97,6 +98,8 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("flat.json", [], "zero area"),
     ("blank.png", [], "no foreground"),
     ("missing.json", [], "no such file"),
+    ("folder.json", [], "folder.json: is a directory, not a domain file"),
+    ("disk.json", ["--boundary", "+".join(["x"] * 20000)], "expression nested too deeply"),
     ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
     ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),
     ("rect.json", ["--boundary", "x", "--method", "cv-angle"], "cv-angle supports Dirichlet-only"),

@@ -63,12 +63,48 @@ def test_ply_without_faces_is_a_point_cloud(fixture_dir):
     assert m.is_point_cloud and m.V.shape == (200, 3)
 
 
-def test_uv_seams_are_merged_and_no_clean_keeps_them(shared_data):
+def test_obj_uv_seams_do_not_split_vertices(shared_data):
     spot = shared_data / "meshes" / "spot.obj"
-    merged, kept = load_mesh(spot), load_mesh(spot, clean=False)
-    assert len(kept.V) == 3225 and merged.log.merged_vertices == 3225 - len(merged.V)
-    assert len(merged.V) == 2930
-    assert merged.log.cleaned and not kept.log.cleaned
+    stored = sum(1 for line in spot.read_text().splitlines() if line.startswith("v "))
+    cleaned, kept = load_mesh(spot), load_mesh(spot, clean=False)
+    assert stored == 2930 and len(kept.V) == len(cleaned.V) == stored
+    assert cleaned.log.merged_vertices == 0 and (cleaned.F == kept.F).all()
+    assert cleaned.log.cleaned and not kept.log.cleaned
+
+
+def test_obj_no_clean_keeps_every_vertex_in_file_order(tmp_path):
+    path = tmp_path / "t.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nv 1 1 0\nv 1 0 0\n"
+                    "vt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1\nf 6//1 5//1 3//1\n")
+    kept = load_mesh(path, clean=False)
+    assert kept.V.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 5], [1, 1, 0], [1, 0, 0]]
+    assert kept.F.tolist() == [[0, 1, 2], [5, 4, 2]]
+    cleaned = load_mesh(path)
+    assert cleaned.log.merged_vertices == 1 and cleaned.log.removed_unreferenced == 1
+    assert cleaned.F.tolist() == [[0, 1, 2], [1, 3, 2]]
+
+
+def test_malformed_ply_and_off_are_refused(tmp_path):
+    head = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face {nf}\nproperty list uchar {kind} vertex_indices\nend_header\n"
+            "0 0 0\n1 0 0\n0 1 0\n")
+    cases = {
+        "frac.ply": (head.format(nf=1, kind="float") + "3 0 1.5 2\n", "face 0 has a non-integer vertex index 1.5"),
+        "empty_face.ply": (head.format(nf=2, kind="int") + "3 0 1 2\n0\n", "face 1 has fewer than 3 corners"),
+        "short.off": ("OFF\n3 5 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+                      "declares 3 vertices and 5 faces, but only 4 lines follow"),
+        "short_face.off": ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "face 0 declares 3 corners but lists 2"),
+    }
+    for name, (text, fragment) in cases.items():
+        (tmp_path / name).write_text(text)
+        with pytest.raises(InputError) as err:
+            load_mesh(tmp_path / name)
+        assert fragment in err.value.problem, (name, err.value.problem)
+    (tmp_path / "bin.ply").write_bytes(b"ply\nformat ascii 1.0\n\xff\xfe garbage\n")
+    with pytest.raises(InputError, match="header is not ASCII text"):
+        load_mesh(tmp_path / "bin.ply")
+    (tmp_path / "quad_float.ply").write_text(head.format(nf=1, kind="float") + "3 0 1.0 2\n")
+    assert load_mesh(tmp_path / "quad_float.ply").F.tolist() == [[0, 1, 2]]
 
 
 def test_polygons_are_triangulated_and_counted(fixture_dir):
