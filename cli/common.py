@@ -21,6 +21,7 @@ evaluates ``--check`` gates (exit 1 on a miss).
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import os
 import sys
@@ -97,6 +98,8 @@ class Run:
         name = os.fspath(path)
         with self.timer("load"):
             if name == "-":
+                if sys.stdin is None:
+                    raise InputError("-", "standard input is closed")
                 data = sys.stdin.buffer.read()
                 mesh = load_mesh("-", clean=clean, stdin_bytes=data)
                 self.add_input("-", data)
@@ -193,6 +196,8 @@ class Run:
         ext = os.path.splitext(name)[1].lower().lstrip(".")
         if ext not in WRITE_FORMATS:
             raise UsageError(f"{name}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
+        if len(mesh.F) == 0 and ext != "ply":
+            raise UsageError(f"{name}: a point cloud (no faces) is written as .ply only")
         self._outputs.append((name, mesh_to_bytes(mesh, ext, binary=not ascii)))
 
     def _check_output_folders(self) -> None:
@@ -201,33 +206,64 @@ class Run:
             if name != "-" and not os.path.isdir(folder):
                 raise UsageError(f"{name}: output folder '{folder}' does not exist")
 
+    def write_stdout(self, data: bytes) -> None:
+        """Queue bytes for standard output; written only when the run succeeds."""
+        self._outputs.append(("-", data))
+
     def _commit(self, report: Path | None) -> None:
         """Write every queued output and the report, all or none.
 
-        The files are staged beside their destinations and renamed only once
-        all of them are written (so an unwritable report leaves no mesh
-        behind); standard output gets its bytes after the staging succeeded.
+        The files are staged beside their destinations, standard output gets
+        its bytes, and only then are the files renamed into place (so an
+        unwritable report, or a full or closed standard output, leaves no file
+        behind).
         """
         self._check_output_folders()
-        files = [(name, data) for name, data in self._outputs if name != "-"]
         self.timings["total"] = time.perf_counter() - self._t0
+        outputs = list(self._outputs)
         if report is not None:
             rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings)
-            if os.fspath(report) == "-":
-                if any(name == "-" for name, _ in self._outputs):
-                    raise UsageError("--report - and -o - both write to standard output; give one a file name")
-                self._outputs.append(("-", report_json(rep).encode()))
-            else:
-                files.append((os.fspath(report), report_json(rep).encode()))
+            outputs.append((os.fspath(report), report_json(rep).encode()))
+        _require_distinct_outputs(outputs, [i["path"] for i in self.inputs], report)
+        piped = b"".join(data for name, data in outputs if name == "-")
         try:
-            write_files_atomic(files)
+            write_files_atomic([(name, data) for name, data in outputs if name != "-"],
+                               before_rename=lambda: _write_stdout(piped) if piped else None)
         except OSError as exc:
             name = exc.filename or "output"
             raise UsageError(f"{name}: cannot write: {exc.strerror or exc}") from None
-        for name, data in self._outputs:
-            if name == "-":
-                sys.stdout.buffer.write(data)
-                sys.stdout.buffer.flush()
+
+
+def _write_stdout(data: bytes) -> None:
+    """Write ``data`` to standard output; OSError when it is closed or full."""
+    if sys.stdout is None:
+        raise OSError(errno.EBADF, "standard output is closed", "-")
+    try:
+        sys.stdout.buffer.write(data)
+        sys.stdout.buffer.flush()
+    except ValueError:  # a closed file object
+        raise OSError(errno.EBADF, "standard output is closed", "-") from None
+
+
+def _require_distinct_outputs(outputs: list[tuple[str, bytes]], inputs: list[str],
+                              report: Path | None) -> None:
+    """Refuse two outputs on one path (standard output included) and an output
+    that would overwrite an input."""
+    if sum(name == "-" for name, _ in outputs) > 1:
+        what = "--report - and another output" if report is not None and os.fspath(report) == "-" \
+            else "two outputs"
+        raise UsageError(f"{what} both write to standard output; give all but one a file name")
+    seen: set[str] = set()
+    sources = {os.path.realpath(p) for p in inputs if p != "-"}
+    for name, _ in outputs:
+        if name == "-":
+            continue
+        real = os.path.realpath(name)
+        if real in seen:
+            raise UsageError(f"{name}: given for two outputs; give each its own file name")
+        if real in sources:
+            raise UsageError(f"{name}: is also an input; write the result to another file")
+        seen.add(real)
 
 
 def _require_finite_options(params: dict) -> None:

@@ -8,7 +8,6 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from geoproc.errors import UsageError
 from geoproc.mesh import mesh_info
 from geoproc.report import json_safe
 from geoproc_cli.common import (
@@ -45,18 +44,17 @@ def info(
     params = {"mesh": mesh, "clean": not no_clean}
     with command_run("info", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
-        if report is not None and str(report) == "-":
-            raise UsageError("--report -: the summary already goes to standard output "
-                             "(--json prints it as JSON); give the report a file name")
         m = run.load_mesh(mesh, clean=not no_clean)
         with run.timer("compute"):
             summary = mesh_info(m)
         summary["load"] = m.log.as_dict()
         run.metrics.update({k: v for k, v in summary.items() if not isinstance(v, list | dict)})
         if as_json:
-            typer.echo(json.dumps(json_safe(summary), indent=2))
+            run.write_stdout((json.dumps(json_safe(summary), indent=2) + "\n").encode())
         else:
-            stdout.print(_table(mesh, summary))
+            with stdout.capture() as text:
+                stdout.print(_table(mesh, summary))
+            run.write_stdout(text.get().encode())
 
 
 def _table(name: str, s: dict) -> Table:

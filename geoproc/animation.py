@@ -74,7 +74,7 @@ def load_animation(path: str | os.PathLike) -> Animation:
     F = np.asarray(data.pop("faces"))
     if V.ndim != 3 or V.shape[2] != 3 or V.shape[0] < 1 or V.shape[1] < 1:
         raise InputError(name, f"'vertices' has shape {V.shape}; expected (frames, n, 3)")
-    if F.ndim == 3:
+    if F.ndim == 3 and len(F):
         if (F != F[:1]).any():
             bad = int(np.flatnonzero((F != F[:1]).reshape(len(F), -1).any(axis=1))[0])
             raise InputError(name, f"frame {bad} has a different connectivity from frame 0")
@@ -83,10 +83,9 @@ def load_animation(path: str | os.PathLike) -> Animation:
         raise InputError(name, f"'faces' has shape {F.shape} ({F.dtype}); expected (m, 3) integers")
     _validate(V, F, name)
     fields = {}
-    for k, v in data.items():
-        v = np.asarray(v, dtype=np.float64)
-        if v.shape == V.shape[:2]:
-            fields[k] = v
+    for k, v in data.items():  # per-vertex numeric arrays travel as fields; others are ignored
+        if v.dtype.kind in "fiub" and v.shape == V.shape[:2]:
+            fields[k] = np.asarray(v, dtype=np.float64)
     return Animation(V, F.astype(np.int64), fields, name)
 
 

@@ -12,7 +12,7 @@ import errno
 import hashlib
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import IO
 
 from geoproc.errors import InputError
@@ -64,34 +64,52 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
         raise
 
 
-def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]]) -> None:
+def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
+                       before_rename: Callable[[], None] | None = None) -> None:
     """Write several files all or none: each goes to a temporary file beside its
     destination first, and only when every one is written are they renamed.
 
     A destination that is a folder, or a write that fails (permissions, disk
     full), raises OSError naming that destination before any destination
     changes; the temporary files are removed. New files get the usual mode
-    (0o666 less the umask).
+    (0o666 less the umask). A symbolic link is written through (its target is
+    replaced, the link kept); a destination that exists and is not a regular
+    file (a device such as /dev/null, a FIFO) is written to directly, once the
+    others are staged.
 
     Parameters
     ----------
     files : list of (path, bytes)
+    before_rename : callable, optional
+        Called once everything is staged, before the renames (to write standard
+        output); an OSError it raises discards the staged files too.
     """
     staged: list[tuple[str, str]] = []
+    direct: list[tuple[str, bytes]] = []
     mode = _umask_mode()
     path = ""
     try:
         for path, data in files:
             path = os.fspath(path)
-            if os.path.isdir(path):
+            real = os.path.realpath(path)
+            if os.path.isdir(real):
                 raise IsADirectoryError(errno.EISDIR, "is a folder", path)
-            fd, tmp = _temp_beside(path)
-            staged.append((tmp, path))
+            if os.path.exists(real) and not os.path.isfile(real):
+                direct.append((path, data))
+                continue
+            fd, tmp = _temp_beside(real)
+            staged.append((tmp, real))
             with os.fdopen(fd, "wb") as fh:
                 fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())
             os.chmod(tmp, mode)
+        for path, data in direct:
+            with open(path, "wb") as fh:
+                fh.write(data)
+        path = "-"
+        if before_rename is not None:
+            before_rename()
         for tmp, path in staged:
             os.replace(tmp, path)
     except BaseException as exc:

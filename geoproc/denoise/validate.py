@@ -43,6 +43,9 @@ def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np
         When the counts differ, or the face lists differ beyond a renumbering.
     """
     n_ref = V_ref.shape[-2]
+    P = V_ref.reshape(-1, n_ref, 3)
+    if (np.ptp(P, axis=1).max(axis=1) == 0).any():
+        raise InputError(path, "the reference is degenerate: all its vertices coincide (in some frame)")
     if n_ref != n or len(F_ref) != len(F):
         raise InputError(path, f"reference connectivity differs from the input ({n_ref} vertices, "
                          f"{len(F_ref)} faces vs {n}, {len(F)}); load both with the same --no-clean setting")

@@ -9,7 +9,10 @@ def exact_geodesic_distance(V: np.ndarray, F: np.ndarray, sources: np.ndarray) -
     """(n,) exact geodesic distance on the polyhedral surface to the nearest source.
 
     ``igl.exact_geodesic`` (Mitchell-Mount-Papadimitriou, Kirsanov's
-    implementation). Vertices it cannot reach come back as +inf.
+    implementation). Vertices it cannot reach come back as +inf. The mesh is
+    solved at unit bounding-box diagonal and the distances scaled back, since
+    the implementation's tolerances are absolute (at a diagonal of 1e-30 it
+    does not finish).
 
     Parameters
     ----------
@@ -24,7 +27,9 @@ def exact_geodesic_distance(V: np.ndarray, F: np.ndarray, sources: np.ndarray) -
     VS = np.ascontiguousarray(sources, dtype=np.int64)
     VT = np.arange(len(V), dtype=np.int64)
     empty = np.zeros(0, dtype=np.int64)
-    d = np.asarray(igl.exact_geodesic(np.ascontiguousarray(V), np.ascontiguousarray(F), VS, empty, VT, empty),
-                   dtype=np.float64)
+    lo = V.min(axis=0)
+    scale = float(np.linalg.norm(V.max(axis=0) - lo)) or 1.0
+    U = np.ascontiguousarray((V - lo) / scale)
+    d = np.asarray(igl.exact_geodesic(U, np.ascontiguousarray(F), VS, empty, VT, empty), dtype=np.float64)
     d[~np.isfinite(d) | (d > 1e99)] = np.inf
-    return d
+    return d * scale

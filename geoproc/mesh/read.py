@@ -52,7 +52,7 @@ def load_mesh(path: str | os.PathLike, clean: bool = True, stdin_bytes: bytes | 
     """
     name = str(path)
     if name == "-":
-        if stdin_bytes is None:
+        if not stdin_bytes:
             raise InputError("-", "no data on standard input")
         data = stdin_bytes
         fmt = sniff_format(data, name)
@@ -112,16 +112,24 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
     return mesh
 
 
-MAX_COORDINATE = 1e150  # squared distances of larger coordinates overflow float64
+MAX_COORDINATE = 1e50  # beyond, products of squared lengths (areas squared, cotangents) overflow float64
+MIN_EXTENT = 1e-50  # below, squared areas underflow float64
 
 
 def require_coordinates_in_range(V: np.ndarray, path: str) -> None:
-    """Raise InputError when a finite coordinate of V (any shape) exceeds
-    :data:`MAX_COORDINATE` in magnitude (its squared lengths would overflow)."""
+    """Raise InputError when a finite coordinate of V (any shape, last axis the
+    coordinates) exceeds :data:`MAX_COORDINATE` in magnitude, or when the points
+    span less than :data:`MIN_EXTENT` without all coinciding: areas and their
+    products would overflow or underflow float64. Rescale such inputs."""
     big = float(np.abs(V).max()) if V.size else 0.0
     if big > MAX_COORDINATE:
-        raise InputError(path, f"coordinates as large as {big:.3g} overflow squared lengths "
-                         f"(each must stay within +-{MAX_COORDINATE:.0e})")
+        raise InputError(path, f"coordinates as large as {big:.3g} overflow products of squared lengths "
+                         f"(each must stay within +-{MAX_COORDINATE:.0e}; rescale the input)")
+    P = V.reshape(-1, V.shape[-1]) if V.size else V
+    extent = float(np.linalg.norm(P.max(axis=0) - P.min(axis=0))) if V.size else 0.0
+    if 0.0 < extent < MIN_EXTENT:
+        raise InputError(path, f"the points span only {extent:.3g}; areas underflow below an extent of "
+                         f"{MIN_EXTENT:.0e} (rescale the input)")
 
 
 def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: bool = False) -> None:
@@ -194,6 +202,8 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
     for axis in "xyz":
         if axis not in vert.dtype.names:
             raise InputError(path, f"PLY vertex element has no '{axis}' property")
+        if vert.dtype[axis].kind not in "fiu" or vert.dtype[axis].shape != ():
+            raise InputError(path, f"PLY vertex property '{axis}' is not a number (a list?)")
     V = np.column_stack([np.asarray(vert[a], dtype=np.float64) for a in "xyz"])
     vfields = {
         n: np.asarray(vert[n], dtype=np.float64)
@@ -247,6 +257,7 @@ def _obj_positions_only(data: bytes) -> bytes:
     vertex per stored position, in file order, instead of splitting vertices at
     texture seams."""
     data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
+    data = data.replace(b"\t", b" ")  # trimesh splits on spaces only
     return _OBJ_FACE_LINE.sub(lambda m: _OBJ_CORNER_SUFFIX.sub(b"", m.group(1)), data)
 
 

@@ -98,6 +98,9 @@ def perturb_positions(
     n = len(V)
     if spec.direction not in ("normal", "random"):
         raise InputError(path, f"unknown noise direction '{spec.direction}' (normal or random)")
+    if len(F) == 0 and len(np.unique(V, axis=0)) < 3:
+        raise InputError(path, "a point cloud needs at least 3 distinct points (the noise unit is their "
+                         "spacing, the normals their least-variance direction)")
     out = np.array(V, dtype=np.float64, copy=True)
     outlier = np.zeros(n)
     if spec.sigma > 0:

@@ -121,6 +121,7 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
             raise InputError(source, f"loop {k} is not a list of [x, y] points")
         if not np.isfinite(L).all():
             raise InputError(source, f"loop {k} has non-finite coordinates")
+        _require_extent_in_range(L, k, source)
         nf = np.zeros(len(L), dtype=bool) if neumann_segments is None else np.asarray(neumann_segments[k], bool)
         v = None if values is None else np.asarray(values[k], dtype=np.float64)
         if v is not None and (v.shape != (len(L),) or not np.isfinite(v).all()):
@@ -172,6 +173,22 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         seg_vals = np.ascontiguousarray(np.stack([va, vb], axis=1))
     return Domain(clean, np.ascontiguousarray(A), np.ascontiguousarray(B), loop_of,
                   np.concatenate(flags), seg_vals, source)
+
+
+MAX_COORDINATE = 1e15  # the closest-point scan squares distances in float32 (overflow near 1.8e19)
+MIN_EXTENT = 1e-15  # and below, its squared distances underflow
+
+
+def _require_extent_in_range(L: np.ndarray, k: int, source: str) -> None:
+    """Refuse loop ``k`` when a coordinate exceeds :data:`MAX_COORDINATE` or
+    the loop spans less than :data:`MIN_EXTENT` (rescale such domains)."""
+    big = float(np.abs(L).max())
+    if big > MAX_COORDINATE:
+        raise InputError(source, f"loop {k} has coordinates as large as {big:.3g}; they must stay within "
+                         f"+-{MAX_COORDINATE:.0e} (rescale the domain)")
+    span = float(np.linalg.norm(L.max(axis=0) - L.min(axis=0)))
+    if 0.0 < span < MIN_EXTENT:
+        raise InputError(source, f"loop {k} spans only {span:.3g}, below {MIN_EXTENT:.0e} (rescale the domain)")
 
 
 def _check_simple(loops: list[np.ndarray], source: str) -> None:
@@ -271,6 +288,8 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
         raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(path, f"not valid JSON ({exc})") from None
+    except RecursionError:
+        raise InputError(path, "JSON nested too deeply") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("loops"), list):
         raise InputError(path, "expected an object with a 'loops' list of closed loops [[x, y], ...]")
     loops = doc["loops"]
@@ -279,11 +298,20 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
             isinstance(p, list) and len(p) == 2 and all(isinstance(c, int | float) and not isinstance(c, bool)
                                                        for c in p) for p in L):
             raise InputError(path, f"loop {k} is not a list of [x, y] number pairs")
+        try:
+            np.asarray(L, dtype=np.float64)
+        except OverflowError:
+            raise InputError(path, f"loop {k} has a coordinate too large for a float") from None
     flags = [np.zeros(len(L), dtype=bool) for L in loops]
-    for item in doc.get("neumann", []) or []:
+    neumann = doc.get("neumann", []) or []
+    if not isinstance(neumann, list):
+        raise InputError(path, f"'neumann' must be a list of loop indices or [loop, segment] pairs, "
+                         f"not {neumann!r}")
+    for item in neumann:
         if isinstance(item, int) and not isinstance(item, bool) and 0 <= item < len(loops):
             flags[item][:] = True
-        elif (isinstance(item, list) and len(item) == 2 and all(isinstance(c, int) for c in item)
+        elif (isinstance(item, list) and len(item) == 2
+              and all(isinstance(c, int) and not isinstance(c, bool) for c in item)
               and 0 <= item[0] < len(loops) and 0 <= item[1] < len(loops[item[0]])):
             flags[item[0]][item[1]] = True
         else:
@@ -293,8 +321,11 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
     if values is not None:
         if not isinstance(values, list) or len(values) != len(loops):
             raise InputError(path, "'values' must hold one list of per-vertex values per loop")
+        if any(not isinstance(v, list) or any(isinstance(c, bool) or not isinstance(c, int | float) for c in v)
+               for v in values):
+            raise InputError(path, "'values' must be lists of numbers, one list per loop")
         try:
             values = [np.asarray(v, dtype=np.float64) for v in values]
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise InputError(path, "'values' must be numbers") from None
     return build_domain(loops, flags, values, source=path)

@@ -265,3 +265,36 @@ def test_report_dash_goes_to_stdout_alone(cli, fixture_dir, tmp_path):
         assert p.returncode == 2 and p.stdout == b"" and list(tmp_path.iterdir()) == []
         lines = p.stderr.splitlines()
         assert len(lines) == 1 and lines[0].startswith("error: --report -") and "standard output" in lines[0]
+
+
+def test_stdout_failures_same_paths_and_early_stdout_leave_nothing(fixture_dir, tmp_path):
+    import subprocess
+    import sys
+
+    mesh = tmp_path / "t.ply"
+    mesh.write_bytes((fixture_dir / "torus.ply").read_bytes())
+    base = [sys.executable, "-m", "geoproc_cli.main"]
+    with open("/dev/full", "wb") as full:
+        p = subprocess.run(base + ["geodesic", mesh, "-s", "0", "-o", tmp_path / "o.ply", "--report", "-"],
+                           stdout=full, stderr=subprocess.PIPE, text=True)
+    assert p.returncode == 2 and p.stderr.strip() == "error: -: cannot write: No space left on device"
+    for args, message in (
+        (["geodesic", mesh, "-s", "0", "-o", tmp_path / "s.ply", "--report", tmp_path / "s.ply"], "two outputs"),
+        (["info", mesh, "--report", mesh], "is also an input"),
+        (["perturb", fixture_dir / "points.ply", "--seed", "1", "-o", tmp_path / "p.obj"], "written as .ply only"),
+        (["info", mesh, "--json", "--check", "nosuch<=1"], "unknown metric"),
+    ):
+        p = subprocess.run(base + args, capture_output=True, text=True)
+        assert p.returncode == 2 and p.stdout == "" and message in p.stderr, (args, p.stderr)
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["t.ply"]
+
+
+def test_coordinates_beyond_the_safe_range_are_refused(cli, fixture_dir, tmp_path):
+    torus = load_mesh(fixture_dir / "torus.ply")
+    for scale, fragment in ((1e80, "overflow products of squared lengths"), (1e-60, "areas underflow")):
+        path = tmp_path / f"t{scale:g}.ply"
+        from geoproc.mesh import save_mesh
+
+        save_mesh(path, Mesh(torus.V * scale, torus.F))
+        p = cli("morse-simplify", path, "-f", "z", "-p", "0.1", "-o", tmp_path / "m.ply")
+        assert p.returncode == 2 and fragment in _one_error_line(p.stderr, str(path))

@@ -25,6 +25,8 @@ def inputs(tmp_path_factory):
         "bowtie": {"loops": [[[0, 0], [1, 1], [1, 0], [0, 1]]]},
         "open": {"loops": [[[0, 0], [1, 0]]]},
         "flat": {"loops": [[[0, 0], [1, 0], [2, 0]]]},
+        "huge": {"loops": [[[0, 0], [1e20, 0], [1e20, 1e20], [0, 1e20]]]},
+        "neu_int": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": 1},
     }
     for name, doc in files.items():
         (d / f"{name}.json").write_text(json.dumps(doc))
@@ -99,6 +101,8 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("blank.png", [], "no foreground"),
     ("missing.json", [], "no such file"),
     ("folder.json", [], "folder.json: is a directory, not a domain file"),
+    ("huge.json", [], "loop 0 has coordinates as large as 1e+20; they must stay within +-1e+15"),
+    ("neu_int.json", [], "'neumann' must be a list of loop indices or [loop, segment] pairs, not 1"),
     ("disk.json", ["--boundary", "+".join(["x"] * 20000)], "expression nested too deeply"),
     ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
     ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),

@@ -32,6 +32,13 @@ def test_exact_on_flat_grid_is_euclidean(make_fixtures, source):
     assert np.abs(d - np.linalg.norm(V - V[source], axis=1)).max() < 1e-12
 
 
+@pytest.mark.parametrize("scale", [1e-30, 1e40])
+def test_exact_is_scale_invariant_far_from_unit_size(make_fixtures, scale):
+    V, F = make_fixtures.grid()  # flat: the exact distance is the Euclidean one at any scale
+    d = _exact(V * scale, F, 0)
+    assert np.abs(d / scale - np.linalg.norm(V - V[0], axis=1)).max() < 1e-12
+
+
 def test_exact_on_sphere_follows_great_circles(make_fixtures):
     V, F = make_fixtures.icosphere(3)  # 642 vertices on the unit sphere
     d = _exact(V, F, 0)
