@@ -1,8 +1,8 @@
 """File helpers: atomic writes and content hashes.
 
 Every file geoproc writes goes to a temporary file beside its destination and
-is renamed only when complete (:func:`write_files_atomic`, :func:`atomic_write`),
-so a failed run never leaves a partial output behind.
+is renamed only when complete (:func:`write_files_atomic`), so a failed run
+never leaves a partial output behind.
 """
 
 from __future__ import annotations
@@ -12,8 +12,7 @@ import errno
 import hashlib
 import os
 import tempfile
-from collections.abc import Callable, Iterator
-from typing import IO
+from collections.abc import Callable
 
 from geoproc.errors import InputError
 
@@ -35,33 +34,6 @@ def _umask_mode() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return 0o666 & ~mask
-
-
-@contextlib.contextmanager
-def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[IO]:
-    """Open a temporary file beside ``path``; rename it onto ``path`` on success.
-
-    If the body raises, the temporary file is removed and ``path`` is untouched.
-
-    Parameters
-    ----------
-    path : str or PathLike
-        Destination. Its folder must exist.
-    mode : str
-        ``"wb"`` (default) or ``"w"`` (UTF-8 text).
-    """
-    path = os.fspath(path)
-    fd, tmp = _temp_beside(path)
-    try:
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, _umask_mode())
-        os.replace(tmp, path)
-    except BaseException:
-        _discard([tmp])
-        raise
 
 
 def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],

@@ -10,7 +10,7 @@ import numpy as np
 
 from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.intrinsic import OPERATORS
-from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass, negative_offdiagonal_count
+from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass
 from geoproc.mesh.topology import face_areas, mean_edge_length, nonmanifold_edges, vertex_components
 from geoproc.mesh.validate import require_manifold
 
@@ -245,12 +245,11 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         stats["negative_heat_vertices"] = int((u < 0).sum())
         return d
     if method == "log-ode":
-        from geoproc.geodesic.log_ode import log_ode_stepper, run_log_ode
+        from geoproc.geodesic.log_ode import log_ode_stepper, negative_weight_problem, run_log_ode
 
-        negative = negative_offdiagonal_count(L)
-        if negative:
-            raise InputError(path, f"{negative} edges have negative cotangent weights, and the log-ODE "
-                             "needs non-negative ones; use --laplacian intrinsic-delaunay")
+        problem = negative_weight_problem(L)
+        if problem:  # named with the mesh here, before any solver (the cvxpy one included)
+            raise InputError(path, problem)
         if solver == "cvxpy":
             from geoproc.geodesic.log_ode_cvxpy import log_ode_steps_cvxpy
 

@@ -34,6 +34,15 @@ from geoproc.geodesic.log_lu import LogMMatrixSolver
 from geoproc.geodesic.operators import factor_sparse_lu, negative_offdiagonal_count
 
 
+def negative_weight_problem(L: sp.spmatrix) -> str | None:
+    """Why the log-ODE cannot run on ``L`` (edges with negative weights), or None."""
+    negative = negative_offdiagonal_count(L)
+    if not negative:
+        return None
+    return (f"{negative} edges have negative cotangent weights, and the log-ODE needs non-negative ones; "
+            "use --laplacian intrinsic-delaunay")
+
+
 class LogStepSystem:
     """The constant parts of one log-ODE step of size ``dt``.
 
@@ -46,11 +55,9 @@ class LogStepSystem:
     """
 
     def __init__(self, L: sp.spmatrix, M: np.ndarray, dt: float):
-        if negative_offdiagonal_count(L):
-            raise UsageError(
-                f"the log-ODE needs non-negative Laplacian weights, but {negative_offdiagonal_count(L)} "
-                "edges have negative cotangent weights; use --laplacian intrinsic-delaunay"
-            )
+        problem = negative_weight_problem(L)
+        if problem:
+            raise UsageError(problem)
         L = sp.csr_matrix(L)
         n = L.shape[0]
         diag = L.diagonal()

@@ -16,6 +16,7 @@ import numpy as np
 from matplotlib.path import Path as MplPath
 
 from geoproc.errors import InputError
+from geoproc.fileio import read_input_bytes
 
 
 @dataclass
@@ -281,11 +282,9 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
     pairs (segment ``j`` runs from vertex ``j`` to vertex ``j+1`` of that loop as
     written). ``values`` (optional) gives one boundary value per vertex.
     """
+    raw = data if data is not None else read_input_bytes(path, "domain file")
     try:
-        raw = data if data is not None else open(path, "rb").read()
         doc = json.loads(raw)
-    except OSError as exc:
-        raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(path, f"not valid JSON ({exc})") from None
     except RecursionError:

@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from geoproc.errors import InputError
-from geoproc.fileio import atomic_write
+from geoproc.fileio import write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes, read_mesh_bytes, save_mesh
 from geoproc.mesh.clean import merge_coincident_vertices, remove_unreferenced_vertices
 from geoproc.mesh.read import sniff_format
@@ -174,13 +174,14 @@ def test_sniffing_standard_input(sphere, fmt):
 
 
 def test_atomic_write_leaves_nothing_on_failure(tmp_path):
-    target = tmp_path / "out.ply"
-    with pytest.raises(RuntimeError), atomic_write(target) as fh:
-        fh.write(b"partial")
+    def boom():
         raise RuntimeError("boom")
+
+    target = tmp_path / "out.ply"
+    with pytest.raises(RuntimeError):
+        write_files_atomic([(target, b"partial")], before_rename=boom)
     assert list(tmp_path.iterdir()) == []
     target.write_bytes(b"old")
-    with pytest.raises(RuntimeError), atomic_write(target) as fh:
-        fh.write(b"new")
-        raise RuntimeError("boom")
+    with pytest.raises(RuntimeError):
+        write_files_atomic([(target, b"new")], before_rename=boom)
     assert target.read_bytes() == b"old" and len(list(tmp_path.iterdir())) == 1
