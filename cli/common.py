@@ -68,7 +68,10 @@ NoCleanOpt = Annotated[
 
 
 def _fail(message: str, code: int) -> typer.Exit:
-    stderr.print(f"error: {message}", markup=False)
+    """Print ``error: <message>`` as one line (control characters and undecodable
+    bytes, e.g. in file names, escaped as \\n, \\udcff) and return the exit."""
+    line = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in message)
+    stderr.print(f"error: {line}", markup=False)
     return typer.Exit(code)
 
 
@@ -84,6 +87,7 @@ class Run:
         self.timings: dict[str, float] = {}
         self._outputs: list[tuple[str, bytes]] = []
         self._notes: list[str] = []
+        self._stdin_read = False
         self._t0 = time.perf_counter()
 
     # ---- inputs ---------------------------------------------------------
@@ -93,14 +97,22 @@ class Run:
         digest = sha256_bytes(data) if data is not None else sha256_file(name)
         self.inputs.append({"path": name, "sha256": digest})
 
+    def read_stdin(self) -> bytes:
+        """All of standard input (one input per run may be ``-``: a second is a
+        UsageError)."""
+        if self._stdin_read:
+            raise UsageError("standard input can feed only one input; give the others as files")
+        self._stdin_read = True
+        if sys.stdin is None:
+            raise InputError("-", "standard input is closed")
+        return sys.stdin.buffer.read()
+
     def load_mesh(self, path: str | os.PathLike, clean: bool = True) -> Mesh:
         """Read a mesh or point cloud (``-`` reads standard input) and record it."""
         name = os.fspath(path)
         with self.timer("load"):
             if name == "-":
-                if sys.stdin is None:
-                    raise InputError("-", "standard input is closed")
-                data = sys.stdin.buffer.read()
+                data = self.read_stdin()
                 mesh = load_mesh("-", clean=clean, stdin_bytes=data)
                 self.add_input("-", data)
             else:
@@ -272,6 +284,25 @@ def _require_finite_options(params: dict) -> None:
     for key, value in params.items():
         if isinstance(value, float) and not math.isfinite(value):
             raise UsageError(f"--{key.replace('_', '-')} {value}: must be a finite number")
+
+
+def options_given(ctx: typer.Context, *names: str) -> list[str]:
+    """The long flags (``--k``) of the parameters ``names`` (``k``) that the
+    command line or the environment set, in the order given; defaults do not
+    count. ``ctx`` is the command's context (a ``ctx: typer.Context`` parameter)."""
+    flags = {p.name: max(p.opts, key=len) for p in ctx.command.params}
+    given = ("COMMANDLINE", "ENVIRONMENT", "PROMPT")
+    return [flags[n] for n in names if getattr(ctx.get_parameter_source(n), "name", None) in given]
+
+
+def refuse_options(ctx: typer.Context, names: tuple[str, ...], why: str) -> None:
+    """UsageError when any parameter of ``names`` was given, e.g.
+    ``refuse_options(ctx, ("k", "keep_all"), "only with --outliers")`` gives
+    ``--k, --keep-all: only with --outliers``: an option that would be ignored
+    is refused, not dropped silently."""
+    given = options_given(ctx, *names)
+    if given:
+        raise UsageError(f"{', '.join(given)}: {why}")
 
 
 @contextlib.contextmanager

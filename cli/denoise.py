@@ -20,10 +20,12 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    refuse_options,
 )
 
 
 def denoise(
+    ctx: typer.Context,
     input: Annotated[str, typer.Argument(help="Noisy mesh (.obj, .ply, .off, .stl, - for stdin); a point "
                                          "cloud with --outliers; an animation (.npz or folder of frames) "
                                          "with --dynamic.", metavar="INPUT")],
@@ -35,7 +37,8 @@ def denoise(
     reference: Annotated[str | None, typer.Option("--reference", help="Clean version with the same "
                                                   "faces in the same order (mesh, or .npz with --dynamic; "
                                                   "its vertices may be numbered otherwise, as in an STL "
-                                                  "copy): report the error metrics.", metavar="CLEAN")] = None,
+                                                  "copy): report the error metrics; - reads a mesh from "
+                                                  "stdin.", metavar="CLEAN")] = None,
     rounds: Annotated[int | None, typer.Option("--rounds", help="Rounds of normal filtering + vertex "
                                                "update, 0 to 1000 (default: from the estimated noise level).",
                                                min=0, max=1000, show_default=False)] = None,
@@ -119,10 +122,7 @@ def denoise(
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:
             raise UsageError("--outliers and --dynamic cannot be combined")
-        if refined and not outliers:
-            raise UsageError("--refined applies to --outliers")
-        if coherence is not None and not dynamic:
-            raise UsageError("--coherence applies to --dynamic")
+        _refuse_unused_options(ctx, input, outliers, dynamic, features)
         if coherence is not None and coherence not in COHERENCE:
             raise UsageError(f"--coherence {coherence}: use one of {', '.join(COHERENCE)}")
         threshold_set = threshold is not None
@@ -149,6 +149,31 @@ def denoise(
             _mesh(run, input, output, reference, method, dp, no_clean)
 
 
+_FILTER_OPTIONS = ("method", "rounds", "normal_iterations", "vertex_iterations", "sigma_r", "sigma_s",
+                   "pin_boundary")
+_FEATURE_OPTIONS = ("features", "feature_tau", "feature_angle")
+_OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
+
+
+def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynamic: bool, features: str) -> None:
+    """Options the chosen mode would ignore are refused (exit 2), not dropped."""
+    if outliers:
+        refuse_options(ctx, _FILTER_OPTIONS + _FEATURE_OPTIONS + ("reference",), "not used by --outliers "
+                       "(precision, recall and F1 come from the input's 'outlier' property)")
+        if input != "-" and is_animation_path(input):
+            refuse_options(ctx, ("k", "keep_all", "no_clean"), "not used for an animation (its outliers come "
+                           "from the animation matrix, every point is written, frames are read as stored)")
+    else:
+        refuse_options(ctx, _OUTLIER_OPTIONS, "only with --outliers")
+    if dynamic:
+        refuse_options(ctx, _FEATURE_OPTIONS + ("no_clean",), "not used by --dynamic (the .npz output has no "
+                       "feature property; frames are read as stored)")
+    else:
+        refuse_options(ctx, ("coherence",), "only with --dynamic")
+    refuse_options(ctx, ("feature_angle",) if features == "l1" else ("feature_tau",),
+                   "only with --features dihedral" if features == "l1" else "only with --features l1")
+
+
 def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     from geoproc.denoise.mesh_denoise import denoise_mesh
     from geoproc.denoise.metrics import denoise_errors, flipped_faces, new_flipped_faces
@@ -162,8 +187,9 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     require_edge_manifold(mesh.F, path)
     ref_V = None
     if reference is not None:
-        ref = load_mesh(reference, clean=not no_clean)
-        run.add_input(reference)
+        data = run.read_stdin() if reference == "-" else None
+        ref = load_mesh(reference, clean=not no_clean, stdin_bytes=data)
+        run.add_input(reference, data)
         ref_V = reference_in_input_order(mesh.F, len(mesh.V), ref.F, ref.V, reference)
     with run.timer("denoise"), run.progress(f"denoise ({method})") as update:
         res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
@@ -247,6 +273,8 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     require_triangle_mesh(Mesh(anim.V[0], anim.F, log=_log(anim.path)))
     require_edge_manifold(anim.F, anim.path)
     ref_V = None
+    if reference == "-":
+        raise UsageError("--reference -: an animation reference is read from a .npz file or a folder")
     if reference is not None:
         ref = run.load_animation(reference)
         if ref.V.shape != anim.V.shape:

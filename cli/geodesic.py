@@ -20,6 +20,7 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    refuse_options,
 )
 
 Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
@@ -46,25 +47,27 @@ class Reference(StrEnum):
     exact = "exact"
 
 
-def read_sources_file(path: str) -> list[int]:
-    """Vertex indices from a text file: integers separated by spaces, commas or
-    newlines; ``#`` starts a comment."""
-    text = read_input_bytes(path, "file of source indices").decode("utf-8", errors="replace")
+def read_sources_file(path: str, data: bytes | None = None) -> list[int]:
+    """Vertex indices from a text file (or its content ``data``): integers
+    separated by spaces, commas or newlines; ``#`` starts a comment."""
+    if data is None:
+        data = read_input_bytes(path, "file of source indices")
+    text = data.decode("utf-8", errors="replace")
     out = []
     for lineno, line in enumerate(text.splitlines(), 1):
         for tok in re.split(r"[\s,]+", line.split("#", 1)[0].strip()):
             if not tok:
                 continue
-            try:
-                out.append(int(tok))
-            except ValueError:
-                raise InputError(path, f"line {lineno}: '{tok}' is not a vertex index") from None
+            if not re.fullmatch(r"[+-]?[0-9]+", tok):  # ASCII digits only (no 1_0, no other scripts)
+                raise InputError(path, f"line {lineno}: '{tok}' is not a vertex index")
+            out.append(int(tok))
     if not out:
         raise InputError(path, "no vertex indices in the file")
     return out
 
 
 def geodesic(
+    ctx: typer.Context,
     mesh: Annotated[str, typer.Argument(help="Triangle mesh: .obj, .ply, .off, .stl, or - for stdin.",
                                         metavar="MESH")],
     output: Annotated[str, typer.Option("--output", "-o", help="Output PLY with the distance per vertex "
@@ -73,7 +76,8 @@ def geodesic(
     source: Annotated[list[int] | None, typer.Option("--source", "-s", help="Source vertex index "
                       "(0-based, in the mesh as loaded); repeatable: distance to the nearest.",
                       metavar="I", show_default=False)] = None,
-    sources_file: Annotated[str | None, typer.Option("--sources-file", help="Text file of source indices.",
+    sources_file: Annotated[str | None, typer.Option("--sources-file", help="Text file of source indices "
+                            "(integers separated by spaces, commas or newlines; # comments); - reads stdin.",
                             metavar="FILE", show_default=False)] = None,
     method: Annotated[Method, typer.Option("--method", "-m", help="exact (MMP), heat (Crane et al.), "
                       "varadhan (sqrt(-4T log u)), log-splitting, log-ode, log-heat.")] = Method.heat,
@@ -134,13 +138,15 @@ def geodesic(
                              "use a .ply output")
         if render is not None and not render.lower().endswith(".png"):
             raise UsageError(f"--render {render}: expected a .png file name")
-        srcs = list(source or [])
-        if sources_file is not None:
-            srcs += read_sources_file(sources_file)
-            run.add_input(sources_file)
-        if not srcs:
+        _refuse_unused_options(ctx, m_name)
+        if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
         m = run.load_mesh(mesh, clean=not no_clean)
+        srcs = list(source or [])
+        if sources_file is not None:  # after the mesh: a second '-' is then the one refused
+            data = run.read_stdin() if sources_file == "-" else None
+            srcs += read_sources_file(sources_file, data)
+            run.add_input(sources_file, data)
         if m.log.merged_vertices or m.log.removed_unreferenced:
             run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
         with run.progress(f"geodesic {m_name}", 1.0) as update:
@@ -186,6 +192,18 @@ def geodesic(
             with run.timer("render"):
                 title = f"{os.path.basename(mesh)}: {m_name}"
                 run.write_bytes(render, render_distance_png(m.V, m.F, d, sorted(set(srcs)), title=title))
+
+
+def _refuse_unused_options(ctx: typer.Context, method: str) -> None:
+    """Options the method would ignore are refused (exit 2), not dropped."""
+    if method == "exact":
+        refuse_options(ctx, ("time_factor", "time", "laplacian"), "not used by -m exact (no diffusion)")
+    if method in ("exact", "heat"):
+        refuse_options(ctx, ("steps",), f"not used by -m {method} (no time stepping)")
+    if method != "log-ode":
+        refuse_options(ctx, ("solver",), "only with -m log-ode")
+    if method not in ("heat", "log-heat"):
+        refuse_options(ctx, ("operators",), "only with -m heat or -m log-heat")
 
 
 def register(app: typer.Typer) -> None:

@@ -54,7 +54,7 @@ def info(
         else:
             with stdout.capture() as text:
                 stdout.print(_table(mesh, summary))
-            run.write_stdout(text.get().encode())
+            run.write_stdout(text.get().encode("utf-8", "surrogateescape"))  # undecodable file names as given
 
 
 def _table(name: str, s: dict) -> Table:

@@ -52,6 +52,10 @@ def main() -> None:
     missing argument) are one line, ``error: <problem> (see '<command> --help')``,
     with exit code 2, like the errors of the subcommands themselves.
     """
+    if len(sys.argv) == 1:  # bare `geoproc`: a usage error like any other
+        print("error: missing command: info, geodesic, wos-solve, morse-simplify, denoise or perturb "
+              "(see 'geoproc --help')", file=sys.stderr)
+        sys.exit(EXIT_BAD_INPUT)
     try:
         code = app(standalone_mode=False)
     except typer.Abort:

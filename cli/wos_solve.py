@@ -30,7 +30,7 @@ def wos_solve(
         help="Domain: a JSON file {\"loops\": [[[x, y], ...], ...], \"neumann\": [loop indices or "
              "[loop, segment] pairs], \"values\": [[per-vertex values], ...]}, or a binary mask "
              "image (any format OpenImageIO reads; foreground = first channel > 0.5, traced to "
-             "polylines in pixel units, y up).", metavar="DOMAIN", show_default=False)],
+             "polylines in pixel units, y up); - reads the JSON from stdin.", metavar="DOMAIN", show_default=False)],
     output: Annotated[str, typer.Option("--output", "-o", help="Solution image: one-channel float "
                                         "EXR over the domain's bounding box, NaN outside.",
                                         metavar="U.exr", show_default=False)],
@@ -104,9 +104,10 @@ def wos_solve(
         g = parse_expression(boundary, "--boundary") if boundary is not None else None
         h = parse_expression(neumann, "--neumann") if neumann is not None else None
         with run.timer("load"):
-            dom = load_domain(domain)
-        run.add_input(domain)
-        if not domain.lower().endswith(".json"):
+            data = run.read_stdin() if domain == "-" else None
+            dom = load_domain(domain, data)
+        run.add_input(domain, data)
+        if dom.traced:
             run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
                      f"area {dom.area:.6g} px^2")
         with run.timer("solve"), run.progress("walking", 1.0) as update:

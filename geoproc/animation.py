@@ -67,10 +67,10 @@ def load_animation(path: str | os.PathLike) -> Animation:
     for key in ("vertices", "faces"):
         if key not in data:
             raise InputError(name, f"missing array '{key}' (an animation needs 'vertices' (frames, n, 3) and 'faces')")
-    try:
-        V = np.asarray(data.pop("vertices"), dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(name, "'vertices' is not numeric") from None
+    V = data.pop("vertices")
+    if V.dtype.kind not in "fiu":
+        raise InputError(name, f"'vertices' must hold real numbers, got dtype {V.dtype}")
+    V = np.asarray(V, dtype=np.float64)
     F = np.asarray(data.pop("faces"))
     if V.ndim != 3 or V.shape[2] != 3 or V.shape[0] < 1 or V.shape[1] < 1:
         raise InputError(name, f"'vertices' has shape {V.shape}; expected (frames, n, 3)")

@@ -129,7 +129,7 @@ def sha256_file(path: str | os.PathLike) -> str:
         for name in sorted(os.listdir(path)):
             full = os.path.join(path, name)
             if os.path.isfile(full):
-                h.update(name.encode() + b"\0" + sha256_file(full).encode())
+                h.update(os.fsencode(name) + b"\0" + sha256_file(full).encode())
         return h.hexdigest()
     h = hashlib.sha256()
     with open(path, "rb") as fh:

@@ -10,7 +10,9 @@ def compare_to_reference(d: np.ndarray, ref: np.ndarray) -> dict:
 
     Compared over the vertices where ``ref`` is finite. A vertex where ``ref``
     is finite but ``d`` is not is counted in ``nonfinite_vertices`` and left
-    out of the other metrics (which are then over the rest).
+    out of the other metrics (which are then over the rest). With fewer than
+    two compared vertices, or ``max(ref) = 0`` (every vertex a source), the
+    error metrics are NaN.
 
     Returns
     -------
@@ -26,10 +28,10 @@ def compare_to_reference(d: np.ndarray, ref: np.ndarray) -> dict:
     reach = np.isfinite(ref)
     ok = reach & np.isfinite(d)
     out = {"compared_vertices": int(ok.sum()), "nonfinite_vertices": int((reach & ~ok).sum())}
-    if ok.sum() < 2:
+    scale = float(ref[reach].max()) if reach.any() else 0.0
+    if ok.sum() < 2 or not scale > 0:  # nothing to compare, or every vertex a source
         return out | {k: float("nan") for k in
                       ("pearson_r", "rmse", "mae", "mean_relative_error", "max_relative_error")}
-    scale = float(ref[reach].max())
     e = (d[ok] - ref[ok]) / scale
     a, b = d[ok], ref[ok]
     sa, sb = a.std(), b.std()

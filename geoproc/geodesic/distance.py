@@ -68,15 +68,28 @@ class GeodesicResult:
     stats: dict = field(default_factory=dict)
 
 
+MAX_TIME_FACTOR = 1e12
+"""Largest t / h^2 accepted: beyond it ``M + t L`` is numerically singular in
+double precision (the heat and log-domain solves lose the solution)."""
+
+
 def diffusion_time(h: float, time_factor: float | None = 1.0, time: float | None = None) -> float:
-    """``t = time`` when given, else ``time_factor * h**2``; UsageError unless > 0 and finite."""
+    """``t = time`` when given, else ``time_factor * h**2`` (area units); UsageError
+    unless positive, finite and at most ``MAX_TIME_FACTOR * h**2``."""
     if time is not None:
         if not (math.isfinite(time) and time > 0):
             raise UsageError(f"--time must be a positive finite number, got {time}")
+        if time > MAX_TIME_FACTOR * h * h:
+            raise UsageError(f"--time {time:g} is more than {MAX_TIME_FACTOR:g} h^2 = "
+                             f"{MAX_TIME_FACTOR * h * h:g} (h = {h:g}, the mean edge length); "
+                             "the diffusion would be numerically singular")
         return float(time)
     c = 1.0 if time_factor is None else time_factor
     if not (math.isfinite(c) and c > 0):
         raise UsageError(f"--time-factor must be a positive finite number, got {c}")
+    if c > MAX_TIME_FACTOR:
+        raise UsageError(f"--time-factor {c:g} is more than {MAX_TIME_FACTOR:g}; "
+                         "the diffusion would be numerically singular")
     return float(c) * h * h
 
 

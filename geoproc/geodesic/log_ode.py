@@ -69,7 +69,11 @@ class LogStepSystem:
         self.n, self.dt = n, dt
         self.indptr, self.cols = off.indptr, off.indices
         self.rows = np.repeat(np.arange(n), np.diff(off.indptr))
-        self.a = np.log(dt * off.data)
+        weights = dt * off.data
+        if not (weights > 0).all():
+            raise UsageError(f"time step {dt:g} is too small: t times the Laplacian's weights "
+                             "underflows to 0 in double precision")
+        self.a = np.log(weights)
         self.c = np.log(M - dt * diag)
         with np.errstate(divide="ignore"):
             self.logM = np.log(M)

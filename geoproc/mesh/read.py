@@ -270,6 +270,7 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         if _OBJ_ZERO_INDEX.search(data):
             _raise_obj_index_error(data, path)  # OBJ counts from 1; trimesh would take 0 as -1
         options = {"maintain_order": True}  # keep unreferenced vertices: clean_mesh drops them
+        _require_obj_triangles_or_more(data, path)
     off_polygons = _off_polygons(data, path) if fmt == "off" else None
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh", **options)
@@ -325,8 +326,18 @@ def _off_polygons(data: bytes, path: str) -> int | None:
             raise InputError(path, f"OFF face {i}: '{tokens[0].decode('latin-1')}' is not a corner count") from None
         if len(tokens) - 1 < corners:
             raise InputError(path, f"OFF face {i} declares {corners} corners but lists {len(tokens) - 1}")
+        if corners < 3:
+            raise InputError(path, f"face {i} has fewer than 3 corners")
         polygons += corners > 3
     return polygons
+
+
+def _require_obj_triangles_or_more(data: bytes, path: str) -> None:
+    """InputError for an OBJ face line with fewer than 3 corners (after
+    :func:`_obj_positions_only`), numbered among the face lines from 0."""
+    for i, m in enumerate(re.finditer(rb"^[ \t]*f[ \t]*([^\r\n]*)", data, flags=re.M)):
+        if len(m.group(1).split()) < 3:
+            raise InputError(path, f"face {i} has fewer than 3 corners")
 
 
 def _count_obj_polygons(data: bytes) -> int:

@@ -35,9 +35,15 @@ def require_manifold(mesh: Mesh) -> None:
         )
 
 
-def require_vertex_field(mesh: Mesh, values: np.ndarray, name: str) -> np.ndarray:
-    """Check a per-vertex scalar field: length n, all finite. Returns float64 (n,)."""
-    path = mesh.log.path or None
+def require_vertex_field(mesh: Mesh, values: np.ndarray, name: str, path: str | None = None) -> np.ndarray:
+    """Check a per-vertex scalar field: real numbers, one per vertex, all finite,
+    spanning a finite range (max - min, which persistence and relative
+    thresholds need). ``path`` names the file in errors (default: the mesh's).
+    Returns float64 (n,)."""
+    path = path or mesh.log.path or None
+    values = np.asarray(values)
+    if values.dtype.kind not in "fiub":
+        raise InputError(path, f"field '{name}' must hold real numbers, got dtype {values.dtype}")
     a = np.asarray(values, dtype=np.float64).reshape(-1)
     if len(a) != len(mesh.V):
         raise InputError(path, f"field '{name}' has {len(a)} values for {len(mesh.V)} vertices")
@@ -47,4 +53,6 @@ def require_vertex_field(mesh: Mesh, values: np.ndarray, name: str) -> np.ndarra
             path, f"field '{name}' has {int(bad.sum())} non-finite values "
             f"(first: vertex {int(np.flatnonzero(bad)[0])})"
         )
+    if len(a) and a.max() / 2 - a.min() / 2 > np.finfo(np.float64).max / 2:
+        raise InputError(path, f"field '{name}' spans more than 1.8e308 (max - min overflows); rescale it")
     return a

@@ -89,16 +89,7 @@ def vertex_field(mesh: Mesh, spec: str) -> np.ndarray:
             raise InputError(spec, f"cannot read field: {exc}") from None
         if values.ndim != 1 and not (values.ndim == 2 and 1 in values.shape):
             raise InputError(spec, f"field must hold one value per vertex, got shape {values.shape}")
-        if not np.issubdtype(values.dtype, np.number):
-            raise InputError(spec, f"field must be numeric, got dtype {values.dtype}")
-        a = np.asarray(values, dtype=np.float64).reshape(-1)
-        if len(a) != len(mesh.V):
-            raise InputError(spec, f"field has {len(a)} values for {len(mesh.V)} vertices")
-        bad = ~np.isfinite(a)
-        if bad.any():
-            raise InputError(spec, f"field has {int(bad.sum())} non-finite values "
-                             f"(first: vertex {int(np.flatnonzero(bad)[0])})")
-        return a
+        return require_vertex_field(mesh, values, field_name(spec), path=spec)
     elif spec in mesh.vertex_fields:
         values = mesh.vertex_fields[spec]
         if values.ndim != 1:

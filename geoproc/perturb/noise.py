@@ -13,7 +13,8 @@ import igl
 import numpy as np
 from scipy.spatial import cKDTree
 
-from geoproc.errors import InputError
+from geoproc.errors import InputError, UsageError
+from geoproc.mesh.read import MAX_COORDINATE
 from geoproc.mesh.topology import mean_edge_length
 
 
@@ -103,6 +104,19 @@ def perturb_positions(
                          "spacing, the normals their least-variance direction)")
     out = np.array(V, dtype=np.float64, copy=True)
     outlier = np.zeros(n)
+    with np.errstate(over="ignore", invalid="ignore"):  # too large a noise is refused below
+        _add_noise(out, outlier, V, F, spec, rng)
+    big = float(np.abs(out).max()) if out.size else 0.0
+    if not big <= MAX_COORDINATE:
+        raise UsageError(f"--noise {spec.sigma:g} / --outlier-range {spec.outlier_range:g} move vertices as far "
+                         f"as {big:.3g}, beyond the +-{MAX_COORDINATE:.0e} a mesh may span; use less noise")
+    return out, outlier
+
+
+def _add_noise(out: np.ndarray, outlier: np.ndarray, V: np.ndarray, F: np.ndarray, spec: NoiseSpec,
+               rng: np.random.Generator) -> None:
+    """Add ``spec``'s displacements to ``out`` (n, 3) in place and set ``outlier`` (n,)."""
+    n = len(V)
     if spec.sigma > 0:
         scale = noise_scale(V, F)
         if spec.direction == "normal":
@@ -124,4 +138,3 @@ def perturb_positions(
         radius = spec.outlier_range * diag * rng.random(len(idx)) ** (1.0 / 3.0)
         out[idx] += u * radius[:, None]
         outlier[idx] = 1.0
-    return out, outlier

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from geoproc.errors import UsageError
 
 _OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "<": operator.lt, ">": operator.gt}
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")  # ASCII, finite
 _PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.]*)\s*(<=|>=|==|<|>)\s*(\S+)\s*$")
 
 
@@ -36,11 +37,9 @@ def parse_check(text: str) -> Check:
             "(for example 'rmse<=0.01')"
         )
     name, op, raw = m.groups()
-    try:
-        value = float(raw)
-    except ValueError:
-        raise UsageError(f"--check '{text}': '{raw}' is not a number") from None
-    return Check(name, op, value, text.strip())
+    if not _NUMBER.fullmatch(raw) or not math.isfinite(float(raw)):
+        raise UsageError(f"--check '{text}': '{raw}' is not a finite decimal number")
+    return Check(name, op, float(raw), text.strip())
 
 
 def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
@@ -59,12 +58,18 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     Raises
     ------
     UsageError
-        A check names a metric the command does not report (listing the names).
+        A check names a metric the command does not report (listing the names),
+        or a metric that is text. A metric that is None or NaN (not measured)
+        fails its check.
     """
     unknown = [c.metric for c in checks if c.metric not in metrics]
     if unknown:
         names = ", ".join(sorted(k for k, v in metrics.items() if _numeric(v) is not None))
         raise UsageError(f"--check: unknown metric '{unknown[0]}'; this run reports: {names}")
+    text = [c for c in checks if isinstance(metrics[c.metric], str)]
+    if text:
+        raise UsageError(f"--check '{text[0].text}': metric '{text[0].metric}' is not a number "
+                         f"(it is '{metrics[text[0].metric]}')")
     failures = []
     for c in checks:
         measured = _numeric(metrics[c.metric])

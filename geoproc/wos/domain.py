@@ -38,6 +38,8 @@ class Domain:
         the input gave per-vertex values.
     source : str
         Where the domain came from (file name), for messages.
+    traced : bool
+        True when the loops were traced from a mask image (pixel units).
     """
 
     loops: list[np.ndarray]
@@ -47,6 +49,7 @@ class Domain:
     neumann: np.ndarray
     values: np.ndarray | None = None
     source: str = "<domain>"
+    traced: bool = False
     _paths: list = field(default_factory=list, repr=False)
 
     @property

@@ -8,6 +8,8 @@ import tempfile
 
 import numpy as np
 
+from geoproc.errors import UsageError
+
 
 def exr_bytes(U: np.ndarray) -> bytes:
     """Encode a (H, W) float array as a one-channel float32 OpenEXR file (NaN kept).
@@ -16,6 +18,11 @@ def exr_bytes(U: np.ndarray) -> bytes:
     """
     import OpenImageIO as oiio
 
+    big = float(np.abs(U[np.isfinite(U)]).max(initial=0.0))
+    top = float(np.finfo(np.float32).max)
+    if big > top:
+        raise UsageError(f"the solution reaches {big:.3g}, beyond the float32 range of EXR "
+                         f"({top:.3g}); rescale the boundary data")
     U = np.ascontiguousarray(U, dtype=np.float32)
     H, W = U.shape
     spec = oiio.ImageSpec(W, H, 1, oiio.FLOAT)

@@ -64,4 +64,6 @@ def load_domain_mask(path: str) -> Domain:
     if not mask.any():
         raise InputError(path, "mask has no foreground pixels (value > 0.5 in the first channel)")
     loops = trace_mask(mask)
-    return build_domain(loops, source=path)
+    dom = build_domain(loops, source=path)
+    dom.traced = True
+    return dom

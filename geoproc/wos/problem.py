@@ -13,7 +13,7 @@ import numpy as np
 from geoproc.errors import InputError, UsageError
 from geoproc.wos.closest import build_segment_grid, closest_points
 from geoproc.wos.domain import Domain
-from geoproc.wos.expression import Expression
+from geoproc.wos.expression import Expression, evaluate
 from geoproc.wos.kernels import KernelSet
 from geoproc.wos.rng import stream_state
 from geoproc.wos.walk import wos_dirichlet, wos_dirichlet_serial
@@ -26,6 +26,24 @@ _EMPTY1 = np.zeros(0)
 _NO_CODE = np.zeros(0, dtype=np.int64)
 _NO_ARCS = np.zeros((0, 2), dtype=np.int64)
 _NO_BOXES = np.zeros((0, 4))
+
+
+def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
+                                 flux: Expression | None, samples: int = 9) -> None:
+    """UsageError naming the first point where the Dirichlet expression (on the
+    Dirichlet segments) or the flux (on the Neumann ones) is not finite, over
+    ``samples`` evenly spaced points of every segment, ends included."""
+    t = np.linspace(0.0, 1.0, samples)
+    for expr, mask, option in ((boundary, ~domain.neumann, "--boundary"), (flux, domain.neumann, "--neumann")):
+        if expr is None or not mask.any():
+            continue
+        A, B = domain.A[mask], domain.B[mask]
+        P = (A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]).reshape(-1, 2)
+        bad = ~np.isfinite(evaluate(expr, P[:, 0], P[:, 1]))
+        if bad.any():
+            x, y = P[np.flatnonzero(bad)[0]]
+            raise UsageError(f"{option} is not finite on the boundary of {domain.source} "
+                             f"(first at x = {x:.6g}, y = {y:.6g})")
 
 
 def pass_seed(seed: int, tag: int) -> np.uint64:
@@ -57,6 +75,7 @@ class WalkProblem:
         if domain.neumann.all():
             raise InputError(domain.source, "every boundary segment is Neumann; at least one "
                              "Dirichlet segment is needed for a unique solution")
+        require_finite_boundary_data(domain, boundary, flux)
         self.domain = domain
         self.eps = float(eps)
         self.A = np.ascontiguousarray(domain.A)

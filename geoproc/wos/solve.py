@@ -218,6 +218,12 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         mean[sl], var[sl], steps[sl] = problem.estimate(X[sl], walks, rseed, i, ks, sigma)
         report(start_frac + (1 - start_frac) * min(1.0, (i + _CHUNK) / len(X)))
     residual_seconds = time.perf_counter() - t0
+    bad = ~np.isfinite(mean)
+    if bad.any():  # the data is singular between the sampled boundary points
+        x, y = X[np.flatnonzero(bad)[0]]
+        raise UsageError(f"the boundary data is not finite where the walks from {int(bad.sum())} grid "
+                         f"points ended (first from x = {x:.6g}, y = {y:.6g}); it must be finite on "
+                         "the whole boundary")
     total_walks += len(X) * walks
     total_steps += int(steps.sum())
     walk_time += residual_seconds

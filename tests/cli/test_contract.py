@@ -298,3 +298,21 @@ def test_coordinates_beyond_the_safe_range_are_refused(cli, fixture_dir, tmp_pat
         save_mesh(path, Mesh(torus.V * scale, torus.F))
         p = cli("morse-simplify", path, "-f", "z", "-p", "0.1", "-o", tmp_path / "m.ply")
         assert p.returncode == 2 and fragment in _one_error_line(p.stderr, str(path))
+
+
+def test_checks_need_finite_ascii_numbers(cli, fixture_dir):
+    for bad in ("genus<=nan", "genus<=inf", "genus<=1e999", "genus<=1_0", "genus<=\u0661"):
+        p = cli("info", fixture_dir / "torus.ply", "--check", bad)
+        assert p.returncode == 2 and "is not a finite decimal number" in p.stderr, (bad, p.stderr)
+    p = cli("info", fixture_dir / "torus.ply", "--check", "genus==1.", "--check", "genus>=+.5e0")
+    assert p.returncode == 0, p.stderr
+
+
+def test_error_lines_escape_control_characters_and_bare_command_is_usage(cli, tmp_path):
+    import subprocess
+    import sys
+
+    p = cli("info", tmp_path / "two\nlines.ply")
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "two\\nlines.ply: no such file" in p.stderr
+    p = subprocess.run([sys.executable, "-m", "geoproc_cli.main"], capture_output=True, text=True)
+    assert p.returncode == 2 and p.stdout == "" and p.stderr.startswith("error: missing command")

@@ -278,3 +278,27 @@ def test_feature_options(cli, cube_pair, tmp_path):
         assert load_mesh(out).face_fields["feature"].sum() == _metrics(rep)["feature_faces"] > 0
     p = cli("denoise", noisy, "--features", "curvature", "-o", tmp_path / "x.ply")
     assert _one_line_error(p)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--k", "8", "--keep-all"], "--k, --keep-all: only with --outliers"),
+    (["--outliers", "--sigma-r", "0.3"], "--sigma-r: not used by --outliers"),
+    (["--feature-tau", "0.2"], "--feature-tau: only with --features l1"),
+    (["--features", "l1", "--feature-angle", "20"], "--feature-angle: only with --features dihedral"),
+])
+def test_options_the_mode_would_ignore_are_refused(cli, cube_pair, tmp_path, args, message):
+    noisy, _ = cube_pair
+    out = tmp_path / "o.ply"
+    p = cli("denoise", noisy, *args, "-o", out)
+    assert _one_line_error(p) and message in p.stderr and not out.exists()
+
+
+def test_reference_from_stdin(cli, cube_pair, tmp_path):
+    noisy, clean = cube_pair
+    rep = tmp_path / "r.json"
+    p = cli("denoise", noisy, "--reference", "-", "-o", tmp_path / "o.ply", "--report", rep,
+            stdin=clean.read_bytes())
+    assert p.returncode == 0, p.stderr
+    assert _metrics(rep)["mean_normal_angle_deg"] < _metrics(rep)["input_mean_normal_angle_deg"]
+    p = cli("denoise", "-", "--reference", "-", "-o", tmp_path / "o.ply", stdin=noisy.read_bytes())
+    assert _one_line_error(p) and "standard input can feed only one input" in p.stderr

@@ -70,6 +70,27 @@ def test_sources_file_and_stdout(cli, fixture_dir, tmp_path):
     assert np.abs(m.vertex_fields["distance"] - ref).max() < 1e-12
 
 
+def test_sources_from_stdin_and_all_sources_against_exact(cli, fixture_dir, tmp_path):
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", "-", "-m", "exact", "-o", out,
+            stdin=b"0 440\n")
+    assert p.returncode == 0, p.stderr
+    d = load_mesh(out).vertex_fields["distance"]
+    assert d[0] == 0 and d[440] == 0 and d.max() > 0
+    # every vertex a source: the relative errors are undefined (null), with no warning on stderr
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    tri = tmp_path / "tri.ply"
+    save_mesh(tri, Mesh(V, np.array([[0, 1, 2]])))
+    args = ("geodesic", tri, "-s", "0", "-s", "1", "-s", "2", "--reference", "exact", "-o", out)
+    p = cli(*args, "--report", rep)
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    assert _report(rep)["metrics"]["mean_relative_error"] is None
+    p = cli(*args, "--check", "mean_relative_error<=0.1")  # not measured: the gate fails
+    assert p.returncode == 1 and "not a number" in p.stderr
+    p = cli(*args, "--check", "method==1")  # a text metric cannot be gated: usage error
+    assert p.returncode == 2 and "metric 'method' is not a number (it is 'heat')" in p.stderr
+
+
 def test_render_writes_a_png(cli, fixture_dir, tmp_path):
     out, png = tmp_path / "d.ply", tmp_path / "d.png"
     p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--render", png)
@@ -125,13 +146,24 @@ BAD = [
     (["-s", "0"], "points.ply", "point cloud"),
     (["-s", "0"], "zero_area.off", "zero area"),
     ([], "grid.ply", "at least one source"),
+    # refused, not ignored: options the method does not use
+    (["-s", "0", "-m", "exact", "-c", "-1"], "grid.ply", "--time-factor: not used by -m exact"),
+    (["-s", "0", "-m", "heat", "--solver", "newton"], "grid.ply", "--solver: only with -m log-ode"),
+    (["-s", "0", "-m", "heat", "-n", "3"], "grid.ply", "--steps: not used by -m heat"),
+    (["-s", "0", "-m", "varadhan", "--operators", "intrinsic"], "grid.ply", "--operators: only with -m heat"),
+    # diffusion times double precision cannot carry
+    (["-s", "0", "-m", "log-ode", "-t", "5e-324"], "grid.ply", "t times the Laplacian's weights underflows"),
+    (["-s", "0", "-m", "log-heat", "-c", "1e13"], "grid.ply", "--time-factor 1e+13 is more than 1e+12"),
+    (["-s", "0", "-m", "heat", "-t", "1e300"], "grid.ply", "is more than 1e+12 h^2"),
+    (["--sources-file", "-", "-s", "0"], "-", "standard input can feed only one input"),
 ]
 
 
 @pytest.mark.parametrize("args,mesh,message", BAD)
 def test_bad_input_exits_2_with_one_line(cli, fixture_dir, tmp_path, args, mesh, message):
     out = tmp_path / "d.ply"
-    p = cli("geodesic", fixture_dir / mesh, *args, "-o", out)
+    p = cli("geodesic", fixture_dir / mesh if mesh != "-" else "-", *args, "-o", out,
+            stdin=(fixture_dir / "grid.ply").read_bytes())
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0]

@@ -96,10 +96,16 @@ def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
     v = np.zeros(n)
     v[7] = np.nan
     np.save(nan, v)
+    cplx, wide = tmp_path / "cplx.npy", tmp_path / "wide.npy"
+    np.save(cplx, np.zeros(n) + 1j)
+    np.save(wide, np.where(np.arange(n) % 2, 1e308, -1e308))  # max - min overflows
     out = tmp_path / "o.ply"
     cases = [
         (["--field", short, "--persistence", "1"], f"{n - 1} values for {n} vertices"),
         (["--field", nan, "--persistence", "1"], "non-finite"),
+        (["--field", cplx, "--persistence", "1"], "cplx.npy: field 'cplx' must hold real numbers"),
+        (["--field", wide, "--persistence", "0.1", "--relative"], "wide.npy: field 'wide' spans more than"),
+        (["--field", "z", "--persistence", "1", "--diagram", tmp_path / "d.jpg"], "use a .png file name"),
         (["--field", "z", "--persistence", "-0.5"], "--persistence"),
         (["--field", "nope", "--persistence", "1"], "no vertex property 'nope'"),
     ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 
@@ -58,9 +59,11 @@ def test_animation_npz(cli, tmp_path):
 
 def test_bad_options_exit_2_without_output(cli, fixture_dir, tmp_path):
     out = tmp_path / "x.ply"
-    for args in (["--outliers", "1.5"],):
+    for args, needle in ((["--outliers", "1.5"], "fraction"), (["--noise", "1e300"], "beyond the +-1e+50"),
+                         (["--outliers", "0.5", "--outlier-range", "1e60"], "beyond the +-1e+50")):
         p = cli("perturb", fixture_dir / "icosphere.ply", "--seed", "1", "-o", out, *args)
         assert p.returncode == 2 and p.stderr.startswith("error:") and len(p.stderr.strip().splitlines()) == 1
+        assert needle in p.stderr
     assert not out.exists()
     p = cli("perturb", fixture_dir / "nan.ply", "--seed", "1", "-o", out)
     assert p.returncode == 2 and not out.exists()
@@ -93,3 +96,10 @@ def test_animation_folder_is_recorded_in_the_report(cli, tmp_path):
     first = recorded()
     trimesh.Trimesh(V[1] + 1e-3, F, process=False).export(folder / "frame001.obj")
     assert recorded() != first  # the folder's hash follows its frames' contents
+    second = recorded()
+    with open(os.path.join(os.fsencode(folder), b"notes\xff.txt"), "wb") as fh:  # a name that is not UTF-8
+        fh.write(b"x")
+    assert recorded() not in (first, second)  # hashed by its bytes, no crash
+    np.savez(tmp_path / "c.npz", vertices=V.astype(np.complex128), faces=F)
+    p = cli("perturb", tmp_path / "c.npz", "--seed", "3", "-o", tmp_path / "n.npz")
+    assert p.returncode == 2 and "'vertices' must hold real numbers, got dtype complex128" in p.stderr

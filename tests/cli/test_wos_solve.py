@@ -107,6 +107,11 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
     ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),
     ("rect.json", ["--boundary", "x", "--method", "cv-angle"], "cv-angle supports Dirichlet-only"),
+    # boundary data must be finite on the boundary, and the solution fit EXR's float32
+    ("disk.json", ["--boundary", "log(x - 5)"], "--boundary is not finite on the boundary of"),
+    ("disk.json", ["--boundary", "1/(x*x + y*y - 1)"], "--boundary is not finite on the boundary"),
+    ("rect.json", ["--neumann", "0/0"], "--neumann is not finite on the boundary"),
+    ("disk.json", ["--boundary", "exp(700*x)"], "beyond the float32 range of EXR"),
 ])
 def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, domain, extra, message):
     out = tmp_path / "u.exr"
@@ -121,3 +126,13 @@ def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, do
     assert len(lines) == 1 and lines[0].startswith("error: "), p.stderr
     assert message in lines[0], lines[0]
     assert not out.exists() and not (tmp_path / "r.json").exists() and not (tmp_path / "e.png").exists()
+
+
+def test_json_domain_from_stdin(cli, inputs, tmp_path):
+    out, rep = tmp_path / "u.exr", tmp_path / "r.json"
+    p = cli("wos-solve", "-", "--boundary", "x", "--grid", "16", "--walks", "4", "-o", out, "--report", rep,
+            stdin=(inputs / "disk.json").read_bytes())
+    assert p.returncode == 0 and p.stderr == "", p.stderr  # no 'traced' note: it is JSON, not a mask
+    assert json.loads(rep.read_text())["metrics"]["segments"] == 128
+    p = cli("wos-solve", "-", "--boundary", "x", "-o", out, stdin=(inputs / "mask.png").read_bytes())
+    assert p.returncode == 2 and "a mask image must be given as a file" in p.stderr

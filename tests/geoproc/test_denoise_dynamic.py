@@ -138,8 +138,11 @@ def test_npz_errors(tmp_path):
         load_animation(tmp_path / "differ.npz")
     F1 = np.array([[0, 1, 2]])
     np.savez(tmp_path / "text.npz", vertices=np.full((2, 3, 3), "a"), faces=F1)
-    with pytest.raises(InputError, match="not numeric"):
+    with pytest.raises(InputError, match="'vertices' must hold real numbers, got dtype <U1"):
         load_animation(tmp_path / "text.npz")
+    np.savez(tmp_path / "complex.npz", vertices=np.zeros((2, 3, 3)) + 1j, faces=F1)
+    with pytest.raises(InputError, match="got dtype complex128"):
+        load_animation(tmp_path / "complex.npz")
     np.savez(tmp_path / "novertex.npz", vertices=np.zeros((2, 0, 3)), faces=F1)
     with pytest.raises(InputError, match="expected \\(frames, n, 3\\)"):
         load_animation(tmp_path / "novertex.npz")

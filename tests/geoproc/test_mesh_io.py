@@ -94,6 +94,9 @@ def test_malformed_ply_and_off_are_refused(tmp_path):
         "short.off": ("OFF\n3 5 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
                       "declares 3 vertices and 5 faces, but only 4 lines follow"),
         "short_face.off": ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "face 0 declares 3 corners but lists 2"),
+        # a two-corner face is named the same way in every format (OBJ, OFF, PLY)
+        "edge.off": ("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n2 0 1\n", "face 1 has fewer than 3 corners"),
+        "edge.obj": ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 2/1 3/1\n", "face 1 has fewer than 3 corners"),
     }
     for name, (text, fragment) in cases.items():
         (tmp_path / name).write_text(text)
