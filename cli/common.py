@@ -251,8 +251,14 @@ def _write_stdout(data: bytes) -> None:
     if sys.stdout is None:
         raise OSError(errno.EBADF, "standard output is closed", "-")
     try:
-        sys.stdout.buffer.write(data)
-        sys.stdout.buffer.flush()
+        out = sys.stdout.buffer
+        view = memoryview(data)
+        while view:  # unbuffered (PYTHONUNBUFFERED) stdout is a raw file: writes may be partial
+            n = out.write(view)
+            if not n:  # a non-blocking descriptor that takes nothing
+                raise OSError(errno.EAGAIN, "standard output accepts no more data", "-")
+            view = view[n:]
+        out.flush()
     except ValueError:  # a closed file object
         raise OSError(errno.EBADF, "standard output is closed", "-") from None
 

@@ -20,6 +20,7 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    options_given,
     refuse_options,
 )
 
@@ -84,7 +85,7 @@ def geodesic(
     time_factor: Annotated[float, typer.Option("--time-factor", "-c", help="t = c * h^2 with h the mean "
                            "edge length.")] = 1.0,
     time: Annotated[float | None, typer.Option("--time", "-t", help="Absolute diffusion time (area unit); "
-                    "overrides --time-factor.", show_default=False)] = None,
+                    "instead of --time-factor (not both).", show_default=False)] = None,
     steps: Annotated[int, typer.Option("--steps", "-n", help="Backward-Euler steps to reach t "
                      "(varadhan, log-ode, log-splitting, log-heat), 1 to 100000.", min=1, max=100000)] = 1,
     laplacian: Annotated[Laplacian | None, typer.Option("--laplacian", help="Default: cotan for heat, "
@@ -138,7 +139,7 @@ def geodesic(
                              "use a .ply output")
         if render is not None and not render.lower().endswith(".png"):
             raise UsageError(f"--render {render}: expected a .png file name")
-        _refuse_unused_options(ctx, m_name)
+        _refuse_unused_options(ctx, m_name, operators.value if operators else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
         m = run.load_mesh(mesh, clean=not no_clean)
@@ -194,16 +195,21 @@ def geodesic(
                 run.write_bytes(render, render_distance_png(m.V, m.F, d, sorted(set(srcs)), title=title))
 
 
-def _refuse_unused_options(ctx: typer.Context, method: str) -> None:
+def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | None) -> None:
     """Options the method would ignore are refused (exit 2), not dropped."""
     if method == "exact":
         refuse_options(ctx, ("time_factor", "time", "laplacian"), "not used by -m exact (no diffusion)")
+    if len(options_given(ctx, "time_factor", "time")) == 2:
+        raise UsageError("--time-factor and --time: give one (--time is the absolute t, --time-factor t / h^2)")
     if method in ("exact", "heat"):
         refuse_options(ctx, ("steps",), f"not used by -m {method} (no time stepping)")
     if method != "log-ode":
         refuse_options(ctx, ("solver",), "only with -m log-ode")
     if method not in ("heat", "log-heat"):
         refuse_options(ctx, ("operators",), "only with -m heat or -m log-heat")
+    if operators == "intrinsic":
+        refuse_options(ctx, ("laplacian",), "not used with --operators intrinsic (its Laplacian is the "
+                       "intrinsic Delaunay one throughout)")
 
 
 def register(app: typer.Typer) -> None:

@@ -22,10 +22,12 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    refuse_options,
 )
 
 
 def morse_simplify(
+    ctx: typer.Context,
     mesh: Annotated[str, typer.Argument(help="Triangle mesh (.ply, .obj, .off, .stl), or - for stdin; "
                                         "must be a 2-manifold (boundary and several components are fine).",
                                         metavar="MESH")],
@@ -108,6 +110,8 @@ def morse_simplify(
 
         if not np.isfinite(persistence) or persistence < 0:
             raise UsageError(f"--persistence must be a finite number >= 0, got {persistence:g}")
+        if barycentric:
+            refuse_options(ctx, ("exact_windows",), "not used with --barycentric (which holds P/2 exactly)")
         if exact_windows < -1:
             raise UsageError(f"--exact-windows must be -1, 0 or a positive count, got {exact_windows}")
         if output != "-" and os.path.splitext(output)[1].lower() != ".ply":
@@ -124,6 +128,9 @@ def morse_simplify(
         name = field_name(field)
         span = float(f.max() - f.min()) if len(f) else 0.0
         threshold = float(persistence) * span if relative else float(persistence)
+        if not np.isfinite(threshold):
+            raise UsageError(f"--persistence {persistence:g} --relative: P times the field's range "
+                             f"{span:.3g} overflows; use a smaller P")
         with run.timer("simplify"):  # gradient, pairs and simplification
             if barycentric:
                 res = barycentric_simplify(m.V, m.F, f, threshold, m.log.path or None)

@@ -18,10 +18,12 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    refuse_options,
 )
 
 
 def perturb(
+    ctx: typer.Context,
     input: Annotated[str, typer.Argument(help="Mesh or point cloud (.obj, .ply, .off, .stl, - for stdin), "
                                          "or an animation (.npz with 'vertices' (frames, n, 3) and 'faces', "
                                          "or a folder of frame meshes).", metavar="INPUT")],
@@ -65,6 +67,10 @@ def perturb(
         for name, v in (("--impulsive", impulsive), ("--outliers", outliers)):
             if not 0.0 <= v <= 1.0:
                 raise UsageError(f"{name} {v}: must be a fraction in [0, 1]")
+        if noise == 0:
+            refuse_options(ctx, ("direction", "impulsive"), "not used with --noise 0")
+        if outliers == 0:
+            refuse_options(ctx, ("outlier_range",), "only with --outliers FRACTION > 0")
         if outlier_range < 0:
             raise UsageError(f"--outlier-range {outlier_range}: must be >= 0")
         spec = NoiseSpec(sigma=noise, direction=direction, impulsive=impulsive, outliers=outliers,

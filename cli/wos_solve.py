@@ -10,7 +10,7 @@ import numpy as np
 import typer
 
 from geoproc.errors import UsageError
-from geoproc_cli.common import CheckOpt, DebugOpt, QuietOpt, ReportOpt, command_run
+from geoproc_cli.common import CheckOpt, DebugOpt, QuietOpt, ReportOpt, command_run, refuse_options
 
 
 class Method(StrEnum):
@@ -26,6 +26,7 @@ def _need_ext(path: str, ext: str, option: str) -> None:
 
 
 def wos_solve(
+    ctx: typer.Context,
     domain: Annotated[str, typer.Argument(
         help="Domain: a JSON file {\"loops\": [[[x, y], ...], ...], \"neumann\": [loop indices or "
              "[loop, segment] pairs], \"values\": [[per-vertex values], ...]}, or a binary mask "
@@ -95,6 +96,9 @@ def wos_solve(
         from geoproc.wos.images import exr_bytes, png_bytes
 
         _need_ext(output, ".exr", "-o")
+        if method == Method.naive:
+            refuse_options(ctx, ("kernels", "fit_walks", "fit_points", "ridge"),
+                           "only with a control variate (--method cv-green, cv-angle or npass)")
         if image:
             _need_ext(image, ".png", "--image")
         if error_image:

@@ -102,7 +102,7 @@ def _load_frame_folder(name: str) -> Animation:
     from geoproc.mesh import load_mesh
     from geoproc.mesh.read import MESH_FORMATS
 
-    files = sorted(f for f in os.listdir(name) if f.lower().rsplit(".", 1)[-1] in MESH_FORMATS)
+    files = sorted(f for f in os.listdir(name) if os.path.splitext(f)[1].lower().lstrip(".") in MESH_FORMATS)
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
     frames = []

@@ -29,6 +29,8 @@ DEFAULT_LAPLACIAN = {
 #: unless told otherwise: the paper's extrinsic operators for heat; for
 #: log-heat, intrinsic on meshes with slivers (geoproc.geodesic.intrinsic).
 DEFAULT_OPERATORS = {"heat": "extrinsic", "log-heat": "auto"}
+#: Methods that integrate a normalized gradient by a Poisson solve (distance up to a constant).
+POISSON_METHODS = ("heat", "log-heat")
 #: Methods that need an edge- and vertex-manifold mesh (MMP walks vertex fans).
 NEEDS_MANIFOLD = ("exact",)
 #: Methods that need every edge to have at most two faces (boundary detection,
@@ -90,7 +92,11 @@ def diffusion_time(h: float, time_factor: float | None = 1.0, time: float | None
     if c > MAX_TIME_FACTOR:
         raise UsageError(f"--time-factor {c:g} is more than {MAX_TIME_FACTOR:g}; "
                          "the diffusion would be numerically singular")
-    return float(c) * h * h
+    t = float(c) * h * h
+    if not t > 0:
+        raise UsageError(f"t = {c:g} h^2 underflows to 0 (h = {h:g}, the mean edge length); use a larger "
+                         "--time-factor")
+    return t
 
 
 def check_sources(sources, n: int, F: np.ndarray, path: str | None) -> np.ndarray:
@@ -161,6 +167,10 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         Named in error messages.
     progress : callable, optional
         ``progress(fraction_done)``.
+
+    For the Poisson-based methods (:data:`POISSON_METHODS`) the distances are
+    set to 0 at the sources and clipped at 0 from below
+    (``stats["negative_distance_vertices"]`` counts the vertices clipped).
     """
     if method not in METHODS:
         raise UsageError(f"unknown method '{method}'; choose one of {', '.join(METHODS)}")
@@ -207,6 +217,13 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     ops = operators or DEFAULT_OPERATORS.get(method)
     d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
     timings.setdefault("solve", _now() - t0 - timings.get("setup", 0.0))
+    if method in POISSON_METHODS:
+        # the Poisson step fixes one constant, the mean over the sources: with several
+        # sources, or near one on a coarse mesh, values dip below 0. A distance is 0 at
+        # its sources and never negative (clipping never moves a value away from it)
+        stats["negative_distance_vertices"] = int((d2 < 0).sum())
+        d2 = np.maximum(d2, 0.0)
+        d2[s2] = 0.0
     d = np.full(n, np.inf)
     d[keep] = d2
     return GeodesicResult(d, t, h, timings, stats)

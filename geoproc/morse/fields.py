@@ -85,8 +85,8 @@ def vertex_field(mesh: Mesh, spec: str) -> np.ndarray:
     elif spec.lower().endswith(".npy"):
         try:
             values = np.load(spec, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise InputError(spec, f"cannot read field: {exc}") from None
+        except (OSError, ValueError, EOFError) as exc:  # EOFError: an empty file
+            raise InputError(spec, f"cannot read field: {exc or type(exc).__name__}") from None
         if values.ndim != 1 and not (values.ndim == 2 and 1 in values.shape):
             raise InputError(spec, f"field must hold one value per vertex, got shape {values.shape}")
         return require_vertex_field(mesh, values, field_name(spec), path=spec)

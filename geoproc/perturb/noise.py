@@ -108,8 +108,9 @@ def perturb_positions(
         _add_noise(out, outlier, V, F, spec, rng)
     big = float(np.abs(out).max()) if out.size else 0.0
     if not big <= MAX_COORDINATE:
-        raise UsageError(f"--noise {spec.sigma:g} / --outlier-range {spec.outlier_range:g} move vertices as far "
-                         f"as {big:.3g}, beyond the +-{MAX_COORDINATE:.0e} a mesh may span; use less noise")
+        far = f"as far as {big:.3g}" if np.isfinite(big) else "to non-finite positions"
+        raise UsageError(f"--noise {spec.sigma:g} / --outlier-range {spec.outlier_range:g} move vertices {far}, "
+                         f"beyond the +-{MAX_COORDINATE:.0e} a mesh may span; use less noise")
     return out, outlier
 
 

@@ -59,8 +59,8 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     ------
     UsageError
         A check names a metric the command does not report (listing the names),
-        or a metric that is text. A metric that is None or NaN (not measured)
-        fails its check.
+        or a metric that is text. A metric that is None, NaN or infinite (not
+        measured; null in the report) fails its check.
     """
     unknown = [c.metric for c in checks if c.metric not in metrics]
     if unknown:
@@ -84,5 +84,6 @@ def _numeric(value) -> float | None:
     if isinstance(value, bool):
         return float(value)
     if isinstance(value, int | float):
-        return None if isinstance(value, float) and math.isnan(value) else float(value)
+        # NaN and infinities are stored as null in the report: not measured
+        return float(value) if math.isfinite(value) else None
     return None

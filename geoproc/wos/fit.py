@@ -146,7 +146,10 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
         y = np.concatenate([y, flux])
     pen = np.full(M + 1, float(alpha))
     pen[-1] = 0.0
-    x = np.linalg.solve(D.T @ D + np.diag(pen), D.T @ y)
+    if alpha > 0:
+        x = np.linalg.solve(D.T @ D + np.diag(pen), D.T @ y)
+    else:  # no ridge: least squares, the minimum-norm fit when the rows do not determine it
+        x = np.linalg.lstsq(D, y, rcond=None)[0]
     return x[:M] / scale, float(x[M]), scale
 
 

@@ -221,9 +221,9 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     bad = ~np.isfinite(mean)
     if bad.any():  # the data is singular between the sampled boundary points
         x, y = X[np.flatnonzero(bad)[0]]
-        raise UsageError(f"the boundary data is not finite where the walks from {int(bad.sum())} grid "
-                         f"points ended (first from x = {x:.6g}, y = {y:.6g}); it must be finite on "
-                         "the whole boundary")
+        raise UsageError(f"the walk estimates at {int(bad.sum())} grid points are not finite (first at "
+                         f"x = {x:.6g}, y = {y:.6g}): the boundary data is not finite between the sampled "
+                         "points, or too large to average (beyond about 1e307)")
     total_walks += len(X) * walks
     total_steps += int(steps.sum())
     walk_time += residual_seconds

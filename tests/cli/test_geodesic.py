@@ -156,6 +156,8 @@ BAD = [
     (["-s", "0", "-m", "log-heat", "-c", "1e13"], "grid.ply", "--time-factor 1e+13 is more than 1e+12"),
     (["-s", "0", "-m", "heat", "-t", "1e300"], "grid.ply", "is more than 1e+12 h^2"),
     (["--sources-file", "-", "-s", "0"], "-", "standard input can feed only one input"),
+    (["-s", "0", "-c", "2", "-t", "0.01"], "grid.ply", "--time-factor and --time: give one"),
+    (["-s", "0", "--operators", "intrinsic", "--laplacian", "cotan"], "grid.ply", "not used with --operators intr"),
 ]
 
 

@@ -99,6 +99,9 @@ def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
     cplx, wide = tmp_path / "cplx.npy", tmp_path / "wide.npy"
     np.save(cplx, np.zeros(n) + 1j)
     np.save(wide, np.where(np.arange(n) % 2, 1e308, -1e308))  # max - min overflows
+    empty, near = tmp_path / "empty.npy", tmp_path / "near.npy"
+    empty.write_bytes(b"")
+    np.save(near, np.where(np.arange(n) % 2, 8.9e307, -8.9e307))  # its range fits, twice it does not
     out = tmp_path / "o.ply"
     cases = [
         (["--field", short, "--persistence", "1"], f"{n - 1} values for {n} vertices"),
@@ -106,6 +109,9 @@ def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
         (["--field", cplx, "--persistence", "1"], "cplx.npy: field 'cplx' must hold real numbers"),
         (["--field", wide, "--persistence", "0.1", "--relative"], "wide.npy: field 'wide' spans more than"),
         (["--field", "z", "--persistence", "1", "--diagram", tmp_path / "d.jpg"], "use a .png file name"),
+        (["--field", empty, "--persistence", "1"], "empty.npy: cannot read field"),
+        (["--field", "z", "--persistence", "0.1", "--barycentric", "--exact-windows", "2"], "--exact-windows: not"),
+        (["--field", near, "--persistence", "2", "--relative"], "overflows; use a smaller P"),
         (["--field", "z", "--persistence", "-0.5"], "--persistence"),
         (["--field", "nope", "--persistence", "1"], "no vertex property 'nope'"),
     ]

@@ -60,7 +60,10 @@ def test_animation_npz(cli, tmp_path):
 def test_bad_options_exit_2_without_output(cli, fixture_dir, tmp_path):
     out = tmp_path / "x.ply"
     for args, needle in ((["--outliers", "1.5"], "fraction"), (["--noise", "1e300"], "beyond the +-1e+50"),
-                         (["--outliers", "0.5", "--outlier-range", "1e60"], "beyond the +-1e+50")):
+                         (["--outliers", "0.5", "--outlier-range", "1e60"], "beyond the +-1e+50"),
+                         (["--noise", "1e308"], "to non-finite positions"),
+                         (["--outlier-range", "0.5"], "--outlier-range: only with --outliers"),
+                         (["--noise", "0", "--direction", "random"], "--direction: not used with --noise 0")):
         p = cli("perturb", fixture_dir / "icosphere.ply", "--seed", "1", "-o", out, *args)
         assert p.returncode == 2 and p.stderr.startswith("error:") and len(p.stderr.strip().splitlines()) == 1
         assert needle in p.stderr
@@ -99,6 +102,7 @@ def test_animation_folder_is_recorded_in_the_report(cli, tmp_path):
     second = recorded()
     with open(os.path.join(os.fsencode(folder), b"notes\xff.txt"), "wb") as fh:  # a name that is not UTF-8
         fh.write(b"x")
+    (folder / "ply").write_text("not a frame")  # no extension: not a frame mesh either
     assert recorded() not in (first, second)  # hashed by its bytes, no crash
     np.savez(tmp_path / "c.npz", vertices=V.astype(np.complex128), faces=F)
     p = cli("perturb", tmp_path / "c.npz", "--seed", "3", "-o", tmp_path / "n.npz")

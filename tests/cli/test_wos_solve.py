@@ -112,6 +112,7 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("disk.json", ["--boundary", "1/(x*x + y*y - 1)"], "--boundary is not finite on the boundary"),
     ("rect.json", ["--neumann", "0/0"], "--neumann is not finite on the boundary"),
     ("disk.json", ["--boundary", "exp(700*x)"], "beyond the float32 range of EXR"),
+    ("disk.json", ["--boundary", "x", "--kernels", "5", "--ridge", "3"], "--kernels, --ridge: only with a control"),
 ])
 def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, domain, extra, message):
     out = tmp_path / "u.exr"

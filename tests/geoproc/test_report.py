@@ -62,6 +62,11 @@ def test_check_operators(text, measured, passes):
 def test_check_on_boolean_and_null_metrics():
     assert evaluate_checks([parse_check("closed==1")], {"closed": True}) == []
     assert len(evaluate_checks([parse_check("genus==0")], {"genus": None})) == 1
+    # infinities and NaN are null in the report: not measured, so the gate fails
+    for value in (float("inf"), float("-inf"), float("nan")):
+        assert len(evaluate_checks([parse_check("threshold>=0")], {"threshold": value})) == 1
+    with pytest.raises(UsageError, match="metric 'method' is not a number"):
+        evaluate_checks([parse_check("method==1")], {"method": "heat"})
 
 
 @pytest.mark.parametrize("text", ["rmse", "rmse=<1", "rmse<=abc", "<=1", "rmse <= 1 2"])

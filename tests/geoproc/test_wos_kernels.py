@@ -124,3 +124,15 @@ def _expr(text):
     from geoproc.wos.expression import parse_expression
 
     return parse_expression(text)
+
+
+def test_ridge_fit_without_ridge_on_too_few_rows_is_the_minimum_norm_fit():
+    from geoproc.wos.fit import ridge_fit
+
+    rng = np.random.default_rng(0)
+    Phi, u = rng.random((2, 5)), np.array([1.0, 3.0])  # 2 rows, 5 kernels + a constant: singular normal matrix
+    sigma, b, scale = ridge_fit(Phi, u, 0.0)
+    assert np.allclose(Phi @ sigma + b, u, atol=1e-10)  # interpolates the rows
+    D = np.hstack([Phi / scale, np.ones((2, 1))])
+    x_min = np.linalg.pinv(D) @ u  # the minimum-norm solution, independently
+    assert np.allclose(np.append(sigma * scale, b), x_min, atol=1e-10)
