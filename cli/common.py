@@ -38,7 +38,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 from geoproc.errors import GeoprocError, InputError, UsageError
 from geoproc.fileio import sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
-from geoproc.mesh.write import WRITE_FORMATS
+from geoproc.mesh.write import write_format
 from geoproc.report import build_report, evaluate_checks, parse_check
 from geoproc.report.report import report_json
 
@@ -205,9 +205,7 @@ class Run:
         if name == "-":
             self._outputs.append(("-", mesh_to_bytes(mesh, "ply", binary=True)))
             return
-        ext = os.path.splitext(name)[1].lower().lstrip(".")
-        if ext not in WRITE_FORMATS:
-            raise UsageError(f"{name}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
+        ext = write_format(name)
         if len(mesh.F) == 0 and ext != "ply":
             raise UsageError(f"{name}: a point cloud (no faces) is written as .ply only")
         self._outputs.append((name, mesh_to_bytes(mesh, ext, binary=not ascii)))

@@ -64,9 +64,6 @@ def main() -> None:
     except Exception as exc:  # the parser's usage errors (click's ClickException family)
         if not callable(getattr(exc, "format_message", None)):
             raise
-        if type(exc).__name__ == "NoArgsIsHelpError":  # bare `geoproc`: the help text
-            print(exc.format_message(), file=sys.stderr)
-            sys.exit(EXIT_BAD_INPUT)
         ctx = getattr(exc, "ctx", None)
         hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
         message = " ".join(exc.format_message().split())

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.errors import InputError
+from geoproc.fileio import file_extension
 from geoproc.mesh.read import require_coordinates_in_range
 
 
@@ -102,7 +103,7 @@ def _load_frame_folder(name: str) -> Animation:
     from geoproc.mesh import load_mesh
     from geoproc.mesh.read import MESH_FORMATS
 
-    files = sorted(f for f in os.listdir(name) if os.path.splitext(f)[1].lower().lstrip(".") in MESH_FORMATS)
+    files = sorted(f for f in os.listdir(name) if file_extension(f) in MESH_FORMATS)
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
     frames = []

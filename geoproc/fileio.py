@@ -96,6 +96,12 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
     write_files_atomic([(path, data)])
 
 
+def file_extension(path: str | os.PathLike) -> str:
+    """The extension of ``path``, lower case and without its dot (``""`` when
+    there is none; a file named ``ply`` has none)."""
+    return os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+
+
 def require_input_file(path: str, what: str = "file") -> None:
     """Raise InputError naming ``path`` when it does not exist or is a folder
     (``what`` names the kind of file expected, e.g. ``"mesh file"``)."""

@@ -18,7 +18,7 @@ import warnings
 import numpy as np
 
 from geoproc.errors import InputError
-from geoproc.fileio import read_input_bytes, require_input_file
+from geoproc.fileio import file_extension, read_input_bytes, require_input_file
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
 
@@ -65,7 +65,7 @@ def load_mesh(path: str | os.PathLike, clean: bool = True, stdin_bytes: bytes | 
 
 def format_from_extension(path: str) -> str:
     """The mesh format named by the file extension, or InputError."""
-    ext = os.path.splitext(path)[1].lower().lstrip(".")
+    ext = file_extension(path)
     if ext not in MESH_FORMATS:
         shown = f"'.{ext}'" if ext else "no extension"
         raise InputError(path, f"unknown mesh format ({shown}); expected .obj, .ply, .off or .stl")
@@ -249,6 +249,7 @@ def _require_integer_indices(faces: list, path: str) -> None:
 _OBJ_ZERO_INDEX = re.compile(rb"^[ \t]*f[ \t](?:[^\n#]*?[ \t])?0(?:/[^\s#]*)?(?=[ \t\r#]|$)", re.M)
 _OBJ_FACE_LINE = re.compile(rb"^([ \t]*f[ \t][^\r\n]*)", re.M)
 _OBJ_CORNER_SUFFIX = re.compile(rb"/[^\s]*")
+_OBJ_ANY_FACE_LINE = re.compile(rb"^[ \t]*f(?=[ \t\r\n]|$)([^\r\n]*)", re.M)  # "f" alone too
 
 
 def _obj_positions_only(data: bytes) -> bytes:
@@ -265,12 +266,16 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     import trimesh
 
     options = {}
+    corners = np.zeros(0, dtype=np.int64)  # OBJ face lines' corner counts
     if fmt == "obj":
         data = _obj_positions_only(data)
         if _OBJ_ZERO_INDEX.search(data):
             _raise_obj_index_error(data, path)  # OBJ counts from 1; trimesh would take 0 as -1
         options = {"maintain_order": True}  # keep unreferenced vertices: clean_mesh drops them
-        _require_obj_triangles_or_more(data, path)
+        corners = _obj_face_corners(data)
+        short = np.flatnonzero(corners < 3)
+        if len(short):
+            raise InputError(path, f"face {int(short[0])} has fewer than 3 corners")
     off_polygons = _off_polygons(data, path) if fmt == "off" else None
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh", **options)
@@ -291,7 +296,7 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         raise InputError(path, f"unparseable {fmt.upper()}: no vertices could be read")
     if off_polygons is not None:
         return Mesh(V, F), off_polygons
-    return Mesh(V, F), _count_obj_polygons(data)
+    return Mesh(V, F), int((corners > 3).sum())
 
 
 def _off_polygons(data: bytes, path: str) -> int | None:
@@ -332,18 +337,10 @@ def _off_polygons(data: bytes, path: str) -> int | None:
     return polygons
 
 
-def _require_obj_triangles_or_more(data: bytes, path: str) -> None:
-    """InputError for an OBJ face line with fewer than 3 corners (after
-    :func:`_obj_positions_only`), numbered among the face lines from 0."""
-    for i, m in enumerate(re.finditer(rb"^[ \t]*f[ \t]*([^\r\n]*)", data, flags=re.M)):
-        if len(m.group(1).split()) < 3:
-            raise InputError(path, f"face {i} has fewer than 3 corners")
-
-
-def _count_obj_polygons(data: bytes) -> int:
-    """Faces with more than three corners as stored in an OBJ file."""
-    four = rb"^[ \t]*f(?:[ \t]+[^\s#]+){4}"
-    return len(re.findall(four, data, flags=re.M))
+def _obj_face_corners(data: bytes) -> np.ndarray:
+    """(faces,) int: the corner count of every OBJ face line, in file order
+    (after :func:`_obj_positions_only`: no comments, no tabs)."""
+    return np.array([len(m.group(1).split()) for m in _OBJ_ANY_FACE_LINE.finditer(data)], dtype=np.int64)
 
 
 def _raise_obj_index_error(data: bytes, path: str) -> None:

@@ -13,7 +13,7 @@ import os
 import numpy as np
 
 from geoproc.errors import UsageError
-from geoproc.fileio import write_bytes_atomic
+from geoproc.fileio import file_extension, write_bytes_atomic
 from geoproc.mesh.mesh import Mesh
 
 WRITE_FORMATS = ("ply", "obj", "off", "stl")
@@ -30,10 +30,16 @@ def save_mesh(path: str | os.PathLike, mesh: Mesh, binary: bool = True) -> None:
     binary : bool
         Binary little-endian PLY (default) or ASCII PLY.
     """
-    ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+    write_bytes_atomic(path, mesh_to_bytes(mesh, write_format(path), binary=binary))
+
+
+def write_format(path: str | os.PathLike) -> str:
+    """The mesh format to write ``path`` in, from its extension (one of
+    :data:`WRITE_FORMATS`); UsageError for any other extension."""
+    ext = file_extension(path)
     if ext not in WRITE_FORMATS:
-        raise UsageError(f"{path}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
-    write_bytes_atomic(path, mesh_to_bytes(mesh, ext, binary=binary))
+        raise UsageError(f"{os.fspath(path)}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
+    return ext
 
 
 def mesh_to_bytes(mesh: Mesh, fmt: str = "ply", binary: bool = True) -> bytes:

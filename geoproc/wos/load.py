@@ -12,11 +12,11 @@ def load_domain(path: str, data: bytes | None = None) -> Domain:
     """Load ``path``: ``.json`` (or content starting with ``{``) as loops, else a
     mask image. With ``data`` (the content of ``path``, e.g. ``-`` for standard
     input) only JSON is read."""
-    if data is not None:
-        if not data[:64].lstrip().startswith(b"{"):
-            raise InputError(path, "not a JSON domain (a mask image must be given as a file)")
+    from_file = data is None
+    if from_file:
+        data = read_input_bytes(path, "domain file")
+    if data[:64].lstrip().startswith(b"{") or (from_file and path.lower().endswith(".json")):
         return load_domain_json(path, data)
-    data = read_input_bytes(path, "domain file")
-    if path.lower().endswith(".json") or data[:64].lstrip().startswith(b"{"):
-        return load_domain_json(path, data)
+    if not from_file:
+        raise InputError(path, "not a JSON domain (a mask image must be given as a file)")
     return load_domain_mask(path)
