@@ -299,6 +299,15 @@ def options_given(ctx: typer.Context, *names: str) -> list[str]:
     return [flags[n] for n in names if getattr(ctx.get_parameter_source(n), "name", None) in given]
 
 
+def require_extension(path: str | os.PathLike, ext: str, option: str, stdout_ok: bool = False) -> None:
+    """UsageError unless the file name ``path`` ends in ``ext`` (e.g. ``".png"``,
+    any case); ``-`` (standard output) passes when ``stdout_ok``."""
+    name = os.fspath(path)
+    if (stdout_ok and name == "-") or name.lower().endswith(ext):
+        return
+    raise UsageError(f"{option} {name}: must end in {ext}" + (" (or be -)" if stdout_ok else ""))
+
+
 def refuse_options(ctx: typer.Context, names: tuple[str, ...], why: str) -> None:
     """UsageError when any parameter of ``names`` was given, e.g.
     ``refuse_options(ctx, ("k", "keep_all"), "only with --outliers")`` gives

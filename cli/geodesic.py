@@ -22,6 +22,7 @@ from geoproc_cli.common import (
     command_run,
     options_given,
     refuse_options,
+    require_extension,
 )
 
 Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
@@ -137,8 +138,8 @@ def geodesic(
         if output != "-" and not output.lower().endswith(".ply"):
             raise UsageError(f"{output}: the distance is a vertex property, which only PLY keeps; "
                              "use a .ply output")
-        if render is not None and not render.lower().endswith(".png"):
-            raise UsageError(f"--render {render}: expected a .png file name")
+        if render is not None:
+            require_extension(render, ".png", "--render")
         _refuse_unused_options(ctx, m_name, operators.value if operators else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
@@ -170,6 +171,9 @@ def geodesic(
             "mean_distance": float(d[fin].mean()) if fin.any() else None,
         })
         run.metrics.update(res.stats)
+        if laplacian is not None and res.stats.get("operators") == "intrinsic":  # auto chose intrinsic
+            run.note(f"--laplacian {laplacian.value} not used: --operators auto chose the intrinsic operators "
+                     "on this mesh (slivers); give --operators extrinsic to use it")
         for key in ("zero_heat_vertices", "log_heat_below_double"):
             if res.stats.get(key):
                 what = "heat u underflowed to 0" if key == "zero_heat_vertices" else "exp(log u) < 5e-324"

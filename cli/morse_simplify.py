@@ -23,6 +23,7 @@ from geoproc_cli.common import (
     ReportOpt,
     command_run,
     refuse_options,
+    require_extension,
 )
 
 
@@ -116,8 +117,8 @@ def morse_simplify(
             raise UsageError(f"--exact-windows must be -1, 0 or a positive count, got {exact_windows}")
         if output != "-" and os.path.splitext(output)[1].lower() != ".ply":
             raise UsageError(f"{output}: the output must be a .ply file (or -) to carry the fields")
-        if diagram is not None and os.fspath(diagram) != "-" and not os.fspath(diagram).lower().endswith(".png"):
-            raise UsageError(f"--diagram {diagram}: the diagram is a PNG; use a .png file name (or -)")
+        if diagram is not None:
+            require_extension(diagram, ".png", "--diagram", stdout_ok=True)
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
         require_manifold(m)

@@ -10,7 +10,15 @@ import numpy as np
 import typer
 
 from geoproc.errors import UsageError
-from geoproc_cli.common import CheckOpt, DebugOpt, QuietOpt, ReportOpt, command_run, refuse_options
+from geoproc_cli.common import (
+    CheckOpt,
+    DebugOpt,
+    QuietOpt,
+    ReportOpt,
+    command_run,
+    refuse_options,
+    require_extension,
+)
 
 
 class Method(StrEnum):
@@ -18,11 +26,6 @@ class Method(StrEnum):
     cv_green = "cv-green"
     cv_angle = "cv-angle"
     npass = "npass"
-
-
-def _need_ext(path: str, ext: str, option: str) -> None:
-    if not path.lower().endswith(ext):
-        raise UsageError(f"{option} {path}: must end in {ext}")
 
 
 def wos_solve(
@@ -95,14 +98,14 @@ def wos_solve(
         from geoproc.wos import load_domain, parse_expression, solve_laplace
         from geoproc.wos.images import exr_bytes, png_bytes
 
-        _need_ext(output, ".exr", "-o")
+        require_extension(output, ".exr", "-o")
         if method == Method.naive:
             refuse_options(ctx, ("kernels", "fit_walks", "fit_points", "ridge"),
                            "only with a control variate (--method cv-green, cv-angle or npass)")
         if image:
-            _need_ext(image, ".png", "--image")
+            require_extension(image, ".png", "--image")
         if error_image:
-            _need_ext(error_image, ".png", "--error-image")
+            require_extension(error_image, ".png", "--error-image")
             if not exact:
                 raise UsageError("--error-image needs --exact (the error is against the exact solution)")
         g = parse_expression(boundary, "--boundary") if boundary is not None else None

@@ -158,6 +158,7 @@ BAD = [
     (["--sources-file", "-", "-s", "0"], "-", "standard input can feed only one input"),
     (["-s", "0", "-c", "2", "-t", "0.01"], "grid.ply", "--time-factor and --time: give one"),
     (["-s", "0", "--operators", "intrinsic", "--laplacian", "cotan"], "grid.ply", "not used with --operators intr"),
+    (["-s", "0", "--render", "d.jpg"], "grid.ply", "--render d.jpg: must end in .png"),
 ]
 
 
@@ -280,3 +281,17 @@ def test_log_heat_goes_intrinsic_on_a_mesh_of_slivers(cli, make_fixtures, tmp_pa
     assert errors["log-heat", None][0] == "intrinsic" and errors["log-heat", None][1] < 0.03
     assert errors["heat", None][0] == "extrinsic" and errors["heat", None][1] > 0.1  # the paper's operators
     assert errors["heat", "intrinsic"][1] < 0.03
+
+
+def test_laplacian_unused_by_auto_intrinsic_is_noted(cli, make_fixtures, tmp_path):
+    V, F = make_fixtures.torus(r=0.4, nu=60, nv=20, twist=3)  # auto goes intrinsic here
+    src = tmp_path / "slivers.ply"
+    save_mesh(src, Mesh(V, F))
+    args = ("geodesic", src, "-s", "0", "-m", "log-heat", "-o", tmp_path / "d.ply")
+    p = cli(*args, "--laplacian", "cotan")
+    assert p.returncode == 0, p.stderr
+    assert "--laplacian cotan not used: --operators auto chose the intrinsic operators" in p.stderr
+    p = cli(*args, "--laplacian", "cotan", "--quiet")
+    assert p.returncode == 0 and p.stderr == ""
+    p = cli(*args)
+    assert p.returncode == 0 and "--laplacian" not in p.stderr

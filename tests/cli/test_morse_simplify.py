@@ -108,7 +108,7 @@ def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
         (["--field", nan, "--persistence", "1"], "non-finite"),
         (["--field", cplx, "--persistence", "1"], "cplx.npy: field 'cplx' must hold real numbers"),
         (["--field", wide, "--persistence", "0.1", "--relative"], "wide.npy: field 'wide' spans more than"),
-        (["--field", "z", "--persistence", "1", "--diagram", tmp_path / "d.jpg"], "use a .png file name"),
+        (["--field", "z", "--persistence", "1", "--diagram", tmp_path / "d.jpg"], "d.jpg: must end in .png (or be -)"),
         (["--field", empty, "--persistence", "1"], "empty.npy: cannot read field"),
         (["--field", "z", "--persistence", "0.1", "--barycentric", "--exact-windows", "2"], "--exact-windows: not"),
         (["--field", near, "--persistence", "2", "--relative"], "overflows; use a smaller P"),

@@ -113,6 +113,7 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("rect.json", ["--neumann", "0/0"], "--neumann is not finite on the boundary"),
     ("disk.json", ["--boundary", "exp(700*x)"], "beyond the float32 range of EXR"),
     ("disk.json", ["--boundary", "x", "--kernels", "5", "--ridge", "3"], "--kernels, --ridge: only with a control"),
+    ("disk.json", ["--boundary", "x", "--image", "u.tif"], "--image u.tif: must end in .png"),
 ])
 def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, domain, extra, message):
     out = tmp_path / "u.exr"
