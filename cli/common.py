@@ -29,7 +29,7 @@ import time
 import traceback
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, TypeVar
 
 import typer
 from rich.console import Console
@@ -43,6 +43,7 @@ from geoproc.report import build_report, evaluate_checks, parse_check
 from geoproc.report.report import report_json
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+T = TypeVar("T")
 
 stderr = Console(stderr=True, highlight=False, soft_wrap=True)
 stdout = Console(highlight=False, soft_wrap=True)
@@ -107,17 +108,19 @@ class Run:
             raise InputError("-", "standard input is closed")
         return sys.stdin.buffer.read()
 
+    def read_input(self, path: str | os.PathLike, read: Callable[[str, bytes | None], T]) -> T:
+        """``read(path, data)``, ``data`` being standard input's bytes when the
+        path is ``-`` (else None), then the input recorded for the report."""
+        name = os.fspath(path)
+        data = self.read_stdin() if name == "-" else None
+        out = read(name, data)
+        self.add_input(name, data)
+        return out
+
     def load_mesh(self, path: str | os.PathLike, clean: bool = True) -> Mesh:
         """Read a mesh or point cloud (``-`` reads standard input) and record it."""
-        name = os.fspath(path)
         with self.timer("load"):
-            if name == "-":
-                data = self.read_stdin()
-                mesh = load_mesh("-", clean=clean, stdin_bytes=data)
-                self.add_input("-", data)
-            else:
-                mesh = load_mesh(name, clean=clean)
-                self.add_input(name)
+            mesh = self.read_input(path, lambda name, data: load_mesh(name, clean=clean, stdin_bytes=data))
         self.note_load(mesh)
         return mesh
 

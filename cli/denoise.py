@@ -187,9 +187,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     require_edge_manifold(mesh.F, path)
     ref_V = None
     if reference is not None:
-        data = run.read_stdin() if reference == "-" else None
-        ref = load_mesh(reference, clean=not no_clean, stdin_bytes=data)
-        run.add_input(reference, data)
+        ref = run.read_input(reference, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
         ref_V = reference_in_input_order(mesh.F, len(mesh.V), ref.F, ref.V, reference)
     with run.timer("denoise"), run.progress(f"denoise ({method})") as update:
         res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)

@@ -146,9 +146,7 @@ def geodesic(
         m = run.load_mesh(mesh, clean=not no_clean)
         srcs = list(source or [])
         if sources_file is not None:  # after the mesh: a second '-' is then the one refused
-            data = run.read_stdin() if sources_file == "-" else None
-            srcs += read_sources_file(sources_file, data)
-            run.add_input(sources_file, data)
+            srcs += run.read_input(sources_file, read_sources_file)
         if m.log.merged_vertices or m.log.removed_unreferenced:
             run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
         with run.progress(f"geodesic {m_name}", 1.0) as update:
