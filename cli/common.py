@@ -98,11 +98,18 @@ class Run:
         digest = sha256_bytes(data) if data is not None else sha256_file(name)
         self.inputs.append({"path": name, "sha256": digest})
 
+    @staticmethod
+    def one_stdin(*paths) -> None:
+        """UsageError when more than one of the input ``paths`` is ``-``; checked
+        before any is read, so that the error does not depend on what stdin holds."""
+        if sum(os.fspath(p) == "-" for p in paths if p is not None) > 1:
+            raise UsageError("standard input can feed only one input; give the others as files")
+
     def read_stdin(self) -> bytes:
         """All of standard input (one input per run may be ``-``: a second is a
         UsageError)."""
         if self._stdin_read:
-            raise UsageError("standard input can feed only one input; give the others as files")
+            self.one_stdin("-", "-")
         self._stdin_read = True
         if sys.stdin is None:
             raise InputError("-", "standard input is closed")
@@ -134,6 +141,8 @@ class Run:
         with self.timer("load"):
             anim = load_animation(name)
             self.add_input(name)
+            if anim.frame_files:  # the frames in the order read, each checkable with sha256sum
+                self.inputs[-1]["frames"] = [{"path": f, "sha256": sha256_file(f)} for f in anim.frame_files]
         return anim
 
     def note_load(self, mesh: Mesh) -> None:

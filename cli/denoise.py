@@ -13,6 +13,7 @@ from geoproc.denoise import COHERENCE, DEFAULT_METHOD, METHODS
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh import Mesh, load_mesh
 from geoproc.mesh.validate import require_triangle_mesh
+from geoproc.perturb import outlier_flags
 from geoproc_cli.common import (
     CheckOpt,
     DebugOpt,
@@ -48,7 +49,8 @@ def denoise(
     vertex_iterations: Annotated[int, typer.Option("--vertex-iterations", help="Vertex-update sweeps "
                                                    "per round, 0 to 10000.", min=0, max=10000)] = 10,
     sigma_r: Annotated[float | None, typer.Option("--sigma-r", help="Range kernel width on normal "
-                                                  "differences (default: from the noise level).",
+                                                  "differences, as the chord length between unit normals "
+                                                  "(> 0; 0.3 is about 17 degrees; default: from the noise level).",
                                                   show_default=False)] = None,
     sigma_s: Annotated[float | None, typer.Option("--sigma-s", help="Spatial kernel width, in mean "
                                                   "distances between adjacent face centroids (default: from "
@@ -64,13 +66,14 @@ def denoise(
                                                "normal Laplacian, in local mean edge lengths (0.12 is a "
                                                "crease of about 24 degrees).")] = 0.12,
     feature_angle: Annotated[float, typer.Option("--feature-angle", help="--features dihedral: angle in "
-                                                 "degrees.")] = 30.0,
+                                                 "degrees, 0 to 180.")] = 30.0,
     outliers: Annotated[bool, typer.Option("--outliers", help="Point-cloud outlier removal by RPCA on "
                                            "k-nearest-neighbour matrices; for an animation (.npz or folder "
                                            "of frames), RPCA on the animation matrix (one row per point: "
                                            "its x, y, z in every frame) flags the outlying points of every "
                                            "frame.")] = False,
-    k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers.")] = 16,
+    k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers, in points "
+                                     "(at least 4, at most the number of points).")] = 16,
     threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, in "
                                                     "median point spacings (default 0.5; for an animation "
                                                     "max(0.5, 3 x the median score)).",
@@ -176,9 +179,10 @@ def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynam
 
 def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     from geoproc.denoise.mesh_denoise import denoise_mesh
-    from geoproc.denoise.metrics import denoise_errors, flipped_faces, new_flipped_faces
+    from geoproc.denoise.metrics import denoise_errors, flipped_faces, mean_normal_angle_deg, new_flipped_faces
     from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
 
+    run.one_stdin(input, reference)
     mesh = run.load_mesh(input, clean=not no_clean)
     path = mesh.log.path or None
     if mesh.is_point_cloud:
@@ -200,8 +204,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
         with run.timer("metrics"):
             run.metrics.update(denoise_errors(res.V, mesh.F, ref_V))
             before = flipped_faces(mesh.V, mesh.F, ref_V)
-            run.metrics["input_mean_normal_angle_deg"] = denoise_errors(mesh.V, mesh.F, ref_V)[
-                "mean_normal_angle_deg"]
+            run.metrics["input_mean_normal_angle_deg"] = mean_normal_angle_deg(mesh.V, mesh.F, ref_V)
             run.metrics["input_flipped_faces"] = len(before)
             run.metrics["new_flipped_faces"] = new_flipped_faces(res.V, mesh.F, ref_V, before)
     run.write_mesh(output, out)
@@ -219,12 +222,15 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
     run.metrics.update({"points": len(cloud.V), "detected_outliers": int(res.outlier.sum()),
                         "threshold": res.threshold})
     if "outlier" in cloud.vertex_fields:
-        truth = np.asarray(cloud.vertex_fields["outlier"]).reshape(len(cloud.V), -1)[:, 0] > 0.5
+        truth = outlier_flags(cloud.vertex_fields["outlier"], (len(cloud.V),), path or input)
         run.metrics["true_outliers"] = int(truth.sum())
         run.metrics.update(detection_scores(res.outlier, truth))
     P = res.refined if refined else cloud.V
     if refined:
         run.metrics["mean_refinement_shift"] = float(np.linalg.norm(res.refined - cloud.V, axis=1).mean())
+    if not keep_all and res.outlier.all():
+        raise InputError(path or input, f"every point scores above the threshold {res.threshold:.6g}; no "
+                         "inlier to write (raise --threshold, or --keep-all writes every point with its score)")
     if keep_all:
         out = Mesh(P, np.zeros((0, 3), dtype=np.int64), dict(cloud.vertex_fields))
         out.vertex_fields["outlier_score"] = res.score
@@ -248,7 +254,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
                         "detected_outliers": int(res.outlier.sum()), "threshold": res.threshold,
                         "motion_basis": res.rank, "rpca_iterations": res.rpca_iterations})
     if "outlier" in anim.fields:
-        truth = np.asarray(anim.fields["outlier"]) > 0.5
+        truth = outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path)
         run.metrics["true_outliers"] = int(truth.sum())
         run.metrics.update(detection_scores(res.outlier, truth))
     fields = dict(anim.fields)
@@ -260,7 +266,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
 
 def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     from geoproc.denoise.dynamic import denoise_animation
-    from geoproc.denoise.metrics import denoise_errors
+    from geoproc.denoise.metrics import denoise_errors, flipped_faces, mean_normal_angle_deg, new_flipped_faces
     from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
 
     if input == "-" or not is_animation_path(input):
@@ -268,6 +274,9 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     if not output.lower().endswith(".npz"):
         raise UsageError(f"{output}: an animation is written as .npz")
     anim = run.load_animation(input)
+    if anim.n_frames < 3:
+        raise InputError(anim.path, f"has {anim.n_frames} frame{'s' if anim.n_frames != 1 else ''}; --dynamic "
+                         "needs at least 3 (denoise a single frame as a mesh)")
     require_triangle_mesh(Mesh(anim.V[0], anim.F, log=_log(anim.path)))
     require_edge_manifold(anim.F, anim.path)
     ref_V = None
@@ -285,11 +294,18 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     run.metrics.update({k: v for k, v in info.items() if np.isscalar(v)})
     if ref_V is not None:
         with run.timer("metrics"):
-            per = [denoise_errors(V[t], anim.F, ref_V[t]) for t in range(anim.n_frames)]
+            T = anim.n_frames
+            per = [denoise_errors(V[t], anim.F, ref_V[t]) for t in range(T)]
             for key in ("mean_normal_angle_deg", "hausdorff", "vertex_rmse"):
                 run.metrics[key] = float(np.mean([p[key] for p in per]))
             run.metrics["max_normal_angle_deg"] = float(max(p["max_normal_angle_deg"] for p in per))
             run.metrics["flipped_faces"] = int(sum(p["flipped_faces"] for p in per))
+            before = [flipped_faces(anim.V[t], anim.F, ref_V[t]) for t in range(T)]
+            run.metrics["input_mean_normal_angle_deg"] = float(np.mean(
+                [mean_normal_angle_deg(anim.V[t], anim.F, ref_V[t]) for t in range(T)]))
+            run.metrics["input_flipped_faces"] = int(sum(len(b) for b in before))
+            run.metrics["new_flipped_faces"] = int(sum(new_flipped_faces(V[t], anim.F, ref_V[t], before[t])
+                                                       for t in range(T)))
     run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, dict(anim.fields), output)))
 
 

@@ -84,9 +84,10 @@ def geodesic(
     method: Annotated[Method, typer.Option("--method", "-m", help="exact (MMP), heat (Crane et al.), "
                       "varadhan (sqrt(-4T log u)), log-splitting, log-ode, log-heat.")] = Method.heat,
     time_factor: Annotated[float, typer.Option("--time-factor", "-c", help="t = c * h^2 with h the mean "
-                           "edge length.")] = 1.0,
-    time: Annotated[float | None, typer.Option("--time", "-t", help="Absolute diffusion time (area unit); "
-                    "instead of --time-factor (not both).", show_default=False)] = None,
+                           "edge length; c > 0 and at most 1e12.")] = 1.0,
+    time: Annotated[float | None, typer.Option("--time", "-t", help="Absolute diffusion time (area "
+                    "unit), > 0 and at most 1e12 h^2; instead of --time-factor (not both).",
+                    show_default=False)] = None,
     steps: Annotated[int, typer.Option("--steps", "-n", help="Backward-Euler steps to reach t "
                      "(varadhan, log-ode, log-splitting, log-heat), 1 to 100000.", min=1, max=100000)] = 1,
     laplacian: Annotated[Laplacian | None, typer.Option("--laplacian", help="Default: cotan for heat, "
@@ -143,6 +144,7 @@ def geodesic(
         _refuse_unused_options(ctx, m_name, operators.value if operators else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
+        run.one_stdin(mesh, sources_file)
         m = run.load_mesh(mesh, clean=not no_clean)
         srcs = list(source or [])
         if sources_file is not None:  # after the mesh: a second '-' is then the one refused

@@ -39,7 +39,8 @@ def morse_simplify(
         metavar="SPEC", show_default=False)],
     persistence: Annotated[float, typer.Option(
         "--persistence", "-p",
-        help="Remove every critical pair with persistence below this threshold P (>= 0), keep the others.",
+        help="Remove every critical pair with persistence below this threshold P (>= 0, in the field's units; "
+        "with --relative a fraction of its range), keep the others.",
         metavar="P", show_default=False)],
     output: Annotated[str, typer.Option(
         "--output", "-o",
@@ -104,7 +105,7 @@ def morse_simplify(
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
         from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field
-        from geoproc.morse.barycentric import barycentric_simplify, mesh_cell
+        from geoproc.morse.barycentric import barycentric_simplify, mesh_cell, subdivision_values
         from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
         from geoproc.morse.diagram_plot import persistence_diagram_png
         from geoproc.morse.fields import field_name, vertex_field
@@ -183,7 +184,10 @@ def morse_simplify(
                      "interact; the critical points are still exactly the kept ones (--barycentric stays within P/2 "
                      "on the barycentric subdivision)")
         if barycentric:
-            out = Mesh(res.V, res.F, {name: g, f"{name}_original": f_ref, "cell_dim": res.dim.astype(np.float64)})
+            carried = {k: subdivision_values(res, m.F, v) for k, v in m.vertex_fields.items()}  # interpolated
+            out = Mesh(res.V, res.F, {**carried, name: g, f"{name}_original": f_ref,
+                                      "cell_dim": res.dim.astype(np.float64)},
+                       {k: np.repeat(v, 6, axis=0) for k, v in m.face_fields.items()})  # 6 per input face
             run.metrics["subdivision_vertices"] = len(res.V)
         else:
             out = m.copy()

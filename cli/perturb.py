@@ -10,7 +10,7 @@ import typer
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.errors import UsageError
 from geoproc.mesh.validate import require_triangle_mesh
-from geoproc.perturb import NoiseSpec, noise_scale, perturb_positions
+from geoproc.perturb import NoiseSpec, noise_scale, outlier_flags, perturb_positions
 from geoproc_cli.common import (
     CheckOpt,
     DebugOpt,
@@ -38,10 +38,11 @@ def perturb(
     direction: Annotated[str, typer.Option("--direction", help="normal: along vertex normals (the benchmark "
                                            "protocol); random: along random unit directions.")] = "normal",
     impulsive: Annotated[float, typer.Option("--impulsive", help="Apply the Gaussian noise to only this "
-                                             "fraction of the vertices (impulsive noise); 0 = all.",
+                                             "fraction of the vertices (impulsive noise), 0 to 1; 0 = all.",
                                              metavar="FRACTION")] = 0.0,
-    outliers: Annotated[float, typer.Option("--outliers", help="Fraction of vertices moved as outliers "
-                                            "(flagged in the per-vertex 'outlier' property).",
+    outliers: Annotated[float, typer.Option("--outliers", help="Fraction of vertices moved as outliers, "
+                                            "0 to 1 (flagged in the per-vertex 'outlier' property, added to "
+                                            "any flags the input carries).",
                                             metavar="FRACTION")] = 0.0,
     outlier_range: Annotated[float, typer.Option("--outlier-range", help="Outliers move uniformly within "
                                                  "this many bounding-box diagonals.", metavar="R")] = 0.02,
@@ -71,8 +72,8 @@ def perturb(
             refuse_options(ctx, ("direction", "impulsive"), "not used with --noise 0")
         if outliers == 0:
             refuse_options(ctx, ("outlier_range",), "only with --outliers FRACTION > 0")
-        if outlier_range < 0:
-            raise UsageError(f"--outlier-range {outlier_range}: must be >= 0")
+        if not outlier_range > 0:  # reached only with --outliers > 0 (refused above otherwise)
+            raise UsageError(f"--outlier-range {outlier_range}: must be > 0 (0 would move no outlier)")
         spec = NoiseSpec(sigma=noise, direction=direction, impulsive=impulsive, outliers=outliers,
                          outlier_range=outlier_range)
         rng = np.random.default_rng(seed)
@@ -87,13 +88,14 @@ def perturb(
                     frames.append(Vt)
                     flags.append(ot)
                 fields = dict(anim.fields)
-                if outliers > 0:
-                    fields["outlier"] = np.stack(flags)
-                out = Animation(np.stack(frames), anim.F, fields, output)
+                V = np.stack(frames)
+                flag = _merged_flags(np.stack(flags), fields, anim.V.shape[:2], anim.path, outliers > 0)
+                out = Animation(V, anim.F, fields, output)
             run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]),
                                 "faces": len(anim.F),
                                 "noise_scale": noise_scale(anim.V[0], anim.F),
-                                "outlier_vertices": int(np.sum(flags))})
+                                "rms_displacement": _rms(V - anim.V),
+                                "outlier_vertices": int(flag.sum())})
             run.write_bytes(output, animation_to_bytes(out))
             return
         mesh = run.load_mesh(input, clean=not no_clean)
@@ -103,13 +105,30 @@ def perturb(
             V, flag = perturb_positions(mesh.V, mesh.F, spec, rng, mesh.log.path)
         out = mesh.copy()
         out.V = V
-        if outliers > 0:
-            out.vertex_fields["outlier"] = flag
+        flag = _merged_flags(flag, out.vertex_fields, (len(V),), mesh.log.path or input, outliers > 0)
         run.metrics.update({"vertices": len(V), "faces": len(mesh.F),
                             "noise_scale": noise_scale(mesh.V, mesh.F),
-                            "rms_displacement": float(np.sqrt(np.mean(np.sum((V - mesh.V) ** 2, axis=1)))),
+                            "rms_displacement": _rms(V - mesh.V),
                             "outlier_vertices": int(flag.sum())})
         run.write_mesh(output, out)
+
+
+def _rms(D: np.ndarray) -> float:
+    """Root mean square length of the (..., 3) displacements."""
+    return float(np.sqrt(np.mean(np.sum(D**2, axis=-1)))) if D.size else 0.0
+
+
+def _merged_flags(new: np.ndarray, fields: dict, shape: tuple, path: str, added: bool) -> np.ndarray:
+    """The ``outlier`` flags after this run: those the input already carried
+    (an earlier perturb) joined with the ``new`` ones (1.0 where moved as an
+    outlier now); ``fields["outlier"]`` is set when outliers were ``added``.
+    Returns the (bool) flags, of ``shape``."""
+    flags = new > 0.5
+    if "outlier" in fields:
+        flags |= outlier_flags(fields["outlier"], shape, path)
+    if added:
+        fields["outlier"] = flags.astype(np.float64)
+    return flags
 
 
 def register(app: typer.Typer) -> None:

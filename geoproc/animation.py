@@ -2,13 +2,16 @@
 
 Stored as ``.npz`` with ``vertices`` (frames, n, 3) and ``faces`` (m, 3), plus
 optional per-vertex-per-frame fields (frames, n); or read from a folder of frame
-meshes (sorted by name) that all have the same faces.
+meshes that all have the same faces, in natural order of their names (digit
+runs compare as numbers: ``frame2.ply`` before ``frame10.ply``), whose
+per-vertex properties present in every frame become the fields.
 """
 
 from __future__ import annotations
 
 import io
 import os
+import re
 import zipfile
 from dataclasses import dataclass, field
 
@@ -29,12 +32,14 @@ class Animation:
     F : (m, 3) int64 triangles shared by every frame.
     fields : dict of str to (T, n) float64 per-vertex values per frame.
     path : str, the file or folder read.
+    frame_files : list of str, for a folder the frame files in the order read (else empty).
     """
 
     V: np.ndarray
     F: np.ndarray
     fields: dict[str, np.ndarray] = field(default_factory=dict)
     path: str = ""
+    frame_files: list[str] = field(default_factory=list)
 
     @property
     def n_frames(self) -> int:
@@ -85,6 +90,8 @@ def load_animation(path: str | os.PathLike) -> Animation:
     _validate(V, F, name)
     fields = {}
     for k, v in data.items():  # per-vertex numeric arrays travel as fields; others are ignored
+        if k == "outlier" and v.shape != V.shape[:2]:  # the flags denoise --outliers scores against
+            raise InputError(name, f"'outlier' has shape {v.shape}; expected (frames, n) = {V.shape[:2]}")
         if v.dtype.kind in "fiub" and v.shape == V.shape[:2]:
             fields[k] = np.asarray(v, dtype=np.float64)
     return Animation(V, F.astype(np.int64), fields, name)
@@ -99,14 +106,20 @@ def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
         raise InputError(name, f"face index out of range (valid 0..{V.shape[1] - 1})")
 
 
+def natural_key(name: str) -> tuple[list, str]:
+    """Sort key that compares digit runs as numbers (``f2`` before ``f10``)."""
+    parts = re.split(r"(\d+)", name)
+    return [int(p) if i % 2 else p for i, p in enumerate(parts)], name
+
+
 def _load_frame_folder(name: str) -> Animation:
     from geoproc.mesh import load_mesh
     from geoproc.mesh.read import MESH_FORMATS
 
-    files = sorted(f for f in os.listdir(name) if file_extension(f) in MESH_FORMATS)
+    files = sorted((f for f in os.listdir(name) if file_extension(f) in MESH_FORMATS), key=natural_key)
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
-    frames = []
+    frames, per_frame_fields = [], []
     F0 = None
     for f in files:
         mesh = load_mesh(os.path.join(name, f), clean=False)
@@ -115,8 +128,12 @@ def _load_frame_folder(name: str) -> Animation:
         elif mesh.F.shape != F0.shape or (mesh.F != F0).any() or len(mesh.V) != len(frames[0]):
             raise InputError(os.path.join(name, f), f"different connectivity from the first frame {files[0]}")
         frames.append(mesh.V)
-    V = np.stack(frames)
-    return Animation(V, F0, {}, name)
+        per_frame_fields.append({k: np.asarray(v, dtype=np.float64).reshape(len(mesh.V), -1)
+                                 for k, v in mesh.vertex_fields.items()})
+    common = set.intersection(*(set(d) for d in per_frame_fields))
+    fields = {k: np.stack([d[k][:, 0] for d in per_frame_fields]) for k in sorted(common)
+              if all(d[k].shape[1] == 1 for d in per_frame_fields)}
+    return Animation(np.stack(frames), F0, fields, name, [os.path.join(name, f) for f in files])
 
 
 def animation_to_bytes(anim: Animation) -> bytes:

@@ -9,13 +9,18 @@
    noise of each frame on top; where the shape itself changes, they change
    in a few coherent ways. The (n, T) matrix of heights is split by RPCA into
    a low-rank part (the coherent detail) and a sparse part.
-3. Every frame's vertices move along the base normals to their low-rank heights.
+3. Every frame's vertices move along the base normals to their low-rank heights,
+   except those of faces the move would turn more than 20 degrees from the
+   frame's own result (:func:`limit_face_turn`): without that guard the move
+   folded faces at thin parts (elephant, 29 frames, noise 0.3: 378 faces
+   newly flipped against 75 frame by frame; with it 71, and 4.58 degrees
+   instead of 4.74).
 
 The review's Algorithm 4 itself (``coherence="normals"``,
 :func:`coherent_normal_fit`) applies RPCA to the stacked face normals and then
 fits the vertices to them; measured against the current frame-by-frame
 method it is worse (elephant, 29 frames, noise 0.3: 5.27 against 5.03 degrees),
-while the heights give 4.74. It is kept to reproduce the review.
+while the heights give 4.58. It is kept to reproduce the review.
 """
 
 from __future__ import annotations
@@ -65,9 +70,49 @@ def normal_heights(V: np.ndarray, F: np.ndarray, smoothing: float = 0.5) -> tupl
     return H, Nv
 
 
+def limit_face_turn(
+    V: np.ndarray, F: np.ndarray, shift: np.ndarray, directions: np.ndarray, max_turn_deg: float = 20.0,
+    max_rounds: int = 50,
+) -> tuple[np.ndarray, int]:
+    """Cancel the moves that would turn faces too far.
+
+    ``V + shift[:, None] * directions`` is the moved frame; while some face of
+    it is more than ``max_turn_deg`` from its normal in V, the shifts of that
+    face's vertices are set to 0.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 positions; F : (m, 3) int64 triangles.
+    shift : (n,) float64 move of each vertex along its direction (length units).
+    directions : (n, 3) float64 unit directions.
+    max_turn_deg : float
+        Largest angle in degrees a face may turn.
+    max_rounds : int
+        Rounds of cancelling (each round cancels every offending face's vertices).
+
+    Returns
+    -------
+    shift : (n,) float64 the kept shifts; cancelled : int vertices whose shift was cancelled.
+    """
+    shift = np.array(shift, dtype=np.float64, copy=True)
+    N0, _ = face_normals_and_areas(V, F)
+    cos_min = np.cos(np.radians(max_turn_deg))
+    cancelled = np.zeros(len(V), dtype=bool)
+    for _ in range(max_rounds):
+        N, _ = face_normals_and_areas(V + shift[:, None] * directions, F)
+        bad = np.einsum("ij,ij->i", N, N0) < cos_min
+        verts = np.unique(F[bad])
+        verts = verts[shift[verts] != 0.0]
+        if not len(verts):
+            break
+        shift[verts] = 0.0
+        cancelled[verts] = True
+    return shift, int(cancelled.sum())
+
+
 def coherent_heights(
     V: np.ndarray, F: np.ndarray, smoothing: float = 0.5, lam: float | None = None,
-    fixed: np.ndarray | None = None,
+    fixed: np.ndarray | None = None, max_turn_deg: float = 20.0,
 ) -> tuple[np.ndarray, dict]:
     """Steps 2 and 3: every frame's vertices moved along their base normals to
     the low-rank part of the (n, T) matrix of normal heights.
@@ -81,17 +126,26 @@ def coherent_heights(
         RPCA sparsity weight (default ``1/sqrt(max(n, T))``).
     fixed : (n,) bool, optional
         Vertices that must not move.
+    max_turn_deg : float
+        No face turns more than this (degrees) from its normal in V
+        (:func:`limit_face_turn`, frame by frame).
 
     Returns
     -------
-    V_out : (T, n, 3) float64; info : dict (RPCA iterations, convergence, rank of the low-rank part).
+    V_out : (T, n, 3) float64; info : dict (RPCA iterations, convergence, rank
+    of the low-rank part, ``turn_limited_vertices``: vertex moves cancelled
+    over all frames).
     """
     H, Nv = normal_heights(V, F, smoothing)
     res = rpca(np.ascontiguousarray(H.T), lam=lam, tol=1e-7, max_iter=500)
     shift = res.P.T - H
     if fixed is not None:
         shift[:, fixed] = 0.0
-    return V + shift[:, :, None] * Nv, _rpca_info(res)
+    cancelled = 0
+    for t in range(len(V)):
+        shift[t], c = limit_face_turn(V[t], F, shift[t], Nv[t], max_turn_deg)
+        cancelled += c
+    return V + shift[:, :, None] * Nv, {**_rpca_info(res), "turn_limited_vertices": cancelled}
 
 
 def coherent_normals(V: np.ndarray, F: np.ndarray, lam: float | None = None) -> tuple[np.ndarray, dict]:

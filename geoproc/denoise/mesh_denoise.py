@@ -501,7 +501,8 @@ def filter_and_fit(
         "normal_iterations": inner,
         "vertex_iterations": p.vertex_iterations,
         "sigma_r": sigma_r,
-        "sigma_s": sigma_s,
+        "sigma_s": plan.spatial_scale,  # in centroid spacings, the unit of --sigma-s
+        "sigma_s_length": sigma_s,
         "unfold_rounds": p.unfold_rounds,
         "folded_faces": folded,
         "crease_bisected_faces": int(changed.sum()),

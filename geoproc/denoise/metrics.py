@@ -15,6 +15,11 @@ def normal_angles_deg(N: np.ndarray, N_ref: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(cos))
 
 
+def mean_normal_angle_deg(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> float:
+    """Mean angle in degrees between the face normals of V and of V_ref (same faces F): theta."""
+    return float(normal_angles_deg(face_normals_and_areas(V, F)[0], face_normals_and_areas(V_ref, F)[0]).mean())
+
+
 def flipped_faces(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> np.ndarray:
     """Indices of faces whose normal is more than 90 degrees from the reference."""
     N, _ = face_normals_and_areas(V, F)

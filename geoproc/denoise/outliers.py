@@ -192,13 +192,21 @@ def merged_projections(nb: np.ndarray, idx: np.ndarray, normal: np.ndarray, cent
 
 
 def detection_scores(predicted: np.ndarray, truth: np.ndarray) -> dict:
-    """Precision, recall and F1 of a boolean detection against the truth."""
+    """Precision, recall and F1 of a boolean detection against the truth.
+
+    Returns
+    -------
+    dict with ``precision`` (NaN when nothing is detected), ``recall`` (NaN
+    when the truth holds no outlier) and ``f1 = 2 tp / (2 tp + fp + fn)``
+    (NaN when both are empty).
+    """
     predicted = np.asarray(predicted, dtype=bool)
     truth = np.asarray(truth, dtype=bool)
     tp = float((predicted & truth).sum())
-    precision = tp / max(float(predicted.sum()), 1.0)
-    recall = tp / max(float(truth.sum()), 1.0)
-    f1 = 2 * precision * recall / (precision + recall) if precision + recall > 0 else 0.0
+    n_pred, n_true = float(predicted.sum()), float(truth.sum())
+    precision = tp / n_pred if n_pred else float("nan")
+    recall = tp / n_true if n_true else float("nan")
+    f1 = 2 * tp / (n_pred + n_true) if n_pred + n_true else float("nan")
     return {"precision": precision, "recall": recall, "f1": f1}
 
 

@@ -224,6 +224,24 @@ def mesh_cell(result: BarycentricSimplification, F: np.ndarray, vertex: int) -> 
     return {"dimension": 2, "vertices": [int(x) for x in F[vertex - n - k]]}
 
 
+def subdivision_values(result: BarycentricSimplification, F: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Per-vertex values of the mesh carried to the subdivision vertices:
+    kept at mesh vertices, averaged over the edge's and the triangle's
+    vertices at midpoints and centroids (linear interpolation).
+
+    Parameters
+    ----------
+    result : the output of :func:`barycentric_simplify`; F : (m, 3) the input triangles;
+    values : (n,) or (n, c) float64 per input vertex.
+
+    Returns
+    -------
+    (n + k + m,) or (n + k + m, c) float64.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    return np.concatenate([values, values[result.E].mean(axis=1), values[F].mean(axis=1)])
+
+
 def barycentric_subdivision(V: np.ndarray, F: np.ndarray, E: np.ndarray, FE: np.ndarray) -> tuple[np.ndarray,
                                                                                                    np.ndarray]:
     """Vertices and triangles of the barycentric subdivision.

@@ -4,9 +4,10 @@
 from geoproc.perturb.noise import (
     NoiseSpec,
     noise_scale,
+    outlier_flags,
     perturb_positions,
     point_cloud_normals,
     vertex_normals,
 )
 
-__all__ = ["NoiseSpec", "noise_scale", "perturb_positions", "point_cloud_normals", "vertex_normals"]
+__all__ = ["NoiseSpec", "noise_scale", "outlier_flags", "perturb_positions", "point_cloud_normals", "vertex_normals"]

@@ -109,7 +109,9 @@ def perturb_positions(
     big = float(np.abs(out).max()) if out.size else 0.0
     if not big <= MAX_COORDINATE:
         far = f"as far as {big:.3g}" if np.isfinite(big) else "to non-finite positions"
-        raise UsageError(f"--noise {spec.sigma:g} / --outlier-range {spec.outlier_range:g} move vertices {far}, "
+        given = " / ".join([f"--noise {spec.sigma:g}"] * (spec.sigma > 0)
+                           + [f"--outlier-range {spec.outlier_range:g}"] * (spec.outliers > 0))
+        raise UsageError(f"{given} move{'s' if ' / ' not in given else ''} vertices {far}, "
                          f"beyond the +-{MAX_COORDINATE:.0e} a mesh may span; use less noise")
     return out, outlier
 
@@ -139,3 +141,28 @@ def _add_noise(out: np.ndarray, outlier: np.ndarray, V: np.ndarray, F: np.ndarra
         radius = spec.outlier_range * diag * rng.random(len(idx)) ** (1.0 / 3.0)
         out[idx] += u * radius[:, None]
         outlier[idx] = 1.0
+
+
+def outlier_flags(values: np.ndarray, shape: tuple[int, ...], path: str | None = None) -> np.ndarray:
+    """An ``outlier`` property read back as flags.
+
+    Parameters
+    ----------
+    values : array of shape ``shape`` (or with a trailing axis of 1), 1.0 on
+        outliers and 0.0 elsewhere (values above 0.5 count as outliers).
+    shape : (n,) for a mesh or cloud, (frames, n) for an animation.
+    path : str, optional
+        File name for error messages.
+
+    Returns
+    -------
+    bool array of ``shape``; InputError when the values have another shape or are not finite.
+    """
+    flags = np.asarray(values, dtype=np.float64)
+    if flags.ndim == len(shape) + 1 and flags.shape[-1] == 1:
+        flags = flags[..., 0]
+    if flags.shape != tuple(shape):
+        raise InputError(path, f"'outlier' property has shape {flags.shape}; expected {tuple(shape)}")
+    if not np.isfinite(flags).all():
+        raise InputError(path, "'outlier' property has non-finite values (0 marks an inlier, 1 an outlier)")
+    return flags > 0.5

@@ -11,6 +11,7 @@ import pytest
 
 from geoproc.animation import Animation, animation_to_bytes, load_animation
 from geoproc.denoise import denoise_errors
+from geoproc.denoise.metrics import flipped_faces, new_flipped_faces
 from geoproc.mesh import Mesh, load_mesh, save_mesh
 from tests.conftest import load_fixture_module
 
@@ -91,6 +92,19 @@ def test_outliers_f1_and_outputs(cli, dfx, tmp_path):
     assert p.returncode == 0, p.stderr
     allp = load_mesh(out)
     assert len(allp.V) == len(P) and {"outlier_score", "outlier_detected"} <= set(allp.vertex_fields)
+    # nothing detected: precision is not defined (null), recall and F1 are 0
+    p = cli("denoise", src, "--outliers", "--threshold", "1e300", "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    met = _metrics(rep)
+    assert met["precision"] is None and met["recall"] == 0.0 and met["f1"] == 0.0
+    # everything detected: no inlier to write, exit 2 and nothing written
+    out.unlink()
+    p = cli("denoise", src, "--outliers", "--threshold", "0", "-o", out)
+    assert _one_line_error(p) and "every point scores above the threshold 0" in p.stderr and not out.exists()
+    bad = tmp_path / "nan.ply"
+    save_mesh(bad, Mesh(P, np.zeros((0, 3), int), {"outlier": np.where(flag > 0, np.nan, 0.0)}))
+    p = cli("denoise", bad, "--outliers", "-o", out)
+    assert _one_line_error(p) and "nan.ply: 'outlier' property has non-finite values" in p.stderr
 
 
 @pytest.mark.parametrize("coherence", [None, "normals"])
@@ -108,8 +122,22 @@ def test_dynamic_npz(cli, dfx, tmp_path, coherence):
     assert report["metrics"]["coherence"] == (coherence or "heights")
     a = load_animation(out)
     theta = np.mean([denoise_errors(a.V[t], F, V[t])["mean_normal_angle_deg"] for t in range(3)])
-    assert _metrics(rep)["mean_normal_angle_deg"] == pytest.approx(theta, rel=1e-9)
+    met = _metrics(rep)
+    assert met["mean_normal_angle_deg"] == pytest.approx(theta, rel=1e-9)
     assert theta < 0.5 * np.mean([denoise_errors(Vn[t], F, V[t])["mean_normal_angle_deg"] for t in range(3)])
+    # face counts are summed over the frames
+    before = [flipped_faces(Vn[t], F, V[t]) for t in range(3)]
+    assert met["input_flipped_faces"] == sum(len(b) for b in before)
+    assert met["new_flipped_faces"] == sum(new_flipped_faces(a.V[t], F, V[t], before[t]) for t in range(3))
+
+
+def test_dynamic_needs_three_frames(cli, dfx, tmp_path):
+    Vn, F, _ = dfx.noisy_wave(frames=3)
+    src, out = tmp_path / "two.npz", tmp_path / "d.npz"
+    src.write_bytes(animation_to_bytes(Animation(Vn[:2], F)))
+    p = cli("denoise", src, "--dynamic", "-o", out)
+    assert _one_line_error(p) and "two.npz: has 2 frames; --dynamic needs at least 3" in p.stderr
+    assert not out.exists()
 
 
 # ---- bad input: one line, exit 2, nothing written --------------------------------------------
@@ -266,6 +294,9 @@ def test_animation_outliers_bad_usage(cli, dfx, tmp_path):
     assert _one_line_error(p) and ".npz" in p.stderr and not out.exists()
     p = cli("denoise", src, "--refined", "-o", tmp_path / "o.npz")
     assert _one_line_error(p) and "--refined" in p.stderr
+    np.savez(tmp_path / "flat.npz", vertices=V, faces=np.zeros((0, 3), np.int64), outlier=flag.max(axis=0))
+    p = cli("denoise", tmp_path / "flat.npz", "--outliers", "-o", tmp_path / "o.npz")
+    assert _one_line_error(p) and f"'outlier' has shape ({V.shape[1]},); expected (frames, n)" in p.stderr
 
 
 def test_feature_options(cli, cube_pair, tmp_path):
@@ -300,5 +331,6 @@ def test_reference_from_stdin(cli, cube_pair, tmp_path):
             stdin=clean.read_bytes())
     assert p.returncode == 0, p.stderr
     assert _metrics(rep)["mean_normal_angle_deg"] < _metrics(rep)["input_mean_normal_angle_deg"]
-    p = cli("denoise", "-", "--reference", "-", "-o", tmp_path / "o.ply", stdin=noisy.read_bytes())
-    assert _one_line_error(p) and "standard input can feed only one input" in p.stderr
+    for data in (noisy.read_bytes(), b"0 5\n"):  # refused before reading, whatever stdin holds
+        p = cli("denoise", "-", "--reference", "-", "-o", tmp_path / "o.ply", stdin=data)
+        assert _one_line_error(p) and "standard input can feed only one input" in p.stderr

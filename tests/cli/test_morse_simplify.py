@@ -174,7 +174,8 @@ def test_barycentric_reaches_half_threshold_and_chains(cli, shared_data, tmp_pat
     mesh = load_mesh(name)
     f = load_fixture_module("morse_fixtures").noisy_height(mesh.V, axis=1, noise=0.02, seed=10)
     src = tmp_path / "f.ply"
-    save_mesh(src, Mesh(mesh.V, mesh.F, vertex_fields={"h": f}))
+    save_mesh(src, Mesh(mesh.V, mesh.F, vertex_fields={"h": f, "u": mesh.V[:, 0]},
+                        face_fields={"part": np.arange(len(mesh.F), dtype=np.float64)}))
     out, rep, crit = tmp_path / "o.ply", tmp_path / "r.json", tmp_path / "c.json"
     p = cli("morse-simplify", src, "--field", "h", "--persistence", "0.01", "--relative", "--barycentric",
             "-o", out, "--report", rep, "--critical", crit, "-q")
@@ -187,6 +188,8 @@ def test_barycentric_reaches_half_threshold_and_chains(cli, shared_data, tmp_pat
     dim = sd.vertex_fields["cell_dim"]
     assert np.bincount(dim.astype(int)).tolist() == [n, edges, faces]
     np.testing.assert_allclose(sd.vertex_fields["h_original"][:n], f)
+    np.testing.assert_allclose(sd.vertex_fields["u"], sd.V[:, 0], atol=1e-12)  # other fields interpolated
+    assert np.array_equal(sd.face_fields["part"], np.repeat(np.arange(faces), 6))  # six per input triangle
     g, fe = sd.vertex_fields["h"], sd.vertex_fields["h_original"]
     assert m["vertices_beyond_half_threshold"] == 0
     assert np.abs(g - fe).max() <= m["threshold"] / 2 * (1 + 1e-12)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 
@@ -10,6 +11,7 @@ import numpy as np
 from geoproc.animation import load_animation
 from geoproc.mesh import load_mesh
 from geoproc.perturb import noise_scale
+from geoproc.report import validate_report
 from tests.conftest import load_fixture_module
 
 
@@ -40,6 +42,19 @@ def test_outliers_property_and_report(cli, fixture_dir, tmp_path):
     assert json.loads(rep.read_text())["metrics"]["outlier_vertices"] == 50
 
 
+def test_outlier_flags_of_an_earlier_run_are_kept(cli, fixture_dir, tmp_path):
+    once, twice, rep = tmp_path / "o1.ply", tmp_path / "o2.ply", tmp_path / "r.json"
+    args = ("--noise", "0", "--outliers", "0.1")
+    assert cli("perturb", fixture_dir / "points.ply", *args, "--seed", "1", "-o", once).returncode == 0
+    p = cli("perturb", once, *args, "--seed", "2", "-o", twice, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    clean, a, b = load_mesh(fixture_dir / "points.ply"), load_mesh(once), load_mesh(twice)
+    moved = np.linalg.norm(b.V - clean.V, axis=1) > 0
+    flagged = b.vertex_fields["outlier"] > 0.5
+    assert np.array_equal(moved, flagged) and flagged.sum() > a.vertex_fields["outlier"].sum()
+    assert json.loads(rep.read_text())["metrics"]["outlier_vertices"] == int(flagged.sum())
+
+
 def test_animation_npz(cli, tmp_path):
     dfx = denoise_fixtures()
     V, F = dfx.wave_animation(3)
@@ -54,6 +69,10 @@ def test_animation_npz(cli, tmp_path):
     assert outs[0].read_bytes() == outs[1].read_bytes()
     a = load_animation(outs[0])
     assert a.V.shape == V.shape and np.array_equal(a.F, F)
+    rep = tmp_path / "r.json"
+    assert cli("perturb", src, "--noise", "0.3", "--seed", "3", "-o", outs[0], "--report", rep).returncode == 0
+    rms = json.loads(rep.read_text())["metrics"]["rms_displacement"]
+    assert np.isclose(rms, np.sqrt(np.mean(np.sum((a.V - V) ** 2, axis=2))))
     assert not np.allclose(a.V[0], V[0]) and not np.allclose(a.V[0] - V[0], a.V[1] - V[1])
 
 
@@ -63,7 +82,9 @@ def test_bad_options_exit_2_without_output(cli, fixture_dir, tmp_path):
                          (["--outliers", "0.5", "--outlier-range", "1e60"], "beyond the +-1e+50"),
                          (["--noise", "1e308"], "to non-finite positions"),
                          (["--outlier-range", "0.5"], "--outlier-range: only with --outliers"),
-                         (["--noise", "0", "--direction", "random"], "--direction: not used with --noise 0")):
+                         (["--noise", "0", "--direction", "random"], "--direction: not used with --noise 0"),
+                         (["--outliers", "0.1", "--outlier-range", "0"], "--outlier-range 0.0: must be > 0"),
+                         (["--noise", "1e60"], "error: --noise 1e+60 moves vertices as far as")):
         p = cli("perturb", fixture_dir / "icosphere.ply", "--seed", "1", "-o", out, *args)
         assert p.returncode == 2 and p.stderr.startswith("error:") and len(p.stderr.strip().splitlines()) == 1
         assert needle in p.stderr
@@ -92,8 +113,13 @@ def test_animation_folder_is_recorded_in_the_report(cli, tmp_path):
         rep = tmp_path / "r.json"
         p = cli("perturb", folder, "--noise", "0.3", "--seed", "3", "-o", tmp_path / "n.npz", "--report", rep)
         assert p.returncode == 0, p.stderr
-        (entry,) = json.loads(rep.read_text())["inputs"]
+        report = json.loads(rep.read_text())
+        validate_report(report)
+        (entry,) = report["inputs"]
         assert entry["path"] == str(folder)
+        frames = [folder / f"frame{k:03d}.obj" for k in range(len(V))]
+        assert entry["frames"] == [{"path": str(f), "sha256": hashlib.sha256(f.read_bytes()).hexdigest()}
+                                   for f in frames]
         return entry["sha256"]
 
     first = recorded()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -63,7 +65,7 @@ def test_heights_average_out_independent_noise(make_fixtures):
     V0, F = make_fixtures.icosphere(3)
     rng = np.random.default_rng(3)
     V = np.stack([perturb_positions(V0, F, NoiseSpec(sigma=0.2), rng)[0] for _ in range(12)])
-    out, _ = coherent_heights(V, F)
+    out, _ = coherent_heights(V, F, max_turn_deg=180.0)  # raw noisy frames: faces turn far, let them
     before = np.abs(np.linalg.norm(V, axis=2) - 1).mean()
     after = np.abs(np.linalg.norm(out, axis=2) - 1).mean()
     assert after < 0.6 * before  # measured: 0.50
@@ -126,6 +128,34 @@ def test_folder_of_frames(tmp_path, make_fixtures):
     save_mesh(tmp_path / "frame003.ply", Mesh(V, F[:, [0, 2, 1]]))
     with pytest.raises(InputError, match="different connectivity"):
         load_animation(tmp_path)
+
+
+def test_folder_frames_in_natural_order_with_their_fields(tmp_path, make_fixtures):
+    V, F = make_fixtures.icosphere(1)
+    for t in (0, 1, 2, 10, 11):  # frame10 sorts before frame2 as plain text
+        save_mesh(tmp_path / f"frame{t}.ply", Mesh(V * (1 + 0.1 * t), F, {"outlier": np.full(len(V), t % 2.0)}))
+    a = load_animation(tmp_path)
+    scale = np.linalg.norm(a.V[:, 0], axis=1) / np.linalg.norm(V[0])
+    assert np.allclose(scale, [1.0, 1.1, 1.2, 2.0, 2.1])
+    assert [os.path.basename(f) for f in a.frame_files] == [f"frame{t}.ply" for t in (0, 1, 2, 10, 11)]
+    assert np.array_equal(a.fields["outlier"][:, 0], [0.0, 1.0, 0.0, 0.0, 1.0])
+
+
+def test_heights_never_turn_a_face_past_the_limit(make_fixtures):
+    # frames whose coherent heights would fold faces: the shift of the
+    # offending faces' vertices is cancelled, so no face turns past 20 degrees
+    V0, F = make_fixtures.icosphere(3)
+    rng = np.random.default_rng(5)
+    V = np.stack([V0 + 0.08 * rng.standard_normal(V0.shape) for _ in range(8)])
+    out, info = coherent_heights(V, F, max_turn_deg=20.0)
+    for t in range(len(V)):
+        cos = np.einsum("ij,ij->i", face_normals_and_areas(out[t], F)[0], face_normals_and_areas(V[t], F)[0])
+        assert cos.min() >= np.cos(np.radians(20.0)) - 1e-12
+    assert info["turn_limited_vertices"] > 0
+    free, _ = coherent_heights(V, F, max_turn_deg=180.0)
+    turned = [np.einsum("ij,ij->i", face_normals_and_areas(free[t], F)[0],
+                        face_normals_and_areas(V[t], F)[0]).min() for t in range(len(V))]
+    assert min(turned) < np.cos(np.radians(20.0))  # without the limit some face does turn further
 
 
 def test_npz_errors(tmp_path):

@@ -118,3 +118,15 @@ def test_animation_with_too_few_frames_is_refused(dfx):
     V, _, _ = dfx.animated_cloud_with_outliers(count=200, frames=2)
     with pytest.raises(InputError, match="frames"):
         rpca_animation_outliers(V, path="anim.npz")
+
+
+def test_detection_scores_are_nan_where_undefined():
+    truth = np.array([True, True, False, False])
+    s = detection_scores(np.array([True, False, True, False]), truth)
+    assert (s["precision"], s["recall"], s["f1"]) == (0.5, 0.5, 0.5)
+    none = detection_scores(np.zeros(4, bool), truth)  # nothing detected: precision undefined
+    assert np.isnan(none["precision"]) and none["recall"] == 0.0 and none["f1"] == 0.0
+    clean = detection_scores(np.array([True, False, False, False]), np.zeros(4, bool))  # no outlier to find
+    assert clean["precision"] == 0.0 and np.isnan(clean["recall"]) and clean["f1"] == 0.0
+    empty = detection_scores(np.zeros(4, bool), np.zeros(4, bool))
+    assert all(np.isnan(v) for v in empty.values())

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from geoproc.mesh import load_mesh
-from geoproc.morse.barycentric import barycentric_simplify
+from geoproc.morse.barycentric import barycentric_simplify, subdivision_values
 
 gudhi = pytest.importorskip("gudhi")
 
@@ -94,6 +94,16 @@ def test_open_disk_patch():
     r2 = ((V[:, :2] - 0.5) ** 2).sum(axis=1)
     f = -r2 + 0.01 * np.random.default_rng(7).standard_normal(len(V))
     check_barycentric(V, F, f, 0.1)
+
+
+def test_other_fields_are_interpolated_onto_the_subdivision():
+    V, F = mfx.disk_patch()
+    f = -((V[:, :2] - 0.5) ** 2).sum(axis=1)
+    res = barycentric_simplify(V, F, f, 0.1)
+    A = np.array([[1.0, -2.0], [0.5, 3.0], [2.0, 0.25]])
+    fields = V @ A  # two linear fields: exact at midpoints and centroids
+    np.testing.assert_allclose(subdivision_values(res, F, fields), res.V @ A, atol=1e-12)
+    np.testing.assert_allclose(subdivision_values(res, F, fields[:, 0]), res.V @ A[:, 0], atol=1e-12)
 
 
 def test_several_components():
