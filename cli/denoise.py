@@ -183,6 +183,8 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
 
     run.one_stdin(input, reference)
+    if input != "-" and is_animation_path(input):
+        raise UsageError(f"{input}: an animation; --dynamic denoises it, --outliers finds its outlying points")
     mesh = run.load_mesh(input, clean=not no_clean)
     path = mesh.log.path or None
     if mesh.is_point_cloud:

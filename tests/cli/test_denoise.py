@@ -138,6 +138,8 @@ def test_dynamic_needs_three_frames(cli, dfx, tmp_path):
     p = cli("denoise", src, "--dynamic", "-o", out)
     assert _one_line_error(p) and "two.npz: has 2 frames; --dynamic needs at least 3" in p.stderr
     assert not out.exists()
+    p = cli("denoise", src, "-o", out)
+    assert _one_line_error(p) and "two.npz: an animation; --dynamic denoises it" in p.stderr
 
 
 # ---- bad input: one line, exit 2, nothing written --------------------------------------------
