@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from geoproc.errors import UsageError
+from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.log_lu import LogMMatrixSolver
 from geoproc.geodesic.operators import factor_sparse_lu, negative_offdiagonal_count
 
@@ -65,7 +65,9 @@ class LogStepSystem:
         off.eliminate_zeros()
         off.sort_indices()
         if np.any(np.diff(off.indptr) == 0):
-            raise ValueError("a vertex has no neighbor (isolated vertices must be removed first)")
+            v = int(np.flatnonzero(np.diff(off.indptr) == 0)[0])
+            raise InputError(None, f"vertex {v} has no neighbour with a nonzero Laplacian weight (isolated, "
+                                   "or only degenerate triangles around it)")
         self.n, self.dt = n, dt
         self.indptr, self.cols = off.indptr, off.indices
         self.rows = np.repeat(np.arange(n), np.diff(off.indptr))

@@ -29,6 +29,16 @@ def cotan_laplacian(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix(igl.cotmatrix(V, F))
 
 
+def infinite_cotan_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Indices of faces whose cotangent weights (``igl.cotmatrix_entries``,
+    from edge lengths) are not finite: slivers so thin that their edge lengths
+    give zero area although the cross product does not."""
+    import igl
+
+    C = igl.cotmatrix_entries(np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F))
+    return np.flatnonzero(~np.isfinite(C).all(axis=1))
+
+
 def lumped_mass(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n,) Voronoi lumped mass of each vertex (area unit), by ``igl.massmatrix``."""
     import igl
