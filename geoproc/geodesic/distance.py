@@ -209,14 +209,12 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         k = int(np.flatnonzero(area <= 0)[0])
         raise InputError(path, f"{int((area <= 0).sum())} faces have zero area (first: face {k}); "
                                f"method '{method}' needs non-degenerate triangles")
-    if method in ("heat", "log-heat", "log-splitting") or lap == "cotan":  # the mesh's own cotan weights
-        from geoproc.geodesic.operators import infinite_cotan_faces
+    from geoproc.geodesic.operators import infinite_cotan_faces
 
-        thin = infinite_cotan_faces(V, F)
-        if len(thin):
-            raise InputError(path, f"{len(thin)} faces are too thin for cotan weights (first: face {thin[0]}; "
-                                   "their edge lengths give zero area, so a cotangent is infinite); use -m exact, "
-                                   "or varadhan or log-ode with --laplacian intrinsic-delaunay")
+    thin = infinite_cotan_faces(V, F)  # cotan weights are infinite; exact and log-ode did not return
+    if len(thin):
+        raise InputError(path, f"{len(thin)} faces are too thin (first: face {thin[0]}): their edge lengths "
+                               "give zero area, so their cotangents are infinite")
 
     V2, F2, keep, s2 = source_submesh(V, F, src)
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
