@@ -205,16 +205,20 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
             a, b = (int(x) for x in bad[0])
             raise InputError(path, f"non-manifold: {len(bad)} edges have more than two faces "
                                    f"(first: edge {a}-{b}); method '{method}' needs an edge-manifold mesh")
-    if (area <= 0).any() and (method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"):
+    own_triangles = method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"
+    if (area <= 0).any() and own_triangles:
         k = int(np.flatnonzero(area <= 0)[0])
         raise InputError(path, f"{int((area <= 0).sum())} faces have zero area (first: face {k}); "
                                f"method '{method}' needs non-degenerate triangles")
-    from geoproc.geodesic.operators import infinite_cotan_faces
+    if own_triangles:  # faces whose edge lengths give zero area count as zero-area faces
+        from geoproc.geodesic.operators import infinite_cotan_faces
 
-    thin = infinite_cotan_faces(V, F)  # cotan weights are infinite; exact and log-ode did not return
-    if len(thin):
-        raise InputError(path, f"{len(thin)} faces are too thin (first: face {thin[0]}): their edge lengths "
-                               "give zero area, so their cotangents are infinite")
+        thin = infinite_cotan_faces(V, F)  # their cotangents are infinite: heat gave NaN, exact never returned
+        if len(thin):
+            raise InputError(path, f"{len(thin)} faces are too thin (first: face {thin[0]}): their edge lengths "
+                                   f"give zero area, so their cotangents are infinite; method '{method}' needs "
+                                   "non-degenerate triangles (varadhan and log-ode with --laplacian "
+                                   "intrinsic-delaunay accept them)")
 
     V2, F2, keep, s2 = source_submesh(V, F, src)
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
