@@ -94,6 +94,8 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
     """Parse ``data`` in format ``fmt`` (see :func:`load_mesh`)."""
     if len(data) == 0:
         raise InputError(path, "file is empty")
+    if data.startswith(b"\xef\xbb\xbf") and fmt in ("obj", "off"):  # a UTF-8 byte order mark
+        data = data[3:]
     if fmt == "ply":
         mesh, polys = _parse_ply(data, path)
     else:
@@ -248,6 +250,7 @@ def _require_integer_indices(faces: list, path: str) -> None:
 
 _OBJ_ZERO_INDEX = re.compile(rb"^[ \t]*f[ \t](?:[^\n#]*?[ \t])?0(?:/[^\s#]*)?(?=[ \t\r#]|$)", re.M)
 _OBJ_FACE_LINE = re.compile(rb"^([ \t]*f[ \t][^\r\n]*)", re.M)
+_OBJ_NEGATIVE_INDEX = re.compile(rb"^[ \t]*f[ \t][^\r\n]*?[ \t]-\d", re.M)
 _OBJ_CORNER_SUFFIX = re.compile(rb"/[^\s]*")
 _OBJ_ANY_FACE_LINE = re.compile(rb"^[ \t]*f(?=[ \t\r\n]|$)([^\r\n]*)", re.M)  # "f" alone too
 
@@ -259,7 +262,25 @@ def _obj_positions_only(data: bytes) -> bytes:
     texture seams."""
     data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
     data = data.replace(b"\t", b" ")  # trimesh splits on spaces only
-    return _OBJ_FACE_LINE.sub(lambda m: _OBJ_CORNER_SUFFIX.sub(b"", m.group(1)), data)
+    data = _OBJ_FACE_LINE.sub(lambda m: _OBJ_CORNER_SUFFIX.sub(b"", m.group(1)), data)
+    return _obj_absolute_indices(data) if _OBJ_NEGATIVE_INDEX.search(data) else data
+
+
+def _obj_absolute_indices(data: bytes) -> bytes:
+    """Face lines with relative (negative) indices rewritten as absolute ones:
+    ``-1`` is the last vertex defined above the line (trimesh counts from the
+    end of the file instead)."""
+    out, seen = [], 0
+    for line in data.split(b"\n"):
+        head = line.lstrip()
+        if head.startswith((b"v ", b"v\r")) or head == b"v":
+            seen += 1
+        elif head.startswith(b"f "):
+            tokens = line.split()
+            line = b" ".join([tokens[0]] + [str(seen + 1 + int(t)).encode() if t.startswith(b"-") else t
+                                            for t in tokens[1:]])
+        out.append(line)
+    return b"\n".join(out)
 
 
 def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:

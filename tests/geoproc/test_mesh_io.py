@@ -188,3 +188,16 @@ def test_atomic_write_leaves_nothing_on_failure(tmp_path):
     with pytest.raises(RuntimeError):
         write_files_atomic([(target, b"new")], before_rename=boom)
     assert target.read_bytes() == b"old" and len(list(tmp_path.iterdir())) == 1
+
+
+def test_obj_relative_indices_count_back_from_the_line():
+    # -1 is the last vertex defined above the face line, not the file's last vertex
+    data = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 1 1 0\nf -3 -1 -2\nf 2 4 3\n"
+    m = read_mesh_bytes(data, "obj", clean=False)
+    assert m.F.tolist() == [[0, 1, 2], [1, 3, 2], [1, 3, 2]]
+
+
+def test_utf8_byte_order_mark_is_skipped():
+    body = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"
+    m = read_mesh_bytes(b"\xef\xbb\xbf" + body, "obj", clean=False)
+    assert len(m.V) == 4 and m.F.tolist() == read_mesh_bytes(body, "obj", clean=False).F.tolist()
