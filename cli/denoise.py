@@ -196,7 +196,12 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
         ref = run.read_input(reference, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
         ref_V = reference_in_input_order(mesh.F, len(mesh.V), ref.F, ref.V, reference)
     with run.timer("denoise"), run.progress(f"denoise ({method})") as update:
-        res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
+        try:
+            res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
+        except InputError as exc:  # a problem of the mesh found by the method: name the file
+            if exc.path is not None:
+                raise
+            raise InputError(path or input, exc.problem) from None
     out = Mesh(res.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields))
     out.face_fields["feature"] = res.feature
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),

@@ -46,7 +46,7 @@ from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import unfold_faces, update_vertices
-from geoproc.errors import UsageError
+from geoproc.errors import InputError, UsageError
 from geoproc.mesh.topology import boundary_vertices
 
 
@@ -452,7 +452,10 @@ def filter_and_fit(
     i, k = np.nonzero(edge_nb >= 0)
     spacing = float(np.linalg.norm(C[i] - C[edge_nb[i, k]], axis=1).mean()) if len(i) else 1.0
     sigma_s = plan.spatial_scale * spacing
-    if not sigma_s > 1e-150:  # coincident faces, or a width whose square underflows
+    if not spacing > 0:  # every pair of edge-adjacent faces shares its centroid
+        raise InputError(None, "edge-adjacent faces have coincident centroids (mean centroid spacing 0): "
+                               "the faces coincide, there is no spatial scale to filter over")
+    if not sigma_s > 1e-150:  # a width whose square underflows
         raise UsageError(f"spatial kernel width {sigma_s:.3g} (--sigma-s {plan.spatial_scale:.3g} x centroid "
                          f"spacing {spacing:.3g}) is too small: faces coincide or --sigma-s underflows")
     patch = nearest_faces_in_ring(C, ring, p.patch_size) if method == "rpca" else None

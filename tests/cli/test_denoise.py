@@ -336,3 +336,10 @@ def test_reference_from_stdin(cli, cube_pair, tmp_path):
     for data in (noisy.read_bytes(), b"0 5\n"):  # refused before reading, whatever stdin holds
         p = cli("denoise", "-", "--reference", "-", "-o", tmp_path / "o.ply", stdin=data)
         assert _one_line_error(p) and "standard input can feed only one input" in p.stderr
+
+
+def test_coincident_faces_error_names_the_file(cli, tmp_path):
+    src = tmp_path / "pillow.obj"  # two faces on the same three vertices: centroid spacing 0
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 3 2\n")
+    p = cli("denoise", src, "-o", tmp_path / "o.ply")
+    assert _one_line_error(p) and f"error: {src}: edge-adjacent faces have coincident centroids" in p.stderr
