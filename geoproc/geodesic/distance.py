@@ -217,8 +217,7 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         if len(thin):
             raise InputError(path, f"{len(thin)} faces are too thin (first: face {thin[0]}): their edge lengths "
                                    f"give zero area, so their cotangents are infinite; method '{method}' needs "
-                                   "non-degenerate triangles (varadhan and log-ode with --laplacian "
-                                   "intrinsic-delaunay accept them)")
+                                   "non-degenerate triangles")
 
     V2, F2, keep, s2 = source_submesh(V, F, src)
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
