@@ -277,7 +277,7 @@ def _obj_absolute_indices(data: bytes) -> bytes:
             seen += 1
         elif head.startswith(b"f "):
             tokens = line.split()
-            line = b" ".join([tokens[0]] + [str(seen + 1 + int(t)).encode() if t.startswith(b"-") else t
+            line = b" ".join([tokens[0]] + [str(seen + 1 + int(t)).encode() if re.fullmatch(rb"-\d+", t) else t
                                             for t in tokens[1:]])
         out.append(line)
     return b"\n".join(out)
