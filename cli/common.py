@@ -44,6 +44,7 @@ from geoproc.report.report import report_json
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 T = TypeVar("T")
+ONE_STDIN = "standard input can feed only one input; give the others as files"
 
 stderr = Console(stderr=True, highlight=False, soft_wrap=True)
 stdout = Console(highlight=False, soft_wrap=True)
@@ -103,13 +104,13 @@ class Run:
         """UsageError when more than one of the input ``paths`` is ``-``; checked
         before any is read, so that the error does not depend on what stdin holds."""
         if sum(os.fspath(p) == "-" for p in paths if p is not None) > 1:
-            raise UsageError("standard input can feed only one input; give the others as files")
+            raise UsageError(ONE_STDIN)
 
     def read_stdin(self) -> bytes:
         """All of standard input (one input per run may be ``-``: a second is a
         UsageError)."""
         if self._stdin_read:
-            self.one_stdin("-", "-")
+            raise UsageError(ONE_STDIN)
         self._stdin_read = True
         if sys.stdin is None:
             raise InputError("-", "standard input is closed")

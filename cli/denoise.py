@@ -179,7 +179,7 @@ def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynam
 
 def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     from geoproc.denoise.mesh_denoise import denoise_mesh
-    from geoproc.denoise.metrics import denoise_errors, flipped_faces, mean_normal_angle_deg, new_flipped_faces
+    from geoproc.denoise.metrics import reference_metrics
     from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
 
     run.one_stdin(input, reference)
@@ -209,11 +209,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
     if ref_V is not None:
         with run.timer("metrics"):
-            run.metrics.update(denoise_errors(res.V, mesh.F, ref_V))
-            before = flipped_faces(mesh.V, mesh.F, ref_V)
-            run.metrics["input_mean_normal_angle_deg"] = mean_normal_angle_deg(mesh.V, mesh.F, ref_V)
-            run.metrics["input_flipped_faces"] = len(before)
-            run.metrics["new_flipped_faces"] = new_flipped_faces(res.V, mesh.F, ref_V, before)
+            run.metrics.update(reference_metrics(res.V, mesh.V, mesh.F, ref_V))
     run.write_mesh(output, out)
 
 
@@ -273,7 +269,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
 
 def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     from geoproc.denoise.dynamic import denoise_animation
-    from geoproc.denoise.metrics import denoise_errors, flipped_faces, mean_normal_angle_deg, new_flipped_faces
+    from geoproc.denoise.metrics import reference_metrics
     from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
 
     if input == "-" or not is_animation_path(input):
@@ -301,18 +297,11 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     run.metrics.update({k: v for k, v in info.items() if np.isscalar(v)})
     if ref_V is not None:
         with run.timer("metrics"):
-            T = anim.n_frames
-            per = [denoise_errors(V[t], anim.F, ref_V[t]) for t in range(T)]
-            for key in ("mean_normal_angle_deg", "hausdorff", "vertex_rmse"):
-                run.metrics[key] = float(np.mean([p[key] for p in per]))
-            run.metrics["max_normal_angle_deg"] = float(max(p["max_normal_angle_deg"] for p in per))
-            run.metrics["flipped_faces"] = int(sum(p["flipped_faces"] for p in per))
-            before = [flipped_faces(anim.V[t], anim.F, ref_V[t]) for t in range(T)]
-            run.metrics["input_mean_normal_angle_deg"] = float(np.mean(
-                [mean_normal_angle_deg(anim.V[t], anim.F, ref_V[t]) for t in range(T)]))
-            run.metrics["input_flipped_faces"] = int(sum(len(b) for b in before))
-            run.metrics["new_flipped_faces"] = int(sum(new_flipped_faces(V[t], anim.F, ref_V[t], before[t])
-                                                       for t in range(T)))
+            per = [reference_metrics(V[t], anim.V[t], anim.F, ref_V[t]) for t in range(anim.n_frames)]
+            for key in per[0]:  # face counts summed over the frames, the largest angle, the rest averaged
+                values = [p[key] for p in per]
+                run.metrics[key] = (int(sum(values)) if key.endswith("flipped_faces") else
+                                    float(max(values)) if key == "max_normal_angle_deg" else float(np.mean(values)))
     run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, dict(anim.fields), output)))
 
 

@@ -457,7 +457,7 @@ def filter_and_fit(
                                "the faces coincide, there is no spatial scale to filter over")
     if not sigma_s > 1e-150:  # a width whose square underflows
         raise UsageError(f"spatial kernel width {sigma_s:.3g} (--sigma-s {plan.spatial_scale:.3g} x centroid "
-                         f"spacing {spacing:.3g}) is too small: faces coincide or --sigma-s underflows")
+                         f"spacing {spacing:.3g}) is too small: its square underflows")
     patch = nearest_faces_in_ring(C, ring, p.patch_size) if method == "rpca" else None
     # guidance blended away entirely (mix 1) is the plain bilateral filter: no guidance to compute
     plain = method == "bilateral" or mix >= 1.0

@@ -39,6 +39,22 @@ def new_flipped_faces(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray, input_fli
     return int(np.setdiff1d(flipped_faces(V, F, V_ref), input_flipped).size)
 
 
+def reference_metrics(V: np.ndarray, V_input: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> dict:
+    """:func:`denoise_errors` of the result V, plus the input's own error
+    (``input_mean_normal_angle_deg``, ``input_flipped_faces``) and the faces
+    the result flipped that the input had not (``new_flipped_faces``).
+
+    Parameters
+    ----------
+    V, V_input, V_ref : (n, 3) result, noisy input and clean positions; F : (m, 3) their triangles.
+    """
+    before = flipped_faces(V_input, F, V_ref)
+    return {**denoise_errors(V, F, V_ref),
+            "input_mean_normal_angle_deg": mean_normal_angle_deg(V_input, F, V_ref),
+            "input_flipped_faces": len(before),
+            "new_flipped_faces": new_flipped_faces(V, F, V_ref, before)}
+
+
 def two_sided_hausdorff(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray, F_ref: np.ndarray) -> float:
     """Two-sided Hausdorff distance between two surfaces, from vertices to surfaces
     (the largest vertex-to-surface distance either way), in length units."""
