@@ -18,9 +18,10 @@ from geoproc.denoise.face_geometry import (
 )
 from geoproc.denoise.guidance import guidance_normals, patch_consistency, patch_interior_edges
 from geoproc.denoise.metrics import flipped_faces, new_flipped_faces, two_sided_hausdorff
-from geoproc.denoise.noise_level import roughness
+from geoproc.denoise.noise_level import exactly_planar_vertices, roughness
 from geoproc.denoise.vertex_update import update_vertices
 from geoproc.mesh import load_mesh
+from geoproc.mesh.topology import boundary_edges
 from tests.conftest import load_fixture_module
 
 
@@ -89,6 +90,26 @@ def test_clean_mesh_stays_clean(make_fixtures, name):
     assert denoise_errors(res.V, F, V)["mean_normal_angle_deg"] < 0.5
 
 
+def test_twelve_triangle_cube_stays_clean():
+    # every vertex is a corner whose valence (3 to 6) makes the umbrella
+    # heights jump: without the exact-plane rule it read as noise 0.24 and
+    # its normals moved by 42.5 degrees
+    V = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], float)
+    F = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    res = denoise_mesh(V, F)
+    assert res.info["noise_roughness"] == 0.0
+    assert denoise_errors(res.V, F, V)["mean_normal_angle_deg"] < 0.5
+
+
+def test_exactly_planar_vertices_are_absent_from_noisy_meshes(dfx, noisy_cube):
+    V, F = dfx.subdivided_cube(8)
+    assert exactly_planar_vertices(V, F).all()
+    Vn, Fn, _ = noisy_cube
+    interior = np.setdiff1d(np.arange(len(Vn)), np.unique(boundary_edges(Fn)))
+    assert not exactly_planar_vertices(Vn, Fn)[interior].any()
+
+
 @pytest.mark.parametrize("method", ["guided", "rpca"])
 def test_forced_filtering_keeps_clean_cube_edges(dfx, method):
     # even when made to filter (one round), a clean sharp cube keeps its normals
@@ -112,7 +133,6 @@ def test_pinned_boundary_does_not_move(make_fixtures):
     rng = np.random.default_rng(1)
     Vn = V + [0, 0, 0.01] * rng.standard_normal(V.shape)
     res = denoise_mesh(Vn, F, params=DenoiseParams(outer_iterations=2, normal_iterations=3, pin_boundary=True))
-    from geoproc.mesh.topology import boundary_edges
 
     b = np.unique(boundary_edges(F))
     assert np.array_equal(res.V[b], Vn[b])
