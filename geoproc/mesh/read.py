@@ -1,8 +1,9 @@
 """Read OBJ, PLY (ASCII and binary), OFF and STL files into a :class:`Mesh`.
 
 PLY goes through plyfile so that every named vertex and face property comes back
-exactly (positions and fields as float64); OBJ, OFF and STL go through trimesh with
-``process=False``. Polygons with more than three corners are triangulated as fans
+exactly (positions and fields as float64); ASCII OFF (also COFF, NOFF, STOFF) is
+parsed here, vectorized; OBJ, STL and the other OFF variants go through trimesh
+with ``process=False``. Polygons with more than three corners are triangulated as fans
 and counted in ``mesh.log.triangulated_polygons``. After reading, the mesh is
 validated (see :func:`validate_arrays`) and, unless ``clean=False``, cleaned by
 :func:`geoproc.mesh.clean.clean_mesh`.
@@ -74,7 +75,7 @@ def format_from_extension(path: str) -> str:
 
 def sniff_format(data: bytes, path: str = "-") -> str:
     """Guess the mesh format of raw bytes (for standard input)."""
-    head = data[:512].lstrip()
+    head = re.sub(rb"^(\s*#[^\n]*\n)+", b"", data[:4096]).lstrip()  # OFF and OBJ allow leading comments
     if head.startswith(b"ply"):
         return "ply"
     if head[:3] in (b"OFF", b"COF", b"NOF") or head.startswith(b"STOFF"):
@@ -297,7 +298,10 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         short = np.flatnonzero(corners < 3)
         if len(short):
             raise InputError(path, f"face {int(short[0])} has fewer than 3 corners")
-    off_polygons = _off_polygons(data, path) if fmt == "off" else None
+    if fmt == "off":
+        parsed = _parse_off(data, path)
+        if parsed is not None:
+            return parsed
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh", **options)
     except IndexError as exc:
@@ -315,36 +319,46 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         raise InputError(path, "mesh has no faces (vertices only; store a point cloud as PLY)")
     if V.size == 0 and len(data.strip()) > 0 and fmt != "obj":
         raise InputError(path, f"unparseable {fmt.upper()}: no vertices could be read")
-    if off_polygons is not None:
-        return Mesh(V, F), off_polygons
     return Mesh(V, F), int((corners > 3).sum())
 
 
-def _off_polygons(data: bytes, path: str) -> int | None:
-    """Check that an OFF file holds the vertex and face lines its header declares
-    and that each face line lists as many indices as its leading count; return
-    the number of faces with more than three corners.
+def _parse_off(data: bytes, path: str) -> tuple[Mesh, int] | None:
+    """Parse an ASCII OFF file (also COFF, NOFF, STOFF: the extra per-vertex
+    values and per-face colours are ignored); polygons are split into fans.
 
-    Returns None when the header cannot be read (trimesh then names the problem).
-    Raises InputError for a file shorter than its header says or a short face line.
+    Returns the mesh and the number of faces with more than three corners, or
+    None for variants this parser leaves to trimesh (4OFF, nOFF, binary).
+    Raises InputError for a file shorter than its header says, a short face
+    line or a coordinate that is not a number.
     """
     text = re.sub(rb"#[^\r\n]*", b"", data) if b"#" in data else data
-    lines = [ln for ln in text.splitlines() if not ln.isspace() and ln]
-    if not lines or not lines[0].split()[0].upper().endswith(b"OFF"):
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if not lines:
         return None
-    counts, start = lines[0].split()[1:], 1
+    head = lines[0].split()
+    kind = head[0]
+    # 4OFF (homogeneous), nOFF (any dimension) and binary files go to trimesh
+    if not kind.upper().endswith(b"OFF") or b"4" in kind or kind.startswith(b"n") \
+            or any(t.upper() == b"BINARY" for t in head[1:]):
+        return None
+    counts, start = head[1:], 1
     if not counts and len(lines) > 1:
         counts, start = lines[1].split(), 2
     try:
         nv, nf = int(counts[0]), int(counts[1])
     except (IndexError, ValueError):
-        return None
+        raise InputError(path, "OFF header lacks the vertex and face counts") from None
     have = len(lines) - start
     if nv < 0 or nf < 0 or have < nv + nf:
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
                          f"but only {max(have, 0)} lines follow it (one per vertex, then one per face)")
-    polygons = 0
-    for i, line in enumerate(lines[start + nv: start + nv + nf]):
+    V = _off_vertices(lines[start: start + nv], path)
+    face_lines = lines[start + nv: start + nv + nf]
+    F = _off_triangles(face_lines)
+    if F is not None:
+        return Mesh(V, F), 0
+    faces = []
+    for i, line in enumerate(face_lines):
         tokens = line.split()
         try:
             corners = int(tokens[0])
@@ -354,8 +368,45 @@ def _off_polygons(data: bytes, path: str) -> int | None:
             raise InputError(path, f"OFF face {i} declares {corners} corners but lists {len(tokens) - 1}")
         if corners < 3:
             raise InputError(path, f"face {i} has fewer than 3 corners")
-        polygons += corners > 3
-    return polygons
+        try:
+            face = [int(t) for t in tokens[1: 1 + corners]]
+        except ValueError:
+            raise InputError(path, f"OFF face {i}: the corners are not all integers") from None
+        faces.append(face)
+    F, polygons = _fan_triangulate(faces) if faces else (np.zeros((0, 3), dtype=np.int64), 0)
+    return Mesh(V, F), polygons
+
+
+def _off_vertices(lines: list, path: str) -> np.ndarray:
+    """(n, 3) float64: the first three numbers of each OFF vertex line."""
+    counts = {len(ln.split()) for ln in lines}
+    if len(counts) == 1 and min(counts) >= 3:
+        try:  # the common case, every line alike: one vectorized parse
+            return np.array(b" ".join(lines).split(), dtype=np.float64).reshape(len(lines), -1)[:, :3].copy()
+        except ValueError:
+            pass
+    V = np.empty((len(lines), 3), dtype=np.float64)
+    for i, line in enumerate(lines):
+        try:
+            V[i] = [float(t) for t in line.split()[:3]]
+        except ValueError:
+            raise InputError(path, f"OFF vertex {i}: '{line.decode('latin-1').strip()}' "
+                             "does not start with three numbers") from None
+    return V
+
+
+def _off_triangles(lines: list) -> np.ndarray | None:
+    """(m, 3) int64 when every OFF face line is ``3 a b c`` (plus the same
+    number of colour values); None otherwise (the caller checks line by line)."""
+    if not lines or len({len(ln.split()) for ln in lines}) != 1:
+        return None
+    try:
+        T = np.array(b" ".join(lines).split(), dtype=np.int64).reshape(len(lines), -1)
+    except ValueError:
+        return None
+    if T.shape[1] < 4 or not (T[:, 0] == 3).all():
+        return None
+    return T[:, 1:4].copy()
 
 
 def _obj_face_corners(data: bytes) -> np.ndarray:

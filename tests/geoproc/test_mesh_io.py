@@ -201,3 +201,31 @@ def test_utf8_byte_order_mark_is_skipped():
     body = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"
     m = read_mesh_bytes(b"\xef\xbb\xbf" + body, "obj", clean=False)
     assert len(m.V) == 4 and m.F.tolist() == read_mesh_bytes(body, "obj", clean=False).F.tolist()
+
+
+def test_off_mixing_triangles_and_polygons(tmp_path):
+    # a triangle then a pentagon: trimesh could not stack the two face lengths
+    path = tmp_path / "tp.off"
+    path.write_text("OFF\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 2 0\n3 0 1 2\n5 0 1 2 4 3\n")
+    mesh = load_mesh(path, clean=False)
+    assert mesh.log.triangulated_polygons == 1
+    assert np.array_equal(mesh.F, [[0, 1, 2], [0, 1, 2], [0, 2, 4], [0, 4, 3]])
+
+
+def test_off_colours_and_comments_match_libigl(tmp_path, sphere):
+    import igl
+
+    lines = ["COFF", f"{len(sphere.V)} {len(sphere.F)} 0"]
+    lines += [" ".join(map(repr, map(float, v))) + " 255 0 0 255" for v in sphere.V]
+    lines += [f"3 {a} {b} {c} 0 255 0" for a, b, c in sphere.F]
+    path = tmp_path / "c.off"
+    path.write_text("\n".join(lines) + "\n")
+    mesh = load_mesh(path, clean=False)
+    V, F = igl.read_triangle_mesh(str(path))
+    assert np.array_equal(mesh.V, V) and np.array_equal(mesh.F, F)
+    # a leading comment (which libigl does not read) changes nothing and does
+    # not hide the format on standard input
+    commented = b"# written by hand\n" + path.read_bytes()
+    assert sniff_format(commented) == "off"
+    again = read_mesh_bytes(commented, "off", "-", clean=False)
+    assert np.array_equal(again.V, V) and np.array_equal(again.F, F)
