@@ -180,7 +180,7 @@ def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynam
 def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     from geoproc.denoise.mesh_denoise import denoise_mesh
     from geoproc.denoise.metrics import reference_metrics
-    from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
+    from geoproc.denoise.validate import reference_in_input_order, require_denoisable
 
     run.one_stdin(input, reference)
     if input != "-" and is_animation_path(input):
@@ -190,7 +190,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     if mesh.is_point_cloud:
         raise InputError(path, "is a point cloud (no faces); use --outliers for point clouds")
     require_triangle_mesh(mesh)
-    require_edge_manifold(mesh.F, path)
+    require_denoisable(mesh.F, path)
     ref_V = None
     if reference is not None:
         ref = run.read_input(reference, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
@@ -270,7 +270,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
 def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     from geoproc.denoise.dynamic import denoise_animation
     from geoproc.denoise.metrics import reference_metrics
-    from geoproc.denoise.validate import reference_in_input_order, require_edge_manifold
+    from geoproc.denoise.validate import reference_in_input_order, require_denoisable
 
     if input == "-" or not is_animation_path(input):
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
@@ -281,7 +281,7 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
         raise InputError(anim.path, f"has {anim.n_frames} frame{'s' if anim.n_frames != 1 else ''}; --dynamic "
                          "needs at least 3 (denoise a single frame as a mesh)")
     require_triangle_mesh(Mesh(anim.V[0], anim.F, log=_log(anim.path)))
-    require_edge_manifold(anim.F, anim.path)
+    require_denoisable(anim.F, anim.path)
     ref_V = None
     if reference == "-":
         raise UsageError("--reference -: an animation reference is read from a .npz file or a folder")

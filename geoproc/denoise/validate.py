@@ -5,17 +5,15 @@ from __future__ import annotations
 import numpy as np
 
 from geoproc.errors import InputError
-from geoproc.mesh.topology import face_list_renumbering, nonmanifold_edges
+from geoproc.mesh.topology import face_list_renumbering
+from geoproc.mesh.validate import require_edge_manifold
 
 
-def require_edge_manifold(F: np.ndarray, path: str | None) -> None:
-    """Refuse edges shared by more than two faces: the patches and the edge
-    saliency of the guided filter need at most two faces per edge."""
-    bad = nonmanifold_edges(F)
-    if len(bad):
-        a, b = (int(x) for x in bad[0])
-        raise InputError(path, f"non-manifold: {len(bad)} edges have more than two faces "
-                         f"(first: edge {a}-{b}); denoising needs at most two faces per edge")
+def require_denoisable(F: np.ndarray, path: str | None) -> None:
+    """Refuse faces that repeat a vertex and edges shared by more than two
+    faces: the patches and the edge saliency of the guided filter need at
+    most two faces per edge."""
+    require_edge_manifold(F, path, "; denoising needs at most two faces per edge")
 
 
 def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np.ndarray,

@@ -11,8 +11,8 @@ import numpy as np
 from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.intrinsic import OPERATORS
 from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass
-from geoproc.mesh.topology import face_areas, mean_edge_length, nonmanifold_edges, vertex_components
-from geoproc.mesh.validate import require_manifold
+from geoproc.mesh.topology import face_areas, mean_edge_length, vertex_components
+from geoproc.mesh.validate import require_edge_manifold, require_manifold
 
 METHODS = ("exact", "heat", "varadhan", "log-splitting", "log-ode", "log-heat")
 SOLVERS = ("lu", "newton", "cvxpy")
@@ -198,13 +198,9 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         from geoproc.mesh import Mesh
         from geoproc.mesh.mesh import LoadLog
 
-        require_manifold(Mesh(V, F, log=LoadLog(path=path or "")))
+        require_manifold(Mesh(V, F, log=LoadLog(path=path or "")), f"; method '{method}' needs a manifold mesh")
     if method in NEEDS_EDGE_MANIFOLD:
-        bad = nonmanifold_edges(F)
-        if len(bad):
-            a, b = (int(x) for x in bad[0])
-            raise InputError(path, f"non-manifold: {len(bad)} edges have more than two faces "
-                                   f"(first: edge {a}-{b}); method '{method}' needs an edge-manifold mesh")
+        require_edge_manifold(F, path, f"; method '{method}' needs an edge-manifold mesh")
     own_triangles = method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"
     if (area <= 0).any() and own_triangles:
         k = int(np.flatnonzero(area <= 0)[0])

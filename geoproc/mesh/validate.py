@@ -18,20 +18,34 @@ def require_triangle_mesh(mesh: Mesh) -> None:
         raise InputError(path, "degenerate mesh: every face has zero area")
 
 
-def require_manifold(mesh: Mesh) -> None:
-    """Refuse a mesh with a non-manifold edge or vertex, naming the first one."""
-    path = mesh.log.path or None
-    bad_e = nonmanifold_edges(mesh.F)
+def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> None:
+    """Refuse a face that repeats a vertex (its edges would count twice) or an
+    edge shared by more than two faces, naming the first; ``why`` ends the
+    message (``"; denoising needs ..."``)."""
+    F = np.asarray(F).reshape(-1, 3)
+    rep = np.flatnonzero((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2]))
+    if len(rep):
+        k = int(rep[0])
+        one = len(rep) == 1
+        raise InputError(path, f"{len(rep)} face{'' if one else 's'} repeat{'s' if one else ''} a vertex "
+                               f"(first: face {k}, vertices {' '.join(str(int(i)) for i in F[k])}){why}")
+    bad_e = nonmanifold_edges(F)
     if len(bad_e):
         a, b = (int(x) for x in bad_e[0])
-        raise InputError(
-            path, f"non-manifold: {len(bad_e)} edges have more than two faces (first: edge {a}-{b})"
-        )
+        raise InputError(path, f"non-manifold: {len(bad_e)} edges have more than two faces "
+                               f"(first: edge {a}-{b}){why}")
+
+
+def require_manifold(mesh: Mesh, why: str = "") -> None:
+    """Refuse a mesh with a repeated-vertex face or a non-manifold edge or
+    vertex, naming the first one."""
+    path = mesh.log.path or None
+    require_edge_manifold(mesh.F, path, why)
     bad_v = nonmanifold_vertices(mesh.F, len(mesh.V))
     if len(bad_v):
         raise InputError(
             path, f"non-manifold: {len(bad_v)} vertices join separate fans of faces "
-            f"(first: vertex {int(bad_v[0])})"
+            f"(first: vertex {int(bad_v[0])}){why}"
         )
 
 

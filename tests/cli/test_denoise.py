@@ -150,6 +150,16 @@ def test_nonmanifold_edge_is_refused(cli, fixture_dir, tmp_path):
     assert _one_line_error(p) and "non-manifold" in p.stderr and not out.exists()
 
 
+def test_face_repeating_a_vertex_is_named_as_such(cli, tmp_path):
+    # f 1 1 2 puts edge 1-2 in three faces; the error names the face, not the edge
+    src = tmp_path / "rep.obj"
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nf 1 1 2\n")
+    out = tmp_path / "o.ply"
+    p = cli("denoise", src, "-o", out)
+    assert _one_line_error(p) and "rep.obj: 1 face repeats a vertex (first: face 2, vertices 0 0 1)" in p.stderr
+    assert not out.exists()
+
+
 def test_zero_area_faces_are_handled(cli, fixture_dir, tmp_path):
     out = tmp_path / "o.ply"
     p = cli("denoise", fixture_dir / "zero_area.off", "--no-clean", "--rounds", "1", "--normal-iterations", "2",
