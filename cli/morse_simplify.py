@@ -163,7 +163,9 @@ def morse_simplify(
             raise RuntimeError("gradient critical cells do not match the persistence pairs")
         pers = finite_persistence(before)
         half_tol = threshold / 2.0 * (1 + 1e-12)
-        beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol))
+        # with P = 0 (nothing removed), --barycentric breaks the lower-star
+        # extension's ties by units in the last place: not a move beyond P/2
+        beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol)) if threshold > 0 else 0
         b0, b1, b2 = before.betti
         run.metrics.update({
             "vertices": m.n_vertices,

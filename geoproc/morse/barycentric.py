@@ -192,6 +192,23 @@ def _cell_arcs(E, FE, v_e, e_t, n):
     return lo, hi
 
 
+def _strict_along_arcs(fc, lo, hi):
+    """fc with its ties broken along the arcs ``lo -> hi`` (a cell below its
+    cofacet unless the gradient pairs them): tied values rise by units in the
+    last place in a topological order, so that the critical points of the
+    result are the gradient's critical cells. A face and its cofacet always
+    tie in the lower-star extension (a cell has its highest vertex's value);
+    breaking those ties by index put every vertex below its whole star, and a
+    constant field had every cell critical."""
+    N = fc.shape[0]
+    _, _, topo, count, _ = topological_order(lo, hi, N)
+    if count < N:
+        raise RuntimeError("the gradient has a closed path")
+    rank = np.empty(N, np.int64)
+    rank[topo] = np.arange(N)
+    return _make_strict(fc, np.lexsort((rank, fc)))
+
+
 @numba.njit(cache=True)
 def _assign_cell_values(lo, hi, fc, delta):
     """Values in [fc - delta, fc + delta] strictly increasing along every arc,
@@ -288,8 +305,10 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
         Vertex values.
     threshold : float
         Absolute persistence threshold P >= 0. With P = 0 nothing is removed
-        and g is the lower-star extension itself (its ties, a cell and its
-        highest vertex, broken by index as in every computation here).
+        and g is the lower-star extension itself, its ties (a cell and its
+        highest vertex, and all of a constant field) broken by units in the
+        last place along the gradient, so that g's critical points are the
+        gradient's critical cells.
     path : str, optional
         File name for error messages.
 
@@ -333,8 +352,8 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
     # leave it; a cancelled pair whose persistence is within that margin of P
     # gets the full box.
     margin = max(1e-9 * P / 2.0, 1024 * np.spacing(float(np.abs(fc).max())) if len(fc) else 0.0)
-    if P == 0.0:  # nothing to remove: g is f on the cells, ties broken by index as everywhere
-        g = fc.copy()
+    if P == 0.0:  # nothing to remove: g is f on the cells, ties broken along the gradient
+        g = _strict_along_arcs(fc, lo, hi)
     for half in (P / 2.0 - margin, P / 2.0) if P / 2.0 > margin else ((P / 2.0,) if P > 0.0 else ()):
         g, ok = _assign_cell_values(lo, hi, fc, half)
         if not ok:
