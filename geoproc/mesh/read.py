@@ -1,9 +1,9 @@
 """Read OBJ, PLY (ASCII and binary), OFF and STL files into a :class:`Mesh`.
 
 PLY goes through plyfile so that every named vertex and face property comes back
-exactly (positions and fields as float64); ASCII OFF (also COFF, NOFF, STOFF) is
-parsed here, vectorized; OBJ, STL and the other OFF variants go through trimesh
-with ``process=False``. Polygons with more than three corners are triangulated as fans
+exactly (positions and fields as float64); OBJ and ASCII OFF (also COFF, NOFF,
+STOFF) are parsed here, vectorized; STL and the other OFF variants go through
+trimesh with ``process=False``. Polygons with more than three corners are triangulated as fans
 and counted in ``mesh.log.triangulated_polygons``. After reading, the mesh is
 validated (see :func:`validate_arrays`) and, unless ``clean=False``, cleaned by
 :func:`geoproc.mesh.clean.clean_mesh`.
@@ -97,8 +97,13 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
         raise InputError(path, "file is empty")
     if data.startswith(b"\xef\xbb\xbf") and fmt in ("obj", "off"):  # a UTF-8 byte order mark
         data = data[3:]
+    parsed = _parse_off(data, path) if fmt == "off" else None
     if fmt == "ply":
         mesh, polys = _parse_ply(data, path)
+    elif fmt == "obj":
+        mesh, polys = _parse_obj(data, path)
+    elif parsed is not None:
+        mesh, polys = parsed
     else:
         mesh, polys = _parse_with_trimesh(data, fmt, path)
     mesh.log = LoadLog(
@@ -249,64 +254,91 @@ def _require_integer_indices(faces: list, path: str) -> None:
         raise InputError(path, f"face {face} has a non-integer vertex index {flat[first]:g}")
 
 
-_OBJ_ZERO_INDEX = re.compile(rb"^[ \t]*f[ \t](?:[^\n#]*?[ \t])?0(?:/[^\s#]*)?(?=[ \t\r#]|$)", re.M)
-_OBJ_FACE_LINE = re.compile(rb"^([ \t]*f[ \t][^\r\n]*)", re.M)
-_OBJ_NEGATIVE_INDEX = re.compile(rb"^[ \t]*f[ \t][^\r\n]*?[ \t]-\d", re.M)
-_OBJ_CORNER_SUFFIX = re.compile(rb"/[^\s]*")
-_OBJ_ANY_FACE_LINE = re.compile(rb"^[ \t]*f(?=[ \t\r\n]|$)([^\r\n]*)", re.M)  # "f" alone too
+def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
+    """Parse the positions (``v``) and faces (``f``) of an OBJ file.
+
+    Texture and normal references of face corners are ignored, so a mesh with
+    UV seams keeps one vertex per stored position, in file order; negative
+    indices count back from the face line (``-1``: the last vertex above it);
+    extra values on a ``v`` line (a weight, a colour) are ignored; other
+    statements (``vt``, ``vn``, ``l``, ``g``, ``usemtl``...) are skipped.
+    Polygons are split into fans.
+
+    Returns the mesh and the number of faces with more than three corners.
+    """
+    if b"#" in data:
+        data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
+    vlines, flines, seen = [], [], []
+    for line in data.replace(b"\t", b" ").splitlines():
+        head = line.lstrip()[:2]
+        if head == b"v ":
+            vlines.append(line.lstrip()[2:])
+        elif head == b"f " or line.strip() == b"f":
+            flines.append(line.lstrip()[1:])
+            seen.append(len(vlines))
+    V = _obj_vertices(vlines, path)
+    if not flines:
+        if len(V):
+            raise InputError(path, "mesh has no faces (vertices only; store a point cloud as PLY)")
+        raise InputError(path, "unparseable OBJ: no vertex or face lines")
+    text = b"\n".join(flines)
+    if b"/" in text:
+        text = re.sub(rb"/[^\s]*", b"", text)
+        flines = text.split(b"\n")
+    counts = np.fromiter((len(ln.split()) for ln in flines), dtype=np.int64, count=len(flines))
+    short = np.flatnonzero(counts < 3)
+    if len(short):
+        raise InputError(path, f"face {int(short[0])} has fewer than 3 corners")
+    try:
+        idx = np.array(text.split(), dtype=np.int64)
+    except ValueError:
+        raise InputError(path, "unparseable OBJ: a face corner is not an integer vertex index") from None
+    line_of = np.repeat(np.arange(len(flines)), counts)
+    relative = idx < 0
+    idx = np.where(relative, np.asarray(seen)[line_of] + idx, idx - 1)
+    bad = np.flatnonzero((idx < 0) | (idx >= len(V)))
+    if len(bad):
+        k = int(bad[0])
+        given = idx[k] - np.asarray(seen)[line_of[k]] if relative[k] else idx[k] + 1
+        raise InputError(path, f"face index out of range: face {int(line_of[k])} references vertex {int(given)}, "
+                               f"but the file has {len(V)} vertices (1-based)")
+    if (counts == 3).all():
+        return Mesh(V, idx.reshape(-1, 3)), 0
+    faces = np.split(idx, np.cumsum(counts)[:-1])
+    F, polygons = _fan_triangulate(faces)
+    return Mesh(V, F), polygons
 
 
-def _obj_positions_only(data: bytes) -> bytes:
-    """OBJ text with comments removed and the texture/normal references of face
-    corners dropped (``f 1/4/2 ...`` becomes ``f 1 ...``), so trimesh keeps one
-    vertex per stored position, in file order, instead of splitting vertices at
-    texture seams."""
-    data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
-    data = data.replace(b"\t", b" ")  # trimesh splits on spaces only
-    data = _OBJ_FACE_LINE.sub(lambda m: _OBJ_CORNER_SUFFIX.sub(b"", m.group(1)), data)
-    return _obj_absolute_indices(data) if _OBJ_NEGATIVE_INDEX.search(data) else data
-
-
-def _obj_absolute_indices(data: bytes) -> bytes:
-    """Face lines with relative (negative) indices rewritten as absolute ones:
-    ``-1`` is the last vertex defined above the line (trimesh counts from the
-    end of the file instead)."""
-    out, seen = [], 0
-    for line in data.split(b"\n"):
-        head = line.lstrip()
-        if head.startswith((b"v ", b"v\r")) or head == b"v":
-            seen += 1
-        elif head.startswith(b"f "):
-            tokens = line.split()
-            line = b" ".join([tokens[0]] + [str(seen + 1 + int(t)).encode() if re.fullmatch(rb"-\d+", t) else t
-                                            for t in tokens[1:]])
-        out.append(line)
-    return b"\n".join(out)
+def _obj_vertices(lines: list, path: str) -> np.ndarray:
+    """(n, 3) float64: the first three numbers of each OBJ ``v`` line (after the ``v``)."""
+    if not lines:
+        return np.zeros((0, 3), dtype=np.float64)
+    try:  # the common case, three numbers per line: one vectorized parse
+        flat = np.array(b" ".join(lines).split(), dtype=np.float64)
+        if len(flat) == 3 * len(lines):
+            return flat.reshape(-1, 3)
+    except ValueError:
+        pass
+    V = np.empty((len(lines), 3), dtype=np.float64)
+    for i, line in enumerate(lines):
+        try:
+            tokens = line.split()[:3]
+            if len(tokens) < 3:
+                raise ValueError
+            V[i] = [float(t) for t in tokens]
+        except ValueError:
+            raise InputError(path, f"OBJ vertex {i}: 'v {line.decode('latin-1').strip()}' "
+                             "does not hold three numbers") from None
+    return V
 
 
 def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
+    """STL, and the OFF variants :func:`_parse_off` leaves to trimesh."""
     import trimesh
 
-    options = {}
-    corners = np.zeros(0, dtype=np.int64)  # OBJ face lines' corner counts
-    if fmt == "obj":
-        data = _obj_positions_only(data)
-        if _OBJ_ZERO_INDEX.search(data):
-            _raise_obj_index_error(data, path)  # OBJ counts from 1; trimesh would take 0 as -1
-        options = {"maintain_order": True}  # keep unreferenced vertices: clean_mesh drops them
-        corners = _obj_face_corners(data)
-        short = np.flatnonzero(corners < 3)
-        if len(short):
-            raise InputError(path, f"face {int(short[0])} has fewer than 3 corners")
-    if fmt == "off":
-        parsed = _parse_off(data, path)
-        if parsed is not None:
-            return parsed
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh", **options)
+        loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh")
     except IndexError as exc:
-        if fmt == "obj":
-            _raise_obj_index_error(data, path)
         raise InputError(path, f"face index out of range ({_one_line(exc)})") from exc
     except Exception as exc:  # trimesh raises many types for malformed files
         msg = _one_line(exc)
@@ -315,11 +347,9 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         raise InputError(path, f"unparseable {fmt.upper()}: {msg}") from exc
     V = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     F = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
-    if len(F) == 0 and fmt == "obj" and re.search(rb"^[ \t]*v[ \t]", data, flags=re.M):
-        raise InputError(path, "mesh has no faces (vertices only; store a point cloud as PLY)")
-    if V.size == 0 and len(data.strip()) > 0 and fmt != "obj":
+    if V.size == 0 and len(data.strip()) > 0:
         raise InputError(path, f"unparseable {fmt.upper()}: no vertices could be read")
-    return Mesh(V, F), int((corners > 3).sum())
+    return Mesh(V, F), 0
 
 
 def _parse_off(data: bytes, path: str) -> tuple[Mesh, int] | None:
@@ -407,26 +437,6 @@ def _off_triangles(lines: list) -> np.ndarray | None:
     if T.shape[1] < 4 or not (T[:, 0] == 3).all():
         return None
     return T[:, 1:4].copy()
-
-
-def _obj_face_corners(data: bytes) -> np.ndarray:
-    """(faces,) int: the corner count of every OBJ face line, in file order
-    (after :func:`_obj_positions_only`: no comments, no tabs)."""
-    return np.array([len(m.group(1).split()) for m in _OBJ_ANY_FACE_LINE.finditer(data)], dtype=np.int64)
-
-
-def _raise_obj_index_error(data: bytes, path: str) -> None:
-    n_v = len(re.findall(rb"^[ \t]*v[ \t]", data, flags=re.M))
-    for i, m in enumerate(re.finditer(rb"^[ \t]*f[ \t]+([^\n#]*)", data, flags=re.M)):
-        for tok in m.group(1).split():
-            k = int(tok.split(b"/")[0])
-            if k == 0 or k > n_v or k < -n_v:
-                raise InputError(
-                    path,
-                    f"face index out of range: face {i} references vertex {k}, "
-                    f"but the file has {n_v} vertices (1-based)",
-                )
-    raise InputError(path, "face index out of range")
 
 
 def _one_line(exc: BaseException) -> str:

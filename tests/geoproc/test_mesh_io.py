@@ -229,3 +229,33 @@ def test_off_colours_and_comments_match_libigl(tmp_path, sphere):
     assert sniff_format(commented) == "off"
     again = read_mesh_bytes(commented, "off", "-", clean=False)
     assert np.array_equal(again.V, V) and np.array_equal(again.F, F)
+
+
+def test_obj_reader_matches_libigl_on_shared_meshes(shared_data):
+    import igl
+
+    paths = sorted((shared_data / "meshes").glob("*.obj")) + sorted((shared_data / "denoise").glob("*/*.obj"))
+    assert len(paths) >= 5
+    for path in paths:
+        mesh = load_mesh(path, clean=False)
+        V, F = igl.read_triangle_mesh(str(path))
+        assert np.array_equal(mesh.V, V) and np.array_equal(mesh.F, F), path.name
+
+
+def test_obj_vertex_extras_and_malformed_lines(tmp_path):
+    # a weight or a colour after the position is ignored; quads become fans
+    data = b"v 0 0 0 1\nv 1 0 0 0.5 0.5 0.5\nv 1 1 0\nv 0 1 0\nvn 0 0 1\ng part\nf 1//1 2//1 3//1 4//1\n"
+    m = read_mesh_bytes(data, "obj", clean=False)
+    assert m.V.tolist() == [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    assert m.F.tolist() == [[0, 1, 2], [0, 2, 3]] and m.log.triangulated_polygons == 1
+    for text, fragment in [
+        (b"v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 0: 'v 0 0' does not hold three numbers"),
+        (b"v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 1: 'v 1 x 0' does not hold three numbers"),
+        (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n", "a face corner is not an integer"),
+        (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n", "face 0 references vertex -4, but the file has 3"),
+        (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "face 0 references vertex 0, but the file has 3"),
+        (b"vt 0 0\n", "no vertex or face lines"),
+    ]:
+        with pytest.raises(InputError) as err:
+            read_mesh_bytes(text, "obj", "m.obj")
+        assert fragment in err.value.problem, (text, err.value.problem)
