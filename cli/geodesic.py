@@ -178,6 +178,9 @@ def geodesic(
             if res.stats.get(key):
                 what = "heat u underflowed to 0" if key == "zero_heat_vertices" else "exp(log u) < 5e-324"
                 run.note(f"{res.stats[key]} vertices where {what}")
+        if res.stats.get("solver_inaccurate_steps"):
+            run.note(f"Clarabel ended {res.stats['solver_inaccurate_steps']} of the {steps} steps short of its "
+                     "tolerances (status optimal_inaccurate); --solver lu solves the same steps")
         if res.stats["unreachable_vertices"]:
             run.note(f"{res.stats['unreachable_vertices']} vertices are not connected to a source "
                      "(distance +inf)")

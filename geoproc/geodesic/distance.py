@@ -289,7 +289,8 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
             from geoproc.geodesic.log_ode_cvxpy import log_ode_steps_cvxpy
 
             timings["setup"] = _now() - a
-            w, _ = log_ode_steps_cvxpy(L, M, src, t, steps, progress)
+            w, info = log_ode_steps_cvxpy(L, M, src, t, steps, progress)
+            stats["solver_inaccurate_steps"] = info["inaccurate_steps"]
         else:
             step = log_ode_stepper(L, M, t / steps, solver)
             timings["setup"] = _now() - a

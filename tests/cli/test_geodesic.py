@@ -126,6 +126,21 @@ def test_log_ode_cvxpy_solver_matches_default(cli, make_fixtures, tmp_path):
     assert np.abs(outs[0] - outs[1]).max() < 1e-6
 
 
+def test_cvxpy_inaccurate_steps_are_a_note_not_a_warning(cli, fixture_dir, tmp_path):
+    # on the torus Clarabel ends a step as "optimal_inaccurate"; CVXPY's
+    # UserWarning used to reach stderr even with --quiet
+    pytest.importorskip("cvxpy")
+    out, rep = tmp_path / "d.ply", tmp_path / "r.json"
+    args = ("geodesic", fixture_dir / "torus.ply", "-s", "0", "-m", "log-ode", "--solver", "cvxpy", "-n", "3",
+            "-o", out, "--report", rep)
+    p = cli(*args, "--quiet")
+    assert p.returncode == 0 and p.stderr == ""
+    inaccurate = json.loads(rep.read_text())["metrics"]["solver_inaccurate_steps"]
+    p = cli(*args)
+    assert "UserWarning" not in p.stderr
+    assert ("short of its tolerances" in p.stderr) == (inaccurate > 0)
+
+
 def _isolated_vertex_mesh(make_fixtures, tmp_path):
     V, F = make_fixtures.grid(5)
     path = tmp_path / "iso.ply"
