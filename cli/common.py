@@ -31,6 +31,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated, TypeVar
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -38,7 +39,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 from geoproc.errors import GeoprocError, InputError, UsageError
 from geoproc.fileio import sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
-from geoproc.mesh.write import write_format
+from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
 from geoproc.report import build_report, evaluate_checks, parse_check
 from geoproc.report.report import report_json
 
@@ -221,6 +222,10 @@ class Run:
         ext = write_format(name)
         if len(mesh.F) == 0 and ext != "ply":
             raise UsageError(f"{name}: a point cloud (no faces) is written as .ply only")
+        big = float(np.abs(mesh.V).max()) if ext == "stl" and mesh.V.size else 0.0
+        if big > STL_MAX_COORDINATE:
+            raise UsageError(f"{name}: STL stores 32-bit floats, which end at {STL_MAX_COORDINATE:.4g}; "
+                             f"coordinates reach {big:.3g} (write .ply, .obj or .off)")
         self._outputs.append((name, mesh_to_bytes(mesh, ext, binary=not ascii)))
 
     def _check_output_folders(self) -> None:

@@ -17,6 +17,7 @@ from geoproc.fileio import file_extension, write_bytes_atomic
 from geoproc.mesh.mesh import Mesh
 
 WRITE_FORMATS = ("ply", "obj", "off", "stl")
+STL_MAX_COORDINATE = float(np.finfo(np.float32).max)  # STL stores float32
 
 
 def save_mesh(path: str | os.PathLike, mesh: Mesh, binary: bool = True) -> None:

@@ -316,3 +316,18 @@ def test_error_lines_escape_control_characters_and_bare_command_is_usage(cli, tm
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "two\\nlines.ply: no such file" in p.stderr
     p = subprocess.run([sys.executable, "-m", "geoproc_cli.main"], capture_output=True, text=True)
     assert p.returncode == 2 and p.stdout == "" and p.stderr.startswith("error: missing command")
+
+
+def test_stl_output_beyond_float32_is_refused(cli, fixture_dir, tmp_path):
+    # STL stores float32: 1e40 used to become inf with a RuntimeWarning and exit 0
+    from geoproc.mesh import save_mesh
+
+    torus = load_mesh(fixture_dir / "torus.ply")
+    path = tmp_path / "big.ply"
+    save_mesh(path, Mesh(torus.V * 1e40, torus.F))
+    out = tmp_path / "m.stl"
+    p = cli("denoise", path, "--rounds", "0", "-o", out)
+    assert p.returncode == 2 and not out.exists()
+    assert "STL stores 32-bit floats" in _one_error_line(p.stderr, str(out))
+    p = cli("denoise", path, "--rounds", "0", "-o", tmp_path / "m.off")
+    assert p.returncode == 0, p.stderr
