@@ -90,8 +90,12 @@ class Domain:
 
 
 def loop_signed_area(L: np.ndarray) -> float:
-    """Shoelace signed area of a closed loop (n, 2); positive when counter-clockwise."""
-    x, y = L[:, 0], L[:, 1]
+    """Shoelace signed area of a closed loop (n, 2); positive when counter-clockwise.
+
+    Summed about the loop's first vertex, so that a loop far from the origin
+    (a unit square offset by 1e8) does not lose its area to cancellation.
+    """
+    x, y = L[:, 0] - L[0, 0], L[:, 1] - L[0, 1]
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
@@ -133,11 +137,14 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         if len(L) > 1 and np.array_equal(L[0], L[-1]):
             L, nf = L[:-1], nf[:-1]
             v = None if v is None else v[:-1]
-        # drop repeated consecutive vertices (zero-length segments)
+        # drop repeated consecutive vertices (zero-length segments); a kept
+        # vertex takes the flag of the segment that leaves its last copy (the
+        # one of non-zero length), not that of the zero-length one
         keep = np.any(L != np.roll(L, 1, axis=0), axis=1) if len(L) > 1 else np.ones(len(L), bool)
         if len(L) > 1 and not keep.any():
             keep[0] = True
-        L, nf = L[keep], nf[keep]
+        kept = np.flatnonzero(keep)
+        L, nf = L[kept], nf[(np.roll(kept, -1) - 1) % len(nf)]
         v = None if v is None else v[keep]
         if len(L) < 3:
             raise InputError(source, f"loop {k} is open or degenerate: a closed loop needs at least "
@@ -151,11 +158,15 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         vals.append(v)
     _check_simple(clean, source)
     # orientation: depth = number of other loops containing the loop; even -> CCW
-    paths = [MplPath(L) for L in clean]
+    firsts = np.array([L[0] for L in clean])
+    depth = np.zeros(len(clean), dtype=np.int64)
+    for j, L in enumerate(clean):  # one call per loop, all first vertices at once
+        inside = MplPath(L).contains_points(firsts)
+        inside[j] = False
+        depth += inside
     for k, L in enumerate(clean):
-        depth = sum(bool(paths[j].contains_point(L[0])) for j in range(len(clean)) if j != k)
         ccw = loop_signed_area(L) > 0
-        if ccw != (depth % 2 == 0):
+        if ccw != (depth[k] % 2 == 0):
             # reversing a loop: vertex order reverses, segment j (v_j -> v_j+1) becomes
             # segment n-2-j in the new order; keep flags attached to the same edge
             clean[k] = L[::-1].copy()
@@ -166,7 +177,8 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
     hi = np.concatenate(clean).max(axis=0)
     diag = float(np.linalg.norm(hi - lo))
     if not area > 1e-12 * max(diag, 1e-300) ** 2:
-        raise InputError(source, f"domain has zero area ({area:.3g})")
+        raise InputError(source, f"domain has zero area (area {area:.3g}, at most 1e-12 times its "
+                                 f"bounding-box diagonal {diag:.3g} squared)")
     A = np.concatenate(clean)
     B = np.concatenate([np.roll(L, -1, axis=0) for L in clean])
     loop_of = np.concatenate([np.full(len(L), k, dtype=np.int64) for k, L in enumerate(clean)])

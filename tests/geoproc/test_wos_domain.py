@@ -47,6 +47,41 @@ def test_neumann_flags_follow_reversed_loops(tmp_path):
     assert sorted(ys[d.neumann]) == [0.0, 1.0]
 
 
+def test_zero_length_segment_flags_stay_on_their_segments():
+    # vertex 2 repeats vertex 1: segment 1 has zero length, segment 2 is the right edge
+    loop = [[0, 0], [1, 0], [1, 0], [1, 1], [0, 1]]
+    d = build_domain([loop], [np.array([0, 1, 0, 0, 0], bool)])
+    assert len(d.A) == 4 and not d.has_neumann  # the zero-length segment took no real one with it
+    d = build_domain([loop], [np.array([0, 0, 1, 0, 0], bool)])
+    right = np.flatnonzero(d.neumann)
+    assert len(right) == 1
+    assert {tuple(d.A[right[0]]), tuple(d.B[right[0]])} == {(1.0, 0.0), (1.0, 1.0)}
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e8, 1e12])
+def test_area_far_from_the_origin(offset):
+    # the shoelace sum about the origin lost a unit square at 1e8 (zero area)
+    # and gave 2.7e8 at 1e12
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float) + offset
+    assert build_domain([square]).area == pytest.approx(1.0, rel=1e-9)
+
+
+def test_many_nested_loops_are_oriented_by_depth():
+    # a 20 x 20 array of squares inside one frame, each holding a smaller square:
+    # depth 0 counter-clockwise, 1 clockwise, 2 counter-clockwise
+    frame = [[-1, -1], [41, -1], [41, 41], [-1, 41]]
+    loops = [frame]
+    for i in range(20):
+        for j in range(20):
+            x, y = 2 * i, 2 * j
+            loops.append([[x, y], [x, y + 1.5], [x + 1.5, y + 1.5], [x + 1.5, y]])  # clockwise as given
+            loops.append([[x + .5, y + .5], [x + 1, y + .5], [x + 1, y + 1], [x + .5, y + 1]])  # ccw
+    d = build_domain(loops)
+    signs = np.sign([loop_signed_area(L) for L in d.loops])
+    assert signs[0] == 1 and (signs[1::2] == -1).all() and (signs[2::2] == 1).all()
+    assert d.area == pytest.approx(42 * 42 - 400 * (1.5 ** 2 - 0.5 ** 2))
+
+
 @pytest.mark.parametrize("loops,match", [
     ([[[0, 0], [1, 1], [1, 0], [0, 1]]], "intersects itself"),
     ([[[0, 0], [2, 0], [2, 2], [0, 2]], [[1, 1], [3, 1], [3, 3], [1, 3]]], "loops 0 and 1 intersect"),
