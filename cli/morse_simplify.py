@@ -128,6 +128,10 @@ def morse_simplify(
         if field.lower().endswith(".npy"):
             run.add_input(field)
         name = field_name(field)
+        clobbered = [k for k in (name, f"{name}_original") if k in m.vertex_fields and k != field]
+        if clobbered:
+            run.note("replacing the input's vertex propert" + ("y " if len(clobbered) == 1 else "ies ")
+                     + ", ".join(f"'{k}'" for k in clobbered))
         span = float(f.max() - f.min()) if len(f) else 0.0
         threshold = float(persistence) * span if relative else float(persistence)
         if not np.isfinite(threshold):

@@ -60,6 +60,17 @@ def test_chained_property_field_relative(cli, fixture_dir, tmp_path, make_fixtur
     assert (len(grad.critical_vertices), len(grad.critical_triangles)) == (1, 1)
 
 
+def test_replacing_an_input_property_is_noted(cli, fixture_dir, tmp_path):
+    # --field x writes x_value: an input property of that name used to vanish silently
+    torus = load_mesh(fixture_dir / "torus.ply")
+    src = tmp_path / "xv.ply"
+    save_mesh(src, Mesh(torus.V, torus.F, {"x_value": np.zeros(len(torus.V))}))
+    p = cli("morse-simplify", src, "-f", "x", "-p", "0.1", "-o", tmp_path / "o.ply")
+    assert p.returncode == 0 and "note: replacing the input's vertex property 'x_value'" in p.stderr
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", "x", "-p", "0.1", "-o", tmp_path / "o.ply")
+    assert p.returncode == 0 and "replacing" not in p.stderr
+
+
 def test_npy_field_and_curvature(cli, fixture_dir, tmp_path):
     mesh = load_mesh(fixture_dir / "icosphere.ply")
     vals = np.random.default_rng(3).standard_normal(len(mesh.V))
