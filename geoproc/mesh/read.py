@@ -238,7 +238,32 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
                 for n in fdata.dtype.names
                 if n != key and fdata.dtype[n].shape == () and fdata.dtype[n].kind in "fiub"
             }
+    if "tristrips" in names and len(ply["tristrips"].data):
+        sdata = ply["tristrips"].data
+        if "vertex_indices" not in sdata.dtype.names:
+            raise InputError(path, "PLY tristrips element has no 'vertex_indices' list")
+        strips = list(sdata["vertex_indices"])
+        _require_integer_indices(strips, path)
+        F = np.concatenate([F, _strip_triangles(strips)])
+        ffields = {}  # per-face properties belong to the face element alone
     return Mesh(V, F, vfields, ffields), polys
+
+
+def _strip_triangles(strips: list) -> np.ndarray:
+    """(m, 3) int64 triangles of PLY triangle strips (each a list of vertex
+    indices, -1 restarting the strip): ``(s_i, s_i+1, s_i+2)``, every other one
+    reversed to keep the strip's orientation; triangles that repeat a vertex
+    (the stitches between strips) are skipped."""
+    tris = []
+    for strip in strips:
+        runs = np.split(np.asarray(strip, dtype=np.int64), np.flatnonzero(np.asarray(strip) == -1))
+        for run in runs:
+            run = run[run != -1]
+            for i in range(len(run) - 2):
+                a, b, c = run[i], run[i + 1], run[i + 2]
+                if a != b and b != c and a != c:
+                    tris.append((a, b, c) if i % 2 == 0 else (b, a, c))
+    return np.asarray(tris, dtype=np.int64).reshape(-1, 3)
 
 
 def _require_integer_indices(faces: list, path: str) -> None:

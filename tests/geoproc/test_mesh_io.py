@@ -259,3 +259,15 @@ def test_obj_vertex_extras_and_malformed_lines(tmp_path):
         with pytest.raises(InputError) as err:
             read_mesh_bytes(text, "obj", "m.obj")
         assert fragment in err.value.problem, (text, err.value.problem)
+
+
+def test_ply_triangle_strips_are_read():
+    # strips over a 2 x 3 grid of vertices: one with a restart (-1), one that
+    # starts with a degenerate (stitching) triangle; orientation alternates along a strip
+    header = ("ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
+              "element tristrips 2\nproperty list int int vertex_indices\nend_header\n")
+    verts = "0 0 0\n0 1 0\n1 0 0\n1 1 0\n2 0 0\n2 1 0\n"
+    m = read_mesh_bytes((header + verts + "9 0 1 2 3 -1 2 3 4 5\n4 3 3 4 5\n").encode(), "ply", clean=False)
+    assert m.F.tolist() == [[0, 1, 2], [2, 1, 3], [2, 3, 4], [4, 3, 5], [4, 3, 5]]
+    N = np.cross(m.V[m.F[:, 1]] - m.V[m.F[:, 0]], m.V[m.F[:, 2]] - m.V[m.F[:, 0]])
+    assert (N[:, 2] < 0).all()  # one orientation throughout
