@@ -29,6 +29,15 @@ DEFAULT_LAPLACIAN = {
 #: unless told otherwise: the paper's extrinsic operators for heat; for
 #: log-heat, intrinsic on meshes with slivers (geoproc.geodesic.intrinsic).
 DEFAULT_OPERATORS = {"heat": "extrinsic", "log-heat": "auto"}
+#: Smallest face angle (radians) below which a mesh is refused, by what the
+#: method would run on the input's own triangles: libigl's exact geodesic
+#: (MMP) ran for minutes on 8x8 grids squashed to angles of 2e-6 to 7e-6 rad
+#: (and a 20x20 grid at 7e-6); the heat method's Poisson step lost its
+#: accuracy (largest error 6 % of the grid's length at 2e-7 rad, 80 % at
+#: 1e-7, 0.2 % at 1e-6); varadhan's cotan solve gave 0.53 at 1e-8 rad and inf
+#: at 1e-9, against 0.35 (the method's own bias) at 1e-7. Intrinsic paths
+#: are not checked: their Delaunay flips remove a sliver in a good mesh.
+NEEDLE_ANGLE = {"exact": 1e-4, "poisson": 1e-6, "cotan": 1e-7}
 #: Methods that integrate a normalized gradient by a Poisson solve (distance up to a constant).
 POISSON_METHODS = ("heat", "log-heat")
 #: Methods that need an edge- and vertex-manifold mesh (MMP walks vertex fans).
@@ -214,12 +223,13 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
             raise InputError(path, f"{len(thin)} faces are too thin (first: face {thin[0]}): their edge lengths "
                                    f"give zero area, so their cotangents are infinite; method '{method}' needs "
                                    "non-degenerate triangles")
+    ops = operators or DEFAULT_OPERATORS.get(method)
+    _refuse_needles(V, F, method, lap, ops, path)
 
     V2, F2, keep, s2 = source_submesh(V, F, src)
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
     timings: dict = {}
     t0 = _now()
-    ops = operators or DEFAULT_OPERATORS.get(method)
     d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
     timings.setdefault("solve", _now() - t0 - timings.get("setup", 0.0))
     if method in POISSON_METHODS:
@@ -232,6 +242,29 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     d = np.full(n, np.inf)
     d[keep] = d2
     return GeodesicResult(d, t, h, timings, stats)
+
+
+def _refuse_needles(V, F, method, lap, ops, path) -> None:
+    """InputError when a face angle is below :data:`NEEDLE_ANGLE` for what
+    the method would run on the input's own triangles (libigl's exact
+    geodesic; the extrinsic Poisson step; a cotan solve)."""
+    from geoproc.geodesic.operators import smallest_angles
+
+    if method == "exact":
+        key, what = "exact", "libigl's exact geodesic (MMP) does not return on some such meshes"
+    elif method in POISSON_METHODS and ops == "extrinsic":
+        key, what = "poisson", f"method '{method}' with extrinsic operators loses its accuracy on such needles"
+    elif method not in POISSON_METHODS and lap == "cotan":
+        key, what = "cotan", (f"the cotan weights (up to 1/angle) leave method '{method}' without accuracy "
+                              "(--laplacian intrinsic-delaunay flips slivers away)")
+    else:
+        return
+    angle = smallest_angles(V, F)
+    needles = np.flatnonzero(angle < NEEDLE_ANGLE[key])
+    if len(needles):
+        k = int(needles[np.argmin(angle[needles])])
+        raise InputError(path, f"{len(needles)} faces have an angle below {NEEDLE_ANGLE[key]:g} rad (smallest: "
+                               f"face {k}, {angle[k]:.2g} rad); {what}")
 
 
 def _now() -> float:

@@ -39,6 +39,18 @@ def infinite_cotan_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return np.flatnonzero(~np.isfinite(C).all(axis=1))
 
 
+def smallest_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m,) smallest corner angle of each face, in radians (``atan2(|u x v|, u . v)``,
+    accurate for needles where the arccosine of a dot product is not)."""
+    P = V[F]
+    out = np.full(len(F), np.pi)
+    for k in range(3):
+        u = P[:, (k + 1) % 3] - P[:, k]
+        v = P[:, (k + 2) % 3] - P[:, k]
+        out = np.minimum(out, np.arctan2(np.linalg.norm(np.cross(u, v), axis=1), np.einsum("ij,ij->i", u, v)))
+    return out
+
+
 def lumped_mass(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n,) Voronoi lumped mass of each vertex (area unit), by ``igl.massmatrix``."""
     import igl

@@ -141,6 +141,31 @@ def test_cvxpy_inaccurate_steps_are_a_note_not_a_warning(cli, fixture_dir, tmp_p
     assert ("short of its tolerances" in p.stderr) == (inaccurate > 0)
 
 
+@pytest.mark.parametrize("squash,args,fragment", [
+    # libigl's exact geodesic ran for minutes on this 8 x 8 grid (angles 3e-6 rad)
+    (3e-6, ["-m", "exact"], "below 0.0001 rad"),
+    (3e-6, ["--reference", "exact"], "below 0.0001 rad"),
+    # the heat method's Poisson step gave errors of 80 % of the grid's length at 1e-7 rad
+    (1e-7, [], "below 1e-06 rad"),
+    (1e-7, ["-m", "log-heat", "--operators", "extrinsic"], "below 1e-06 rad"),
+    # varadhan's cotan solve returned inf at 1e-9 rad
+    (1e-9, ["-m", "varadhan"], "below 1e-07 rad"),
+    (1e-9, ["-m", "log-ode", "--laplacian", "cotan"], "below 1e-07 rad"),
+])
+def test_needles_are_refused_where_the_method_fails(cli, make_fixtures, tmp_path, squash, args, fragment):
+    V, F = make_fixtures.grid(8)
+    src = tmp_path / "needles.ply"
+    save_mesh(src, Mesh(V * [squash, 1, 1], F))
+    out = tmp_path / "d.ply"
+    p = cli("geodesic", src, "-s", "0", *args, "-o", out)
+    assert p.returncode == 2 and not out.exists()
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "needles.ply: 98 faces have an angle " + fragment in lines[0]
+    # a grid squashed to 1e-5 passes the varadhan limit and runs
+    save_mesh(src, Mesh(V * [1e-5, 1, 1], F))
+    assert cli("geodesic", src, "-s", "0", "-m", "varadhan", "-o", out).returncode == 0
+
+
 def _isolated_vertex_mesh(make_fixtures, tmp_path):
     V, F = make_fixtures.grid(5)
     path = tmp_path / "iso.ply"
