@@ -375,6 +375,9 @@ def denoise_mesh(
     p = DenoiseParams() if params is None else params
     if p.features not in FEATURE_METHODS:
         raise ValueError(f"unknown feature method {p.features!r}")
+    F, flip = consistent_orientation(F)
+    if initial_normals is not None and flip.any():
+        initial_normals = np.where(flip[:, None], -initial_normals, initial_normals)
     edge_nb = face_edge_neighbors(F)
     noise_deg = median_dihedral_deg(V, F, edge_nb)
     rough = roughness(V, F)
@@ -394,8 +397,29 @@ def denoise_mesh(
         strong=strong, fine=strong and sched["coarse_weight"] < 0.5)
     res = filter_and_fit(V, F, method, p, plan, edge_nb, progress, initial_normals)
     res.info = {"noise_median_dihedral_deg": noise_deg, "noise_roughness": rough, "coarseness_deg": coarse,
-                "dihedral_tail_ratio": tail if np.isfinite(tail) else None, **res.info}
+                "dihedral_tail_ratio": tail if np.isfinite(tail) else None, "reoriented_faces": int(flip.sum()),
+                **res.info}
+    if flip.any():  # the normals back in the input's face orientation
+        res.normals = np.where(flip[:, None], -res.normals, res.normals)
     return res
+
+
+def consistent_orientation(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Faces turned to agree with their edge neighbours in each connected
+    patch (``igl.bfs_orient``): the filters compare face normals, and a face
+    stored the other way round reads as a crease of 180 degrees.
+
+    Returns the (m, 3) reoriented faces and the (m,) bool mask of the faces turned.
+    """
+    import igl
+
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    if len(F) == 0:
+        return F, np.zeros(0, dtype=bool)
+    Fo, _ = igl.bfs_orient(F)
+    Fo = np.asarray(Fo, dtype=np.int64)
+    flip = ~np.any([(Fo == np.roll(F, r, axis=1)).all(axis=1) for r in range(3)], axis=0)
+    return Fo, flip
 
 
 def filter_and_fit(
