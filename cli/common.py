@@ -355,6 +355,8 @@ def command_run(
     try:
         parsed = [parse_check(c) for c in (checks or [])]
         _require_finite_options(params)
+        if report is not None:
+            require_extension(report, ".json", "--report", stdout_ok=True)
         if report is not None and os.fspath(report) != "-" \
                 and not os.path.isdir(os.path.dirname(os.path.abspath(report))):
             raise UsageError(f"--report {report}: folder does not exist")

@@ -120,6 +120,8 @@ def morse_simplify(
             raise UsageError(f"{output}: the output must be a .ply file (or -) to carry the fields")
         if diagram is not None:
             require_extension(diagram, ".png", "--diagram", stdout_ok=True)
+        if critical is not None:
+            require_extension(critical, ".json", "--critical", stdout_ok=True)
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
         require_manifold(m)

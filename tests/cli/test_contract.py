@@ -97,6 +97,16 @@ def test_unknown_metric_and_malformed_check_are_usage_errors(cli, fixture_dir, t
     assert p.returncode == 2 and "--check 'genus=1'" in p.stderr
 
 
+def test_report_and_critical_need_json_names(cli, fixture_dir, tmp_path):
+    p = cli("info", fixture_dir / "torus.ply", "--report", tmp_path / "r.txt")
+    assert p.returncode == 2 and "r.txt: must end in .json (or be -)" in p.stderr
+    assert list(tmp_path.iterdir()) == []
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", "z", "-p", "0.1", "-o", tmp_path / "m.ply",
+            "--critical", tmp_path / "c.png")
+    assert p.returncode == 2 and "--critical" in p.stderr and "must end in .json" in p.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_report_into_missing_folder_is_a_usage_error(cli, fixture_dir, tmp_path):
     p = cli("info", fixture_dir / "torus.ply", "--report", tmp_path / "no" / "r.json")
     assert p.returncode == 2 and "does not exist" in p.stderr
