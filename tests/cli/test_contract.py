@@ -283,20 +283,23 @@ def test_stdout_failures_same_paths_and_early_stdout_leave_nothing(fixture_dir, 
 
     mesh = tmp_path / "t.ply"
     mesh.write_bytes((fixture_dir / "torus.ply").read_bytes())
+    domain = tmp_path / "d.json"
+    domain.write_text('{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}')
     base = [sys.executable, "-m", "geoproc_cli.main"]
     with open("/dev/full", "wb") as full:
         p = subprocess.run(base + ["geodesic", mesh, "-s", "0", "-o", tmp_path / "o.ply", "--report", "-"],
                            stdout=full, stderr=subprocess.PIPE, text=True)
     assert p.returncode == 2 and p.stderr.strip() == "error: -: cannot write: No space left on device"
     for args, message in (
-        (["geodesic", mesh, "-s", "0", "-o", tmp_path / "s.ply", "--report", tmp_path / "s.ply"], "two outputs"),
-        (["info", mesh, "--report", mesh], "is also an input"),
+        (["morse-simplify", mesh, "-f", "z", "-p", "0.1", "-o", tmp_path / "m.ply", "--critical", tmp_path / "s.json",
+          "--report", tmp_path / "s.json"], "two outputs"),
+        (["wos-solve", domain, "--boundary", "x", "-o", tmp_path / "u.exr", "--report", domain], "is also an input"),
         (["perturb", fixture_dir / "points.ply", "--seed", "1", "-o", tmp_path / "p.obj"], "written as .ply only"),
         (["info", mesh, "--json", "--check", "nosuch<=1"], "unknown metric"),
     ):
         p = subprocess.run(base + args, capture_output=True, text=True)
         assert p.returncode == 2 and p.stdout == "" and message in p.stderr, (args, p.stderr)
-    assert sorted(f.name for f in tmp_path.iterdir()) == ["t.ply"]
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["d.json", "t.ply"]
 
 
 def test_coordinates_beyond_the_safe_range_are_refused(cli, fixture_dir, tmp_path):
