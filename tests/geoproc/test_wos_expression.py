@@ -40,3 +40,12 @@ def test_unknown_names_are_named():
 def test_disallowed_constructs_are_rejected(text):
     with pytest.raises(UsageError):
         parse_expression(text)
+
+
+def test_syntax_errors_name_the_character_and_stay_one_short_line():
+    with pytest.raises(UsageError, match=r"--boundary 'x\+\*y': not a valid expression \(invalid syntax at character 3\)"):
+        parse_expression("x+*y")
+    long = "x+" * 200 + ")"
+    with pytest.raises(UsageError) as err:
+        parse_expression(long)
+    assert len(str(err.value)) < 150 and "unmatched ')' at character 401" in str(err.value)
