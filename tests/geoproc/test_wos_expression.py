@@ -43,7 +43,7 @@ def test_disallowed_constructs_are_rejected(text):
 
 
 def test_syntax_errors_name_the_character_and_stay_one_short_line():
-    with pytest.raises(UsageError, match=r"--boundary 'x\+\*y': not a valid expression \(invalid syntax at character 3\)"):
+    with pytest.raises(UsageError, match=r"'x\+\*y': not a valid expression \(invalid syntax at character 3\)"):
         parse_expression("x+*y")
     long = "x+" * 200 + ")"
     with pytest.raises(UsageError) as err:
