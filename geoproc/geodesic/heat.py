@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoproc.geodesic.heat_operators import heat_operators
-from geoproc.geodesic.operators import factor_sparse
+from geoproc.geodesic.operators import factor_sparse, flat_within_rounding
 from geoproc.mesh.topology import boundary_vertices
 
 
@@ -43,7 +43,7 @@ class HeatMethodSolver:
         self.n = len(V)
         ops = heat_operators(V, F, laplacian, operators)
         self.operators, self.axes = ops.kind, len(ops.coef)
-        self.G, self.D, self.poisson = ops.G, ops.D, ops.poisson
+        self.G, self.D, self.poisson, self.F = ops.G, ops.D, ops.poisson, ops.F
         self.M = ops.M
         A = (sp.diags(ops.M) - t * ops.L).tocsc()
         self._neumann = factor_sparse(A)
@@ -69,8 +69,12 @@ class HeatMethodSolver:
         return u
 
     def distance_from_heat(self, u: np.ndarray, sources: np.ndarray) -> np.ndarray:
-        """Normalize ``-grad u``, Poisson-solve and shift so the sources are at 0."""
+        """Normalize ``-grad u``, Poisson-solve and shift so the sources are at 0.
+
+        Faces where u is constant up to rounding get no direction
+        (:func:`~geoproc.geodesic.operators.flat_within_rounding`)."""
         g = (self.G @ u).reshape(self.axes, -1).T
+        g[flat_within_rounding(u[self.F])] = 0.0
         return self.poisson.distance_from_direction(self.D, g, sources)
 
     def solve(self, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

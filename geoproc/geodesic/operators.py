@@ -39,6 +39,18 @@ def infinite_cotan_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return np.flatnonzero(~np.isfinite(C).all(axis=1))
 
 
+def flat_within_rounding(Xf: np.ndarray, floor: float = 0.0) -> np.ndarray:
+    """(m,) bool: faces whose three values ``Xf`` (m, 3) differ by at most 64
+    units in the last place of ``max(max |Xf|, floor)``. Their gradient is a
+    rounding difference; normalized, its direction is noise (the heat method
+    on a tetrahedron scaled by 1e20 gave 1.04, 0.38 and 0.71 x 1e20 for three
+    vertices its symmetry makes equidistant)."""
+    with np.errstate(invalid="ignore"):
+        spread = Xf.max(axis=1) - Xf.min(axis=1)
+        scale = np.maximum(np.abs(Xf).max(axis=1), floor)
+    return np.isfinite(scale) & (spread <= 64 * np.finfo(np.float64).eps * scale)
+
+
 def smallest_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(m,) smallest corner angle of each face, in radians (``atan2(|u x v|, u . v)``,
     accurate for needles where the arccosine of a dot product is not)."""
