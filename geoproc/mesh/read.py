@@ -318,6 +318,8 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
         idx = np.array(text.split(), dtype=np.int64)
     except ValueError:
         raise InputError(path, "unparseable OBJ: a face corner is not an integer vertex index") from None
+    except OverflowError:
+        raise InputError(path, "face index out of range (beyond 64-bit integers)") from None
     line_of = np.repeat(np.arange(len(flines)), counts)
     relative = idx < 0
     idx = np.where(relative, np.asarray(seen)[line_of] + idx, idx - 1)
@@ -427,6 +429,8 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int] | None:
             face = [int(t) for t in tokens[1: 1 + corners]]
         except ValueError:
             raise InputError(path, f"OFF face {i}: the corners are not all integers") from None
+        if max(map(abs, face)) >= 2**62:
+            raise InputError(path, f"face index out of range: OFF face {i} references vertex {max(face, key=abs)}")
         faces.append(face)
     F, polygons = _fan_triangulate(faces) if faces else (np.zeros((0, 3), dtype=np.int64), 0)
     return Mesh(V, F), polygons
@@ -457,7 +461,7 @@ def _off_triangles(lines: list) -> np.ndarray | None:
         return None
     try:
         T = np.array(b" ".join(lines).split(), dtype=np.int64).reshape(len(lines), -1)
-    except ValueError:
+    except (ValueError, OverflowError):
         return None
     if T.shape[1] < 4 or not (T[:, 0] == 3).all():
         return None

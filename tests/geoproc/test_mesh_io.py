@@ -255,6 +255,7 @@ def test_obj_vertex_extras_and_malformed_lines(tmp_path):
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n", "face 0 references vertex -4, but the file has 3"),
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "face 0 references vertex 0, but the file has 3"),
         (b"vt 0 0\n", "no vertex or face lines"),
+        (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999999\n", "beyond 64-bit integers"),
     ]:
         with pytest.raises(InputError) as err:
             read_mesh_bytes(text, "obj", "m.obj")
