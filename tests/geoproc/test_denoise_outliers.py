@@ -60,6 +60,19 @@ def test_robust_plane_ignores_an_outlying_row():
     assert abs(abs(n[2]) - 1.0) < 1e-3
 
 
+def test_coincident_points_are_scored_once(dfx):
+    # a cloud stored twice: every point had a copy at spacing 0 and nothing was
+    # flagged (F1 0); the copies now share the single cloud's result
+    P, flag = dfx.cloud_with_outliers(10000, 0.1, 0.02)
+    once = rpca_outliers(P)
+    twice = rpca_outliers(np.vstack([P, P]))
+    assert np.array_equal(twice.outlier, np.r_[once.outlier, once.outlier])
+    assert np.allclose(twice.refined, np.vstack([once.refined, once.refined]), rtol=0, atol=1e-12)
+    assert detection_scores(twice.outlier, np.r_[flag, flag])["f1"] > 0.8
+    with pytest.raises(InputError, match="has 3 distinct points"):
+        rpca_outliers(np.repeat(P[:3], 10, axis=0))
+
+
 def test_too_few_points_is_refused():
     P = np.random.default_rng(0).standard_normal((10, 3))
     with pytest.raises(InputError, match="fewer than"):
