@@ -1,10 +1,10 @@
 """Read OBJ, PLY (ASCII and binary), OFF and STL files into a :class:`Mesh`.
 
 PLY goes through plyfile so that every named vertex and face property comes back
-exactly (positions and fields as float64); OBJ and ASCII OFF (also COFF, NOFF,
-STOFF) are parsed here, vectorized; STL and the other OFF variants go through
-trimesh with ``process=False``. Polygons with more than three corners are triangulated as fans
-and counted in ``mesh.log.triangulated_polygons``. After reading, the mesh is
+exactly (positions and fields as float64); OBJ and ASCII OFF are parsed here,
+vectorized; STL goes through trimesh with ``process=False``. Polygons with
+more than three corners are triangulated as fans and counted in
+``mesh.log.triangulated_polygons``. After reading, the mesh is
 validated (see :func:`validate_arrays`) and, unless ``clean=False``, cleaned by
 :func:`geoproc.mesh.clean.clean_mesh`.
 """
@@ -75,10 +75,13 @@ def format_from_extension(path: str) -> str:
 
 def sniff_format(data: bytes, path: str = "-") -> str:
     """Guess the mesh format of raw bytes (for standard input)."""
+    if data.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark
+        data = data[3:]
     head = re.sub(rb"^(\s*#[^\n]*\n)+", b"", data[:4096]).lstrip()  # OFF and OBJ allow leading comments
     if head.startswith(b"ply"):
         return "ply"
-    if head[:3] in (b"OFF", b"COF", b"NOF") or head.startswith(b"STOFF"):
+    first = head.split(None, 1)[0] if head.strip() else b""
+    if _OFF_KEYWORD.fullmatch(first) or first.lower() == b"off":
         return "off"
     if head.startswith(b"solid") and b"facet" in data[:4096]:
         return "stl"
@@ -86,7 +89,7 @@ def sniff_format(data: bytes, path: str = "-") -> str:
         n = int(np.frombuffer(data[80:84], dtype="<u4")[0])
         if len(data) == 84 + 50 * n:
             return "stl"
-    if re.search(rb"^\s*(v|f)\s", data[:65536], flags=re.M):
+    if re.search(rb"^[ \t]*(v|vt|vn|vp|f|l|o|g|s|usemtl|mtllib)[ \t]", data[:65536], flags=re.M):
         return "obj"
     raise InputError(path, "cannot tell the mesh format of the data (not PLY, OFF, STL or OBJ)")
 
@@ -97,13 +100,12 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
         raise InputError(path, "file is empty")
     if data.startswith(b"\xef\xbb\xbf") and fmt in ("obj", "off"):  # a UTF-8 byte order mark
         data = data[3:]
-    parsed = _parse_off(data, path) if fmt == "off" else None
     if fmt == "ply":
         mesh, polys = _parse_ply(data, path)
     elif fmt == "obj":
         mesh, polys = _parse_obj(data, path)
-    elif parsed is not None:
-        mesh, polys = parsed
+    elif fmt == "off":
+        mesh, polys = _parse_off(data, path)
     else:
         mesh, polys = _parse_with_trimesh(data, fmt, path)
     mesh.log = LoadLog(
@@ -184,12 +186,20 @@ def _fan_triangulate(faces: list) -> tuple[np.ndarray, int]:
     lengths = np.fromiter((len(f) for f in faces), dtype=np.int64, count=len(faces))
     if len(faces) and (lengths == 3).all():
         return np.asarray(np.stack(faces), dtype=np.int64).reshape(-1, 3), 0
-    tris = []
-    for f in faces:
-        f = np.asarray(f, dtype=np.int64)
-        for k in range(1, len(f) - 1):
-            tris.append((f[0], f[k], f[k + 1]))
-    return np.asarray(tris, dtype=np.int64).reshape(-1, 3), int((lengths > 3).sum())
+    flat = np.concatenate([np.asarray(f, dtype=np.int64) for f in faces]) if faces else np.zeros(0, np.int64)
+    return _fans(flat, lengths)
+
+
+def _fans(idx: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, int]:
+    """Triangle fans ``(p0, pk, pk+1)`` of polygons stored back to back in
+    ``idx`` with ``counts`` corners each (all >= 3), vectorized; returns the
+    (m, 3) triangles and the number of polygons with more than three corners."""
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    per = counts - 2
+    first = np.repeat(start, per)
+    k = np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per) + 1
+    tris = np.stack([idx[first], idx[first + k], idx[first + k + 1]], axis=1)
+    return tris.astype(np.int64), int((counts > 3).sum())
 
 
 def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
@@ -243,7 +253,7 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
         if "vertex_indices" not in sdata.dtype.names:
             raise InputError(path, "PLY tristrips element has no 'vertex_indices' list")
         strips = list(sdata["vertex_indices"])
-        _require_integer_indices(strips, path)
+        _require_integer_indices(strips, path, "tristrips row")
         F = np.concatenate([F, _strip_triangles(strips)])
         ffields = {}  # per-face properties belong to the face element alone
     return Mesh(V, F, vfields, ffields), polys
@@ -256,7 +266,10 @@ def _strip_triangles(strips: list) -> np.ndarray:
     (the stitches between strips) are skipped."""
     tris = []
     for strip in strips:
-        runs = np.split(np.asarray(strip, dtype=np.int64), np.flatnonzero(np.asarray(strip) == -1))
+        raw = np.asarray(strip)
+        # -1 restarts a strip; stored unsigned it reads as the type's largest value
+        restart = (raw == -1) | ((raw == np.iinfo(raw.dtype).max) if raw.dtype.kind == "u" else False)
+        runs = np.split(np.where(restart, -1, raw.astype(np.int64)), np.flatnonzero(restart))
         for run in runs:
             run = run[run != -1]
             for i in range(len(run) - 2):
@@ -266,17 +279,21 @@ def _strip_triangles(strips: list) -> np.ndarray:
     return np.asarray(tris, dtype=np.int64).reshape(-1, 3)
 
 
-def _require_integer_indices(faces: list, path: str) -> None:
-    """Raise InputError when a PLY face list stored as floats holds a
-    non-integer vertex index (such as 1.5)."""
+def _require_integer_indices(faces: list, path: str, what: str = "face") -> None:
+    """Raise InputError when a PLY index list stored as floats holds a
+    vertex index that is not an integer (1.5, inf, nan) or beyond 64-bit
+    integers (1e30); ``what`` names the list's element in the message."""
     if not faces or np.asarray(faces[0]).dtype.kind != "f":
         return
     flat = np.concatenate(faces)
-    bad = flat != np.round(flat)
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(flat) | (flat != np.round(flat)) | (np.abs(flat) >= 2.0**62)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
         face = int(np.searchsorted(np.cumsum([len(f) for f in faces]), first, side="right"))
-        raise InputError(path, f"face {face} has a non-integer vertex index {flat[first]:g}")
+        kind = "a non-integer" if not np.isfinite(flat[first]) or flat[first] != np.round(flat[first]) \
+            else "an out-of-range"
+        raise InputError(path, f"{what} {face} has {kind} vertex index {flat[first]:g}")
 
 
 def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
@@ -293,11 +310,15 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
     """
     if b"#" in data:
         data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
+    if b"\\" in data:
+        data = re.sub(rb"\\[ \t]*\r?\n", b" ", data)  # a trailing backslash continues the line
+    if b"_" in data and re.search(rb"^[ \t]*[vf][ \t][^\r\n]*_", data, flags=re.M):
+        raise InputError(path, "unparseable OBJ: '_' inside a number (a v or f line)")
     vlines, flines, seen = [], [], []
     for line in data.replace(b"\t", b" ").splitlines():
         head = line.lstrip()[:2]
-        if head == b"v ":
-            vlines.append(line.lstrip()[2:])
+        if head == b"v " or line.strip() == b"v":
+            vlines.append(line.lstrip()[1:])
         elif head == b"f " or line.strip() == b"f":
             flines.append(line.lstrip()[1:])
             seen.append(len(vlines))
@@ -331,8 +352,7 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
                                f"but the file has {len(V)} vertices (1-based)")
     if (counts == 3).all():
         return Mesh(V, idx.reshape(-1, 3)), 0
-    faces = np.split(idx, np.cumsum(counts)[:-1])
-    F, polygons = _fan_triangulate(faces)
+    F, polygons = _fans(idx, counts)
     return Mesh(V, F), polygons
 
 
@@ -340,12 +360,12 @@ def _obj_vertices(lines: list, path: str) -> np.ndarray:
     """(n, 3) float64: the first three numbers of each OBJ ``v`` line (after the ``v``)."""
     if not lines:
         return np.zeros((0, 3), dtype=np.float64)
-    try:  # the common case, three numbers per line: one vectorized parse
-        flat = np.array(b" ".join(lines).split(), dtype=np.float64)
-        if len(flat) == 3 * len(lines):
-            return flat.reshape(-1, 3)
-    except ValueError:
-        pass
+    counts = np.fromiter((len(ln.split()) for ln in lines), dtype=np.int64, count=len(lines))
+    if (counts == 3).all():  # the common case, three numbers per line: one vectorized parse
+        try:
+            return np.array(b" ".join(lines).split(), dtype=np.float64).reshape(-1, 3)
+        except ValueError:
+            pass
     V = np.empty((len(lines), 3), dtype=np.float64)
     for i, line in enumerate(lines):
         try:
@@ -360,7 +380,7 @@ def _obj_vertices(lines: list, path: str) -> np.ndarray:
 
 
 def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
-    """STL, and the OFF variants :func:`_parse_off` leaves to trimesh."""
+    """STL, through trimesh."""
     import trimesh
 
     try:
@@ -379,28 +399,49 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     return Mesh(V, F), 0
 
 
-def _parse_off(data: bytes, path: str) -> tuple[Mesh, int] | None:
-    """Parse an ASCII OFF file (also COFF, NOFF, STOFF: the extra per-vertex
-    values and per-face colours are ignored); polygons are split into fans.
+# an OFF keyword: [ST][C][N][4][n]OFF (texture, colour, normals, homogeneous, dimension)
+_OFF_KEYWORD = re.compile(rb"(ST)?(C)?(N)?(4)?(n)?OFF")
 
-    Returns the mesh and the number of faces with more than three corners, or
-    None for variants this parser leaves to trimesh (4OFF, nOFF, binary).
-    Raises InputError for a file shorter than its header says, a short face
-    line or a coordinate that is not a number.
+
+def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
+    """Parse an ASCII OFF file: any keyword ``[ST][C][N][4][n]OFF`` (texture
+    coordinates, normals and colours after the position are ignored; 4OFF
+    positions are divided by w; nOFF must be 3-D), or none (a first line of
+    counts); one vertex or face per line; polygons are split into fans.
+
+    Returns the mesh and the number of faces with more than three corners.
+    Raises InputError for binary OFF, a file shorter than its header says, a
+    short face line or a coordinate that is not a number.
     """
     text = re.sub(rb"#[^\r\n]*", b"", data) if b"#" in data else data
     lines = [ln for ln in text.splitlines() if ln.strip()]
     if not lines:
-        return None
+        raise InputError(path, "unparseable OFF: no header (only comments or blank lines)")
+    if b"_" in text:
+        raise InputError(path, "unparseable OFF: '_' inside a number")
     head = lines[0].split()
-    kind = head[0]
-    # 4OFF (homogeneous), nOFF (any dimension) and binary files go to trimesh
-    if not kind.upper().endswith(b"OFF") or b"4" in kind or kind.startswith(b"n") \
-            or any(t.upper() == b"BINARY" for t in head[1:]):
-        return None
-    counts, start = head[1:], 1
-    if not counts and len(lines) > 1:
-        counts, start = lines[1].split(), 2
+    kind = _OFF_KEYWORD.fullmatch(head[0])
+    if kind is None and head[0].lower() == b"off":
+        kind = _OFF_KEYWORD.fullmatch(b"OFF")
+    if kind is None:  # the keyword is optional: a first line of counts
+        if not all(t.isdigit() for t in head) or len(head) not in (2, 3):
+            raise InputError(path, f"unparseable OFF: the first line '{lines[0].decode('latin-1').strip()[:40]}' "
+                                   "is neither an OFF keyword nor the vertex and face counts")
+        counts, start, homogeneous = head, 1, False
+    else:
+        rest, start, homogeneous = head[1:], 1, kind.group(4) is not None
+        if any(t.upper() == b"BINARY" for t in rest):
+            raise InputError(path, "binary OFF is not supported (write it as ASCII OFF, PLY, OBJ or STL)")
+        if kind.group(5) is not None:  # nOFF: the dimension comes first
+            if not rest and len(lines) > 1:
+                rest, start = lines[1].split(), 2
+            dim = rest[0] if rest else b"?"
+            if dim != b"3":
+                raise InputError(path, f"nOFF of dimension {dim.decode('latin-1')}: only 3-D vertices are read")
+            rest = rest[1:]
+        counts = rest
+        if not counts and len(lines) > start:
+            counts, start = lines[start].split(), start + 1
     try:
         nv, nf = int(counts[0]), int(counts[1])
     except (IndexError, ValueError):
@@ -409,7 +450,7 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int] | None:
     if nv < 0 or nf < 0 or have < nv + nf:
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
                          f"but only {max(have, 0)} lines follow it (one per vertex, then one per face)")
-    V = _off_vertices(lines[start: start + nv], path)
+    V = _off_vertices(lines[start: start + nv], path, homogeneous)
     face_lines = lines[start + nv: start + nv + nf]
     F = _off_triangles(face_lines)
     if F is not None:
@@ -436,22 +477,34 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int] | None:
     return Mesh(V, F), polygons
 
 
-def _off_vertices(lines: list, path: str) -> np.ndarray:
-    """(n, 3) float64: the first three numbers of each OFF vertex line."""
+def _off_vertices(lines: list, path: str, homogeneous: bool = False) -> np.ndarray:
+    """(n, 3) float64: the first three numbers of each OFF vertex line, or
+    with ``homogeneous`` (4OFF) the first four, x y z divided by w."""
+    k = 4 if homogeneous else 3
     counts = {len(ln.split()) for ln in lines}
-    if len(counts) == 1 and min(counts) >= 3:
+    X = None
+    if len(counts) == 1 and min(counts) >= k:
         try:  # the common case, every line alike: one vectorized parse
-            return np.array(b" ".join(lines).split(), dtype=np.float64).reshape(len(lines), -1)[:, :3].copy()
+            X = np.array(b" ".join(lines).split(), dtype=np.float64).reshape(len(lines), -1)[:, :k].copy()
         except ValueError:
-            pass
-    V = np.empty((len(lines), 3), dtype=np.float64)
-    for i, line in enumerate(lines):
-        try:
-            V[i] = [float(t) for t in line.split()[:3]]
-        except ValueError:
-            raise InputError(path, f"OFF vertex {i}: '{line.decode('latin-1').strip()}' "
-                             "does not start with three numbers") from None
-    return V
+            X = None
+    if X is None:
+        X = np.empty((len(lines), k), dtype=np.float64)
+        for i, line in enumerate(lines):
+            try:
+                tokens = line.split()[:k]
+                if len(tokens) < k:
+                    raise ValueError
+                X[i] = [float(t) for t in tokens]
+            except ValueError:
+                raise InputError(path, f"OFF vertex {i}: '{line.decode('latin-1').strip()}' "
+                                 f"does not start with {'four' if homogeneous else 'three'} numbers") from None
+    if not homogeneous:
+        return X
+    zero = np.flatnonzero(X[:, 3] == 0)
+    if len(zero):
+        raise InputError(path, f"4OFF vertex {int(zero[0])} has w = 0 (a point at infinity)")
+    return X[:, :3] / X[:, 3:]
 
 
 def _off_triangles(lines: list) -> np.ndarray | None:

@@ -256,6 +256,10 @@ def test_obj_vertex_extras_and_malformed_lines(tmp_path):
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "face 0 references vertex 0, but the file has 3"),
         (b"vt 0 0\n", "no vertex or face lines"),
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999999\n", "beyond 64-bit integers"),
+        # a short line beside a long one once passed the total count (the w became a coordinate)
+        (b"v 0 0 0 1\nv 1 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 1: 'v 1 0' does not hold three numbers"),
+        (b"v 0 0 0\nv\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 1: 'v ' does not hold three numbers"),
+        (b"v 0 0 0\nv 1_0 0 0\nv 0 1 0\nf 1 2 3\n", "'_' inside a number"),
     ]:
         with pytest.raises(InputError) as err:
             read_mesh_bytes(text, "obj", "m.obj")
@@ -272,3 +276,60 @@ def test_ply_triangle_strips_are_read():
     assert m.F.tolist() == [[0, 1, 2], [2, 1, 3], [2, 3, 4], [4, 3, 5], [4, 3, 5]]
     N = np.cross(m.V[m.F[:, 1]] - m.V[m.F[:, 0]], m.V[m.F[:, 2]] - m.V[m.F[:, 0]])
     assert (N[:, 2] < 0).all()  # one orientation throughout
+
+
+def test_obj_backslash_continues_a_line():
+    m = read_mesh_bytes(b"v 0 0 \\\n0\nv 1 0 0\nv 0 1 0\nf 1 2 \\\r\n3\n", "obj", clean=False)
+    assert m.V.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]] and m.F.tolist() == [[0, 1, 2]]
+
+
+@pytest.mark.parametrize("text, V", [
+    # 4OFF: homogeneous coordinates, divided by w (trimesh dropped w)
+    (b"4OFF\n3 1 0\n0 0 0 1\n2 0 0 2\n0 4 0 2\n3 0 1 2\n", [[0, 0, 0], [1, 0, 0], [0, 2, 0]]),
+    (b"CNOFF\n3 1 0\n0 0 0 0 0 1 1 0 0 1\n1 0 0 0 0 1 0 1 0 1\n0 1 0 0 0 1 0 0 1 1\n3 0 1 2\n",
+     [[0, 0, 0], [1, 0, 0], [0, 1, 0]]),
+    (b"nOFF\n3\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", [[0, 0, 0], [1, 0, 0], [0, 1, 0]]),
+    (b"off\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", [[0, 0, 0], [1, 0, 0], [0, 1, 0]]),
+    (b"3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", [[0, 0, 0], [1, 0, 0], [0, 1, 0]]),  # no keyword
+])
+def test_off_variants(text, V):
+    m = read_mesh_bytes(text, "off", "v.off", clean=False)
+    assert m.V.tolist() == V and m.F.tolist() == [[0, 1, 2]]
+    if text[:1].isalpha():  # with a keyword the format is told on standard input too
+        assert sniff_format(text) == sniff_format(b"\xef\xbb\xbf" + text) == "off"
+
+
+@pytest.mark.parametrize("text, fragment", [
+    (b"OFF BINARY\n\x00\x00\x00\x03", "binary OFF is not supported"),
+    (b"nOFF\n4\n3 1 0\n0 0 0 0\n1 0 0 0\n0 1 0 0\n3 0 1 2\n", "nOFF of dimension 4"),
+    (b"4OFF\n3 1 0\n0 0 0 0\n1 0 0 1\n0 1 0 1\n3 0 1 2\n", "4OFF vertex 0 has w = 0"),
+    (b"OFF\n3 1 0\n0 0 0\n1_0 0 0\n0 1 0\n3 0 1 2\n", "'_' inside a number"),
+])
+def test_off_variants_refused(text, fragment):
+    with pytest.raises(InputError) as err:
+        read_mesh_bytes(text, "off", "v.off")
+    assert fragment in err.value.problem
+
+
+def test_obj_sniffed_behind_a_long_preamble():
+    data = b"vt 0.5 0.5\n" * 7000 + b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1 2/2 3/3\n"
+    assert sniff_format(data) == "obj"
+
+
+def test_ply_index_lists_that_are_not_integers():
+    head = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            "element {el} 1\nproperty list int double vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n")
+    for el, row, fragment in [("tristrips", "4 0 1 2 inf", "tristrips row 0 has a non-integer vertex index inf"),
+                              ("face", "3 0 1 1e30", "face 0 has an out-of-range vertex index 1e+30")]:
+        with pytest.raises(InputError) as err:
+            read_mesh_bytes((head.format(el=el) + row + "\n").encode(), "ply", "p.ply")
+        assert fragment in err.value.problem
+
+
+def test_ply_unsigned_strip_restart_marker():
+    # -1 stored as an unsigned 32-bit integer is 4294967295
+    head = ("ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+            "element tristrips 1\nproperty list int uint vertex_indices\nend_header\n")
+    body = "0 0 0\n0 1 0\n1 0 0\n1 1 0\n2 0 0\n7 0 1 2 4294967295 1 3 2\n"
+    m = read_mesh_bytes((head + body).encode(), "ply", clean=False)
+    assert m.F.tolist() == [[0, 1, 2], [1, 3, 2]]
