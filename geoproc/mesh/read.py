@@ -296,6 +296,9 @@ def _require_integer_indices(faces: list, path: str, what: str = "face") -> None
         raise InputError(path, f"{what} {face} has {kind} vertex index {flat[first]:g}")
 
 
+_BLANKS = bytes.maketrans(b"\t\v\f", b"   ")  # tab, vertical tab, form feed: blanks as space
+
+
 def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
     """Parse the positions (``v``) and faces (``f``) of an OBJ file.
 
@@ -315,7 +318,7 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
     if b"_" in data and re.search(rb"^[ \t]*[vf][ \t][^\r\n]*_", data, flags=re.M):
         raise InputError(path, "unparseable OBJ: '_' inside a number (a v or f line)")
     vlines, flines, seen = [], [], []
-    for line in data.replace(b"\t", b" ").splitlines():
+    for line in data.translate(_BLANKS).splitlines():
         head = line.lstrip()[:2]
         if head == b"v " or line.strip() == b"v":
             vlines.append(line.lstrip()[1:])

@@ -333,3 +333,8 @@ def test_ply_unsigned_strip_restart_marker():
     body = "0 0 0\n0 1 0\n1 0 0\n1 1 0\n2 0 0\n7 0 1 2 4294967295 1 3 2\n"
     m = read_mesh_bytes((head + body).encode(), "ply", clean=False)
     assert m.F.tolist() == [[0, 1, 2], [1, 3, 2]]
+
+
+def test_obj_vertical_tab_and_form_feed_are_blanks():
+    m = read_mesh_bytes(b"v\x0b0 0 0\nv 1\x0c0 0\nv 0 1 0\nf 1 2 3\n", "obj", clean=False)
+    assert m.V.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
