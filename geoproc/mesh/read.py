@@ -263,20 +263,25 @@ def _strip_triangles(strips: list) -> np.ndarray:
     """(m, 3) int64 triangles of PLY triangle strips (each a list of vertex
     indices, -1 restarting the strip): ``(s_i, s_i+1, s_i+2)``, every other one
     reversed to keep the strip's orientation; triangles that repeat a vertex
-    (the stitches between strips) are skipped."""
-    tris = []
+    (the stitches between strips) are skipped. Vectorized over all strips."""
+    parts = []
     for strip in strips:
         raw = np.asarray(strip)
         # -1 restarts a strip; stored unsigned it reads as the type's largest value
         restart = (raw == -1) | ((raw == np.iinfo(raw.dtype).max) if raw.dtype.kind == "u" else False)
-        runs = np.split(np.where(restart, -1, raw.astype(np.int64)), np.flatnonzero(restart))
-        for run in runs:
-            run = run[run != -1]
-            for i in range(len(run) - 2):
-                a, b, c = run[i], run[i + 1], run[i + 2]
-                if a != b and b != c and a != c:
-                    tris.append((a, b, c) if i % 2 == 0 else (b, a, c))
-    return np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+        parts.append(np.where(restart, -1, raw.astype(np.int64)))
+        parts.append(np.array([-1], dtype=np.int64))  # strips never join
+    flat = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+    if len(flat) < 3:
+        return np.zeros((0, 3), dtype=np.int64)
+    cut = flat == -1
+    last_cut = np.maximum.accumulate(np.where(cut, np.arange(len(flat)), -1))
+    i = np.arange(len(flat) - 2)
+    a, b, c = flat[i], flat[i + 1], flat[i + 2]
+    keep = ~(cut[i] | cut[i + 1] | cut[i + 2]) & (a != b) & (b != c) & (a != c)
+    odd = (i - last_cut[i] - 1) % 2 == 1  # position in the strip
+    tris = np.stack([np.where(odd, b, a), np.where(odd, a, b), c], axis=1)
+    return tris[keep]
 
 
 def _require_integer_indices(faces: list, path: str, what: str = "face") -> None:
