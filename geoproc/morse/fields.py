@@ -43,7 +43,8 @@ def field_name(spec: str) -> str:
 
     A property keeps its name; ``x``/``y``/``z`` become ``x_value`` etc. (``x``,
     ``y``, ``z`` are the coordinates); curvatures become ``mean_curvature`` /
-    ``gaussian_curvature``; a ``.npy`` file gives its stem.
+    ``gaussian_curvature``; a ``.npy`` file gives its stem (``x.npy``,
+    ``y.npy``, ``z.npy`` also become ``x_value`` etc.).
     """
     if spec in COORDINATES:
         return f"{spec}_value"
@@ -51,7 +52,8 @@ def field_name(spec: str) -> str:
         return spec.replace("-", "_")
     if spec.lower().endswith(".npy"):
         stem = os.path.splitext(os.path.basename(spec))[0]
-        return re.sub(r"[^A-Za-z0-9_]", "_", stem) or "field"
+        name = re.sub(r"[^A-Za-z0-9_]", "_", stem) or "field"
+        return f"{name}_value" if name in COORDINATES else name
     return spec
 
 
@@ -83,6 +85,8 @@ def vertex_field(mesh: Mesh, spec: str) -> np.ndarray:
     elif spec == "gaussian-curvature":
         values = gaussian_curvature(mesh.V, mesh.F)
     elif spec.lower().endswith(".npy"):
+        if not os.path.exists(spec):
+            raise InputError(spec, "no such file")
         try:
             values = np.load(spec, allow_pickle=False)
         except (OSError, ValueError, EOFError) as exc:  # EOFError: an empty file

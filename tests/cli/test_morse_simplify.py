@@ -224,3 +224,16 @@ def test_barycentric_reaches_half_threshold_and_chains(cli, shared_data, tmp_pat
     m2 = metrics(tmp_path / "r2.json")
     for kind in ("minima", "saddles", "maxima"):
         assert m2[f"{kind}_before"] == m[f"{kind}_after"]
+
+
+def test_npy_named_like_a_coordinate(cli, fixture_dir, tmp_path):
+    # x.npy was written under 'x', the coordinate: exit 3 from the PLY writer
+    n = len(load_mesh(fixture_dir / "torus.ply").V)
+    field = tmp_path / "x.npy"
+    np.save(field, np.random.default_rng(0).random(n))
+    out = tmp_path / "o.ply"
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", field, "-p", "0.1", "-o", out)
+    assert p.returncode == 0, p.stderr
+    assert {"x_value", "x_value_original"} <= set(load_mesh(out).vertex_fields)
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", tmp_path / "missing.npy", "-p", "0.1", "-o", out)
+    assert p.returncode == 2 and "missing.npy: no such file" in p.stderr
