@@ -134,6 +134,8 @@ def denoise(
         threshold = 0.5 if threshold is None else threshold
         if (sigma_r is not None and sigma_r <= 0) or (sigma_s is not None and sigma_s <= 0):
             raise UsageError("--sigma-r and --sigma-s must be > 0")
+        if sigma_r is not None and not sigma_r**2 > 1e-300:  # the range kernel divides by its square
+            raise UsageError(f"--sigma-r {sigma_r:g} is too small: its square underflows")
         if features not in ("l1", "dihedral"):
             raise UsageError(f"--features {features}: use l1 or dihedral")
         if feature_tau < 0 or not 0 <= feature_angle <= 180:
@@ -161,8 +163,9 @@ _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynamic: bool, features: str) -> None:
     """Options the chosen mode would ignore are refused (exit 2), not dropped."""
     if outliers:
-        refuse_options(ctx, _FILTER_OPTIONS + _FEATURE_OPTIONS + ("reference",), "not used by --outliers "
-                       "(precision, recall and F1 come from the input's 'outlier' property)")
+        refuse_options(ctx, _FILTER_OPTIONS + _FEATURE_OPTIONS, "not used by --outliers")
+        refuse_options(ctx, ("reference",), "not used by --outliers (precision, recall and F1 come from the "
+                       "input's 'outlier' property)")
         if input != "-" and is_animation_path(input):
             refuse_options(ctx, ("k", "keep_all", "no_clean"), "not used for an animation (its outliers come "
                            "from the animation matrix, every point is written, frames are read as stored)")
@@ -207,10 +210,32 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
                         "feature_faces": int(res.feature.sum())})
     run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
+    _note_unused_filter_options(run, res.info, dp)
     if ref_V is not None:
         with run.timer("metrics"):
             run.metrics.update(reference_metrics(res.V, mesh.V, mesh.F, ref_V))
     run.write_mesh(output, out)
+
+
+def _note_unused_filter_options(run, info: dict, dp) -> None:
+    """A note when no filter pass ran (the mesh read as clean, or --rounds /
+    --normal-iterations 0) although filter options were given."""
+    if info.get("outer_iterations", 1) and info.get("normal_iterations", 1):
+        return
+    given = [name for name, value in (("--sigma-r", dp.sigma_r), ("--sigma-s", dp.sigma_s_scale),
+                                      ("--normal-iterations", dp.normal_iterations)) if value is not None]
+    if not given:
+        return
+    counts = (("--rounds", "outer_iterations", dp.outer_iterations),
+              ("--normal-iterations", "normal_iterations", dp.normal_iterations))
+    zero = [opt for opt, _, value in counts if value == 0]
+    if zero:
+        why = f"no filter pass ran ({' and '.join(opt + ' 0' for opt in zero)})"
+    else:
+        auto = [opt for opt, key, value in counts if value is None and info.get(key) == 0]
+        why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so nothing "
+               f"was filtered; give {' and '.join(auto)} to filter anyway")
+    run.note(f"{', '.join(given)} not used: {why}")
 
 
 def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> None:

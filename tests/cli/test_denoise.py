@@ -353,3 +353,17 @@ def test_coincident_faces_error_names_the_file(cli, tmp_path):
     src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 3 2\n")
     p = cli("denoise", src, "-o", tmp_path / "o.ply")
     assert _one_line_error(p) and f"error: {src}: edge-adjacent faces have coincident centroids" in p.stderr
+
+
+def test_filter_options_unused_on_a_clean_mesh_are_noted(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "torus.ply", "--sigma-r", "0.3", "-o", out)
+    assert p.returncode == 0 and "note: --sigma-r not used: the mesh reads as clean" in p.stderr
+    p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "0", "--sigma-s", "2", "-o", out)
+    assert p.returncode == 0 and "note: --sigma-s not used: no filter pass ran (--rounds 0)" in p.stderr
+
+
+def test_sigma_r_whose_square_underflows_is_refused(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "torus.ply", "--sigma-r", "1e-300", "--rounds", "1", "-o", out)
+    assert _one_line_error(p) and "--sigma-r 1e-300 is too small" in p.stderr and not out.exists()
