@@ -83,6 +83,8 @@ def sniff_format(data: bytes, path: str = "-") -> str:
     first = head.split(None, 1)[0] if head.strip() else b""
     if _OFF_KEYWORD.fullmatch(first) or first.lower() == b"off":
         return "off"
+    if re.match(rb"\d+[ \t]+\d+([ \t]+\d+)?[ \t]*\r?\n", head):  # OFF without its optional keyword
+        return "off"
     if head.startswith(b"solid") and b"facet" in data[:4096]:
         return "stl"
     if len(data) >= 84:

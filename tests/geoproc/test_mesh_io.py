@@ -295,8 +295,8 @@ def test_obj_backslash_continues_a_line():
 def test_off_variants(text, V):
     m = read_mesh_bytes(text, "off", "v.off", clean=False)
     assert m.V.tolist() == V and m.F.tolist() == [[0, 1, 2]]
-    if text[:1].isalpha():  # with a keyword the format is told on standard input too
-        assert sniff_format(text) == sniff_format(b"\xef\xbb\xbf" + text) == "off"
+    # the format is told on standard input too, keyword or not
+    assert sniff_format(text) == sniff_format(b"\xef\xbb\xbf" + text) == "off"
 
 
 @pytest.mark.parametrize("text, fragment", [
