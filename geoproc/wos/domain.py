@@ -306,6 +306,10 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
         raise InputError(path, "JSON nested too deeply") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("loops"), list):
         raise InputError(path, "expected an object with a 'loops' list of closed loops [[x, y], ...]")
+    unknown = sorted(set(doc) - {"loops", "neumann", "values"})
+    if unknown:  # a misspelt "Neumann" would otherwise give a Dirichlet problem without a word
+        raise InputError(path, f"unknown key{'s' * (len(unknown) > 1)} {', '.join(repr(k) for k in unknown)} "
+                               "(the keys are 'loops', 'neumann' and 'values')")
     loops = doc["loops"]
     for k, L in enumerate(loops):
         if not isinstance(L, list) or not all(

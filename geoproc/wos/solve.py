@@ -233,7 +233,7 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
                     "residual_steps_per_second": int(steps.sum()) / residual_seconds
                     if residual_seconds > 0 else float("nan"),
                     "mean_steps_per_walk": float(steps.sum()) / (len(X) * walks)})
-    se = np.sqrt(var / walks)
+    se = np.sqrt(var / walks) if walks > 1 else np.full(len(var), np.nan)  # one walk: no spread to measure
     metrics["mean_standard_error"] = float(se.mean())
 
     shape = (gs.ny, gs.nx)

@@ -27,6 +27,7 @@ def inputs(tmp_path_factory):
         "flat": {"loops": [[[0, 0], [1, 0], [2, 0]]]},
         "huge": {"loops": [[[0, 0], [1e20, 0], [1e20, 1e20], [0, 1e20]]]},
         "neu_int": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": 1},
+        "typo": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "Neumann": [[0, 1]]},
     }
     for name, doc in files.items():
         (d / f"{name}.json").write_text(json.dumps(doc))
@@ -103,6 +104,8 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("folder.json", [], "folder.json: is a directory, not a domain file"),
     ("huge.json", [], "loop 0 has coordinates as large as 1e+20; they must stay within +-1e+15"),
     ("neu_int.json", [], "'neumann' must be a list of loop indices or [loop, segment] pairs, not 1"),
+    # a misspelt key gave a Dirichlet problem without a word
+    ("typo.json", [], "unknown key 'Neumann' (the keys are 'loops', 'neumann' and 'values')"),
     ("disk.json", ["--boundary", "+".join(["x"] * 20000)], "expression nested too deeply"),
     ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
     ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),
@@ -138,3 +141,12 @@ def test_json_domain_from_stdin(cli, inputs, tmp_path):
     assert json.loads(rep.read_text())["metrics"]["segments"] == 128
     p = cli("wos-solve", "-", "--boundary", "x", "-o", out, stdin=(inputs / "mask.png").read_bytes())
     assert p.returncode == 2 and "a mask image must be given as a file" in p.stderr
+
+
+def test_one_walk_has_no_standard_error(cli, inputs, tmp_path):
+    # the spread of one walk cannot be measured: null, and a check on it fails
+    rep = tmp_path / "r.json"
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "1", "--grid", "8", "-o",
+            tmp_path / "u.exr", "--report", rep, "--check", "mean_standard_error<=1")
+    assert p.returncode == 1 and "mean_standard_error<=1 (not measured in this run" in p.stderr
+    assert json.loads(rep.read_text())["metrics"]["mean_standard_error"] is None
