@@ -64,7 +64,7 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     """
     unknown = [c.metric for c in checks if c.metric not in metrics]
     if unknown:
-        names = ", ".join(sorted(k for k, v in metrics.items() if _numeric(v) is not None))
+        names = ", ".join(sorted(k for k, v in metrics.items() if not isinstance(v, str)))
         raise UsageError(f"--check: unknown metric '{unknown[0]}'; this run reports: {names}")
     text = [c for c in checks if isinstance(metrics[c.metric], str)]
     if text:
@@ -74,9 +74,10 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     for c in checks:
         measured = _numeric(metrics[c.metric])
         if measured is None:
-            failures.append(f"check failed: {c.text} (measured: {metrics[c.metric]!r}, not a number)")
+            failures.append(f"check failed: {c.text} (not measured in this run: null in the report)")
         elif not c.passes(measured):
-            failures.append(f"check failed: {c.text} (measured: {measured:.6g})")
+            # every digit: 0.0376518 could hide a miss of <=0.037651843221598626
+            failures.append(f"check failed: {c.text} (measured: {measured!r})")
     return failures
 
 

@@ -78,3 +78,13 @@ def test_malformed_checks_are_usage_errors(text):
 def test_unknown_metric_is_a_usage_error_listing_names():
     with pytest.raises(UsageError, match="unknown metric 'nope'.*rmse"):
         evaluate_checks([parse_check("nope<1")], {"rmse": 0.1})
+
+
+def test_check_failures_show_every_digit_and_name_nulls():
+    from geoproc.report import evaluate_checks, parse_check
+
+    metrics = {"rms": 0.037651843221598626, "genus": None}
+    out = evaluate_checks([parse_check("rms<=0.03765184322159862"), parse_check("genus==0")], metrics)
+    # six digits (0.0376518) would have shown a miss as a pass
+    assert out == ["check failed: rms<=0.03765184322159862 (measured: 0.037651843221598626)",
+                   "check failed: genus==0 (not measured in this run: null in the report)"]
