@@ -359,7 +359,8 @@ def command_run(
             require_extension(report, ".json", "--report", stdout_ok=True)
         if report is not None and os.fspath(report) != "-" \
                 and not os.path.isdir(os.path.dirname(os.path.abspath(report))):
-            raise UsageError(f"--report {report}: folder does not exist")
+            folder = os.path.dirname(os.path.abspath(report))
+            raise UsageError(f"--report {report}: output folder '{folder}' does not exist")
         yield run
         failures = evaluate_checks(parsed, run.metrics)  # raises on unknown metric names
         run._commit(report)

@@ -81,6 +81,7 @@ def perturb(
             if not output.lower().endswith(".npz"):
                 raise UsageError(f"{output}: an animation is written as .npz")
             anim = run.load_animation(input)
+            _note_fractions_of_none(run, int(anim.V.shape[1]), impulsive, outliers)
             with run.timer("compute"):
                 frames, flags = [], []
                 for t in range(anim.n_frames):
@@ -101,6 +102,7 @@ def perturb(
         mesh = run.load_mesh(input, clean=not no_clean)
         if not mesh.is_point_cloud:
             require_triangle_mesh(mesh)  # normals, and the edge-length unit, need a face of some area
+        _note_fractions_of_none(run, len(mesh.V), impulsive, outliers)
         with run.timer("compute"):
             V, flag = perturb_positions(mesh.V, mesh.F, spec, rng, mesh.log.path)
         out = mesh.copy()
@@ -134,3 +136,11 @@ def _merged_flags(new: np.ndarray, fields: dict, shape: tuple, path: str, added:
 def register(app: typer.Typer) -> None:
     """Add ``perturb`` to the application."""
     app.command("perturb")(perturb)
+
+
+def _note_fractions_of_none(run, n: int, impulsive: float, outliers: float) -> None:
+    """A note when a positive --impulsive or --outliers fraction of n vertices rounds to none."""
+    for option, fraction, what in (("--impulsive", impulsive, "the noise moves no vertex"),
+                                   ("--outliers", outliers, "no outlier is added")):
+        if fraction > 0 and round(fraction * n) == 0:
+            run.note(f"{option} {fraction:g} of {n} vertices rounds to none: {what}")

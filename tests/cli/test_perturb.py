@@ -133,3 +133,13 @@ def test_animation_folder_is_recorded_in_the_report(cli, tmp_path):
     np.savez(tmp_path / "c.npz", vertices=V.astype(np.complex128), faces=F)
     p = cli("perturb", tmp_path / "c.npz", "--seed", "3", "-o", tmp_path / "n.npz")
     assert p.returncode == 2 and "'vertices' must hold real numbers, got dtype complex128" in p.stderr
+
+
+def test_fractions_that_round_to_no_vertex_are_noted(cli, fixture_dir, tmp_path):
+    out = tmp_path / "p.ply"
+    p = cli("perturb", fixture_dir / "torus.ply", "--impulsive", "1e-300", "--seed", "1", "-o", out)
+    assert p.returncode == 0 and "note: --impulsive 1e-300 of 1152 vertices rounds to none" in p.stderr
+    p = cli("perturb", fixture_dir / "torus.ply", "--outliers", "1e-9", "--seed", "1", "-o", out)
+    assert p.returncode == 0 and "note: --outliers 1e-09 of 1152 vertices rounds to none" in p.stderr
+    p = cli("perturb", fixture_dir / "torus.ply", "--impulsive", "0.1", "--seed", "1", "-o", out)
+    assert p.returncode == 0 and "rounds to none" not in p.stderr
