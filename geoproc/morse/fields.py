@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import re
+import unicodedata
 
 import numpy as np
 
@@ -52,6 +53,7 @@ def field_name(spec: str) -> str:
         return spec.replace("-", "_")
     if spec.lower().endswith(".npy"):
         stem = os.path.splitext(os.path.basename(spec))[0]
+        stem = unicodedata.normalize("NFKD", stem).encode("ascii", "ignore").decode()  # é.npy: e, not _
         name = re.sub(r"[^A-Za-z0-9_]", "_", stem) or "field"
         return f"{name}_value" if name in COORDINATES else name
     return spec

@@ -162,3 +162,11 @@ def test_several_components():
     ref = gudhi_diagrams(F, f)
     for dim in range(3):
         np.testing.assert_array_equal(positive(pp.diagram(dim)), positive(ref[dim]))
+
+
+def test_npy_field_names_are_ascii_property_names():
+    from geoproc.morse.fields import field_name
+
+    # é.npy became the property '_' (and '__original'); accents are dropped now
+    assert field_name("é.npy") == "e" and field_name("dist ance.npy") == "dist_ance"
+    assert field_name("y.npy") == "y_value" and field_name("距离.npy") == "field"
