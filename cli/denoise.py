@@ -205,6 +205,8 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
             if exc.path is not None:
                 raise
             raise InputError(path or input, exc.problem) from None
+        except UsageError as exc:  # an option too small for this mesh's spacing: name the mesh too
+            raise UsageError(f"{path or input}: {exc}") from None
     out = Mesh(res.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields))
     out.face_fields["feature"] = res.feature
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),

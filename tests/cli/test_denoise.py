@@ -367,3 +367,10 @@ def test_sigma_r_whose_square_underflows_is_refused(cli, fixture_dir, tmp_path):
     out = tmp_path / "o.ply"
     p = cli("denoise", fixture_dir / "torus.ply", "--sigma-r", "1e-300", "--rounds", "1", "-o", out)
     assert _one_line_error(p) and "--sigma-r 1e-300 is too small" in p.stderr and not out.exists()
+
+
+def test_sigma_s_too_small_for_the_mesh_names_the_mesh(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--sigma-s", "1e-160", "-o", out)
+    assert _one_line_error(p) and "torus.ply: spatial kernel width" in p.stderr
+    assert "its square underflows" in p.stderr and not out.exists()
