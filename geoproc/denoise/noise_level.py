@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.denoise.face_geometry import face_normals_and_areas, vertex_normals
+from geoproc.denoise.face_geometry import face_edge_neighbors, face_normals_and_areas, vertex_normals
 from geoproc.mesh.topology import unique_edges
 
 # chord between unit face normals below which two edge-adjacent faces count as
@@ -21,22 +21,16 @@ def exactly_planar_vertices(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     (normals within ``COPLANAR_CHORD``) and at most three of its edges are
     creases (a flat region, a crease line or a corner of planar pieces).
     Noise moves every vertex off every plane, so a noisy mesh has next to no
-    such vertices; clean CAD meshes are made of them.
+    such vertices; clean CAD meshes are made of them. F is edge-manifold (the
+    edge pairs are :func:`~geoproc.denoise.face_geometry.face_edge_neighbors`).
     """
-    n = len(V)
-    E, edge_of, count = unique_edges(F)
+    enb = face_edge_neighbors(F)
+    f, k = np.nonzero(enb > np.arange(len(F))[:, None])  # each interior edge once, from its lower face
     N, _ = face_normals_and_areas(V, F)
-    face_of = np.repeat(np.arange(len(F)), 3)
-    order = np.argsort(edge_of, kind="stable")
-    e_sorted = edge_of[order]
-    pair = np.nonzero(e_sorted[1:] == e_sorted[:-1])[0]
-    e = e_sorted[pair]
-    inner = count[e] == 2
-    e, fa, fb = e[inner], face_of[order[pair[inner]]], face_of[order[pair[inner] + 1]]
-    flat = np.linalg.norm(N[fa] - N[fb], axis=1) < COPLANAR_CHORD
-    ends = E[e]
-    flat_at = np.bincount(ends[flat].ravel(), minlength=n)
-    crease_at = np.bincount(ends[~flat].ravel(), minlength=n)
+    flat = np.linalg.norm(N[f] - N[enb[f, k]], axis=1) < COPLANAR_CHORD
+    ends = np.stack([F[f, k], F[f, (k + 1) % 3]], axis=1)  # corner k's outgoing edge
+    flat_at = np.bincount(ends[flat].ravel(), minlength=len(V))
+    crease_at = np.bincount(ends[~flat].ravel(), minlength=len(V))
     return (flat_at > 0) & (crease_at <= 3)
 
 
