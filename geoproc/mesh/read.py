@@ -368,25 +368,32 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
 
 def _obj_vertices(lines: list, path: str) -> np.ndarray:
     """(n, 3) float64: the first three numbers of each OBJ ``v`` line (after the ``v``)."""
-    if not lines:
-        return np.zeros((0, 3), dtype=np.float64)
+    return _leading_numbers(lines, 3, path, lambda i, line: f"OBJ vertex {i}: 'v {line}' does not hold three numbers")
+
+
+def _leading_numbers(lines: list, k: int, path: str, problem) -> np.ndarray:
+    """(n, k) float64: the first k numbers of each line (bytes), extra values
+    ignored; one vectorized parse when every line has the same count.
+
+    ``problem(i, text)`` words the InputError for line i that does not start
+    with k numbers.
+    """
     counts = np.fromiter((len(ln.split()) for ln in lines), dtype=np.int64, count=len(lines))
-    if (counts == 3).all():  # the common case, three numbers per line: one vectorized parse
+    if len(lines) and (counts == counts[0]).all() and counts[0] >= k:  # the common case
         try:
-            return np.array(b" ".join(lines).split(), dtype=np.float64).reshape(-1, 3)
+            return np.array(b" ".join(lines).split(), dtype=np.float64).reshape(len(lines), -1)[:, :k].copy()
         except ValueError:
             pass
-    V = np.empty((len(lines), 3), dtype=np.float64)
+    X = np.empty((len(lines), k), dtype=np.float64)
     for i, line in enumerate(lines):
         try:
-            tokens = line.split()[:3]
-            if len(tokens) < 3:
+            tokens = line.split()[:k]
+            if len(tokens) < k:
                 raise ValueError
-            V[i] = [float(t) for t in tokens]
+            X[i] = [float(t) for t in tokens]
         except ValueError:
-            raise InputError(path, f"OBJ vertex {i}: 'v {line.decode('latin-1').strip()}' "
-                             "does not hold three numbers") from None
-    return V
+            raise InputError(path, problem(i, line.decode("latin-1").strip())) from None
+    return X
 
 
 def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
@@ -490,25 +497,9 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
 def _off_vertices(lines: list, path: str, homogeneous: bool = False) -> np.ndarray:
     """(n, 3) float64: the first three numbers of each OFF vertex line, or
     with ``homogeneous`` (4OFF) the first four, x y z divided by w."""
-    k = 4 if homogeneous else 3
-    counts = {len(ln.split()) for ln in lines}
-    X = None
-    if len(counts) == 1 and min(counts) >= k:
-        try:  # the common case, every line alike: one vectorized parse
-            X = np.array(b" ".join(lines).split(), dtype=np.float64).reshape(len(lines), -1)[:, :k].copy()
-        except ValueError:
-            X = None
-    if X is None:
-        X = np.empty((len(lines), k), dtype=np.float64)
-        for i, line in enumerate(lines):
-            try:
-                tokens = line.split()[:k]
-                if len(tokens) < k:
-                    raise ValueError
-                X[i] = [float(t) for t in tokens]
-            except ValueError:
-                raise InputError(path, f"OFF vertex {i}: '{line.decode('latin-1').strip()}' "
-                                 f"does not start with {'four' if homogeneous else 'three'} numbers") from None
+    words = "four" if homogeneous else "three"
+    X = _leading_numbers(lines, 4 if homogeneous else 3, path,
+                         lambda i, line: f"OFF vertex {i}: '{line}' does not start with {words} numbers")
     if not homogeneous:
         return X
     zero = np.flatnonzero(X[:, 3] == 0)
