@@ -55,18 +55,19 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
     option : str
         Option name used in error messages.
     """
-    too_deep = UsageError(f"{option} '{_shorten(text)}': expression nested too deeply")
+    shown = f"{option} '{_shorten(text)}'"  # how every error names the expression
+    too_deep = UsageError(f"{shown}: expression nested too deeply")
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
-        raise UsageError(f"{option} '{_shorten(text)}': not a valid expression ({exc.msg}"
+        raise UsageError(f"{shown}: not a valid expression ({exc.msg}"
                          + (f" at character {exc.offset}" if exc.offset else "") + ")") from None
     except (RecursionError, MemoryError):  # the parser's own nesting limit
         raise too_deep from None
     unknown = sorted({n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
                      - set(FUNCTIONS) - set(CONSTANTS) - set(VARIABLES))
     if unknown:
-        raise UsageError(f"{option} '{_shorten(text)}': unknown name{'s' if len(unknown) > 1 else ''} "
+        raise UsageError(f"{shown}: unknown name{'s' if len(unknown) > 1 else ''} "
                          f"{', '.join(repr(u) for u in unknown)} (allowed: x, y, pi, e, "
                          f"{', '.join(sorted(FUNCTIONS))})")
     code: list[int] = []
@@ -87,7 +88,7 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
             elif node.id in CONSTANTS:
                 emit(OP_CONST, CONSTANTS[node.id])
             else:
-                raise UsageError(f"{option} '{_shorten(text)}': '{node.id}' is a function, call it with ()")
+                raise UsageError(f"{shown}: '{node.id}' is a function, call it with ()")
         elif isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
             visit(node.left)
             visit(node.right)
@@ -100,7 +101,7 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
             name = node.func.id
             want = 2 if name == "atan2" else 1
             if node.keywords or len(node.args) != want:
-                raise UsageError(f"{option} '{_shorten(text)}': {name}() takes {want} argument{'s' * (want > 1)}")
+                raise UsageError(f"{shown}: {name}() takes {want} argument{'s' * (want > 1)}")
             for a in node.args:
                 visit(a)
             emit(FUNCTIONS[name])
@@ -108,7 +109,7 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
             what = type(node).__name__
             if isinstance(node, ast.BinOp | ast.UnaryOp):
                 what = type(node.op).__name__
-            raise UsageError(f"{option} '{_shorten(text)}': '{what}' is not allowed "
+            raise UsageError(f"{shown}: '{what}' is not allowed "
                              "(numbers, x, y, + - * / **, and the listed functions only)")
 
     try:
