@@ -380,7 +380,7 @@ def denoise_mesh(
         initial_normals = np.where(flip[:, None], -initial_normals, initial_normals)
     edge_nb = face_edge_neighbors(F)
     noise_deg = median_dihedral_deg(V, F, edge_nb)
-    rough = roughness(V, F)
+    rough = roughness(V, F, edge_nb)
     needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
     coarse, tail = smoothed_dihedral_stats(V, F, edge_nb) if needs_schedule and rough >= 0.03 else (0.0, np.inf)
     sched = default_schedule(rough, coarse, tail)

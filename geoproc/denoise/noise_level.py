@@ -14,7 +14,7 @@ from geoproc.mesh.topology import unique_edges
 COPLANAR_CHORD = 1e-4
 
 
-def exactly_planar_vertices(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+def exactly_planar_vertices(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> np.ndarray:
     """(n,) bool: vertices where the surface is made of exact planes.
 
     A vertex qualifies when at least one of its edges joins two coplanar faces
@@ -22,9 +22,10 @@ def exactly_planar_vertices(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     creases (a flat region, a crease line or a corner of planar pieces).
     Noise moves every vertex off every plane, so a noisy mesh has next to no
     such vertices; clean CAD meshes are made of them. F is edge-manifold (the
-    edge pairs are :func:`~geoproc.denoise.face_geometry.face_edge_neighbors`).
+    edge pairs are :func:`~geoproc.denoise.face_geometry.face_edge_neighbors`,
+    computed here unless given as ``edge_nb``).
     """
-    enb = face_edge_neighbors(F)
+    enb = face_edge_neighbors(F) if edge_nb is None else edge_nb
     f, k = np.nonzero(enb > np.arange(len(F))[:, None])  # each interior edge once, from its lower face
     N, _ = face_normals_and_areas(V, F)
     flat = np.linalg.norm(N[f] - N[enb[f, k]], axis=1) < COPLANAR_CHORD
@@ -34,7 +35,7 @@ def exactly_planar_vertices(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return (flat_at > 0) & (crease_at <= 3)
 
 
-def roughness(V: np.ndarray, F: np.ndarray) -> float:
+def roughness(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> float:
     """High-frequency roughness, in mean edge lengths: a noise-level estimate.
 
     Every vertex's height over the centroid of its neighbours along its normal,
@@ -45,7 +46,9 @@ def roughness(V: np.ndarray, F: np.ndarray) -> float:
     curved, and growing in proportion to the noise. Vertices where the surface
     is made of exact planes (:func:`exactly_planar_vertices`) are left out,
     and a mesh made only of them reads 0: on a coarse CAD mesh (a cube of 12
-    triangles) the heights jump with the valence, not with noise.
+    triangles) the heights jump with the valence, not with noise. ``edge_nb``
+    (:func:`~geoproc.denoise.face_geometry.face_edge_neighbors` of F) saves
+    recomputing it when the caller has it.
     """
     n = len(V)
     E, _, _ = unique_edges(F)
@@ -62,7 +65,7 @@ def roughness(V: np.ndarray, F: np.ndarray) -> float:
     deg[~used] = 1.0
     h = np.einsum("ij,ij->i", vertex_normals(V, F), V - (A @ V) / deg[:, None])
     r = np.abs(h - (A @ h) / deg)
-    used &= ~exactly_planar_vertices(V, F)
+    used &= ~exactly_planar_vertices(V, F, edge_nb)
     if not used.any():
         return 0.0
     return float(np.percentile(r[used], 25) * (0.6745 / 0.3186) / le)
