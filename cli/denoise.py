@@ -48,6 +48,10 @@ def denoise(
                                                           min=0, max=10000, show_default=False)] = None,
     vertex_iterations: Annotated[int, typer.Option("--vertex-iterations", help="Vertex-update sweeps "
                                                    "per round, 0 to 10000.", min=0, max=10000)] = 10,
+    fidelity: Annotated[float, typer.Option("--fidelity", help="Data term of the vertex update: every "
+                                            "sweep also pulls each vertex back towards its input position "
+                                            "by this fraction of the distance, 0 to 1 (0: the plain fit to "
+                                            "the filtered normals).", min=0.0, max=1.0)] = 0.005,
     sigma_r: Annotated[float | None, typer.Option("--sigma-r", help="Range kernel width on normal "
                                                   "differences, as the chord length between unit normals "
                                                   "(> 0; 0.3 is about 17 degrees; default: from the noise level).",
@@ -114,6 +118,7 @@ def denoise(
     coherence_used = coherence if coherence is not None or not dynamic else COHERENCE[0]
     params = {"input": input, "method": method, "reference": reference, "rounds": rounds,
               "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
+              "fidelity": fidelity,
               "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "features": features,
               "feature_tau": feature_tau, "feature_angle": feature_angle, "outliers": outliers,
               "k": k, "threshold": threshold, "keep_all": keep_all, "refined": refined, "dynamic": dynamic,
@@ -141,7 +146,8 @@ def denoise(
         if feature_tau < 0 or not 0 <= feature_angle <= 180:
             raise UsageError("--feature-tau must be >= 0 and --feature-angle within [0, 180]")
         dp = DenoiseParams(outer_iterations=rounds, normal_iterations=normal_iterations,
-                           vertex_iterations=vertex_iterations, sigma_r=sigma_r, sigma_s_scale=sigma_s,
+                           vertex_iterations=vertex_iterations, fidelity=fidelity, sigma_r=sigma_r,
+                           sigma_s_scale=sigma_s,
                            pin_boundary=pin_boundary, features=features, feature_tau=feature_tau,
                            feature_angle_deg=feature_angle)
         if dynamic:
@@ -154,8 +160,8 @@ def denoise(
             _mesh(run, input, output, reference, method, dp, no_clean)
 
 
-_FILTER_OPTIONS = ("method", "rounds", "normal_iterations", "vertex_iterations", "sigma_r", "sigma_s",
-                   "pin_boundary")
+_FILTER_OPTIONS = ("method", "rounds", "normal_iterations", "vertex_iterations", "fidelity", "sigma_r",
+                   "sigma_s", "pin_boundary")
 _FEATURE_OPTIONS = ("features", "feature_tau", "feature_angle")
 _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 

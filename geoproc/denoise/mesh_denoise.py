@@ -110,6 +110,12 @@ class DenoiseParams:
         relaxations of the vertices of folded faces
         (:func:`geoproc.denoise.vertex_update.unfold_faces`); 0 turns the
         repair off.
+    fidelity : float
+        Data term of the vertex update: every sweep also pulls each vertex
+        by this fraction of its distance back towards its input position
+        (:func:`geoproc.denoise.vertex_update.update_vertices`). Faces the fit
+        would squash between the two sides of a crease keep more of their
+        shape; 0 is the plain fit of Sun et al.
     input_side : bool
         Before the last fit, a face whose target is more than 90 degrees from
         its own input normal takes the neighbourhood target closest to that
@@ -130,6 +136,7 @@ class DenoiseParams:
     feature_tau: float = 0.12
     feature_angle_deg: float = 30.0
     unfold_rounds: int = 5
+    fidelity: float = 0.005
     input_side: bool = True
 
 
@@ -439,7 +446,7 @@ def filter_and_fit(
     V : (n, 3) float64 positions; F : (m, 3) int64 triangles.
     method : {"bilateral", "guided", "rpca"}
     p : DenoiseParams
-        Read for what the plan does not hold: vertex sweeps, boundary
+        Read for what the plan does not hold: vertex sweeps and fidelity, boundary
         pinning, patch size, fold repair, input-side step, features.
     plan : FilterPlan
     edge_nb : (m, 3) int64 :func:`face_edge_neighbors` of F.
@@ -465,7 +472,8 @@ def filter_and_fit(
     N_input, A_input = N.copy(), A.copy()
 
     def fit(X, N):
-        X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input)
+        X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=N_input,
+                            anchor=V, fidelity=p.fidelity)
         if p.unfold_rounds > 0:
             return unfold_faces(X, F, N, edge_nb, fixed, N_input, p.unfold_rounds)
         return X, 0
@@ -527,6 +535,7 @@ def filter_and_fit(
         "outer_iterations": outer,
         "normal_iterations": inner,
         "vertex_iterations": p.vertex_iterations,
+        "fidelity": p.fidelity,
         "sigma_r": sigma_r,
         "sigma_s": plan.spatial_scale,  # in centroid spacings, the unit of --sigma-s
         "sigma_s_length": sigma_s,

@@ -98,12 +98,17 @@ def update_vertices(
     prevent_flips: bool = True,
     keep_orientation: np.ndarray | None = None,
     margin: float = 0.0,
+    anchor: np.ndarray | None = None,
+    fidelity: float = 0.0,
 ) -> np.ndarray:
     """Move vertices so that faces become orthogonal to the target normals.
 
     Each iteration applies ``x_i += 1/|F_i| sum_{f in F_i} n_f (n_f . (c_f - x_i))``
     with the face centroids ``c_f`` of the current positions (a gradient step on
-    ``sum_f sum_{(i,j) in f} (n_f . (x_j - x_i))^2``).
+    ``sum_f sum_{(i,j) in f} (n_f . (x_j - x_i))^2``). With ``fidelity`` each
+    step also adds ``fidelity * (a_i - x_i)``, a pull towards the ``anchor``
+    positions (a data term: the fixed point balances the normal fit against
+    the distance to the anchor).
 
     With ``prevent_flips`` a step is withheld from the vertices of any face that
     the step would turn to face away from its target normal (while it faced
@@ -129,6 +134,11 @@ def update_vertices(
         its target is also kept within 90 degrees of this normal (a wrong target
         at a sharp feature then cannot fold the face over); faces that start
         against their target are exempt, so flipped input faces can unfold.
+    anchor : (n, 3) float64, optional
+        Positions the data term pulls towards (the input's, in
+        :func:`geoproc.denoise.mesh_denoise.denoise_mesh`); ``V`` when None.
+    fidelity : float
+        Weight of that pull per sweep, as a fraction of the distance (0: none).
 
     Returns
     -------
@@ -142,8 +152,12 @@ def update_vertices(
     valence[valence == 0] = 1.0
     pinned = np.zeros(n, dtype=bool) if fixed is None else np.asarray(fixed, dtype=bool)
     delta = np.empty_like(X)
+    A = X.copy() if anchor is None else np.asarray(anchor, dtype=np.float64)
     for _ in range(iterations):
         _fitting_step(X, F, normals, valence, pinned, delta)
+        if fidelity:
+            delta += fidelity * (A - X)
+            delta[pinned] = 0.0
         if prevent_flips:
             delta = withhold_folding_steps(X, delta, F, normals, keep_orientation, margin)
         X += delta

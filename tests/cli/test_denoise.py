@@ -374,3 +374,21 @@ def test_sigma_s_too_small_for_the_mesh_names_the_mesh(cli, fixture_dir, tmp_pat
     p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--sigma-s", "1e-160", "-o", out)
     assert _one_line_error(p) and "torus.ply: spatial kernel width" in p.stderr
     assert "its square underflows" in p.stderr and not out.exists()
+
+
+def test_fidelity_option_reaches_the_vertex_update(cli, cube_pair, tmp_path):
+    noisy, clean = cube_pair
+    theta = {}
+    for mu in ("0", "0.5"):
+        rep = tmp_path / f"r{mu}.json"
+        p = cli("denoise", noisy, "--fidelity", mu, "--reference", clean, "-o", tmp_path / "d.ply",
+                "--report", rep)
+        assert p.returncode == 0, p.stderr
+        assert json.loads(rep.read_text())["params"]["fidelity"] == float(mu)
+        assert _metrics(rep)["fidelity"] == float(mu)
+        theta[mu] = _metrics(rep)["mean_normal_angle_deg"]
+    # a strong pull back to the noisy input keeps much of its noise
+    assert theta["0.5"] > 2 * theta["0"]
+    out = tmp_path / "x.ply"
+    p = cli("denoise", noisy, "--fidelity", "1.5", "-o", out)
+    assert p.returncode == 2 and "--fidelity" in p.stderr and not out.exists()

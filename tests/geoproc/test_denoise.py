@@ -219,6 +219,32 @@ def test_vertex_update_flattens_a_noisy_plane(make_fixtures):
     assert np.allclose(X[:, :2], Vn[:, :2])  # moves only along the target normals
 
 
+
+def test_vertex_update_fidelity_reaches_the_balance_of_fit_and_data_term(make_fixtures):
+    """With flat targets the z step is linear: dz_i = (1/val_i) sum_{f ni i} (c_f - z_i)
+    + mu (z0_i - z_i). Its fixed point solves (B / (3 val) - I - mu I) z = -mu z0,
+    B_ij the number of faces holding both i and j: solved directly here."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    V, F = make_fixtures.grid()
+    rng = np.random.default_rng(3)
+    Vn = V + [0, 0, 0.01] * rng.standard_normal(V.shape)
+    target = np.tile([0.0, 0.0, 1.0], (len(F), 1))
+    mu = 0.05
+    X = update_vertices(Vn, F, target, iterations=3000, prevent_flips=False, fidelity=mu)
+    n = len(V)
+    rows, cols = np.repeat(F, 3, axis=1).ravel(), np.tile(F, (1, 3)).ravel()
+    B = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    val = np.bincount(F.ravel(), minlength=n).astype(float)
+    K = sp.diags(1.0 / (3.0 * val)) @ B - (1.0 + mu) * sp.identity(n)
+    z = spla.spsolve(K.tocsc(), -mu * Vn[:, 2])
+    assert np.abs(X[:, 2] - z).max() < 1e-9 * np.abs(Vn[:, 2]).max()
+    assert np.allclose(X[:, :2], Vn[:, :2])
+    # the data term keeps part of the input's relief; the plain fit flattens it
+    spread = np.std(X[:, 2] - X[:, 2].mean())
+    assert 0.05 * np.std(Vn[:, 2]) < spread < 0.9 * np.std(Vn[:, 2])
+
 def test_metrics_against_analytic_values(make_fixtures):
     V, F = make_fixtures.icosphere(2)
     e = denoise_errors(V, F, V)
