@@ -152,7 +152,8 @@ def update_vertices(
     valence[valence == 0] = 1.0
     pinned = np.zeros(n, dtype=bool) if fixed is None else np.asarray(fixed, dtype=bool)
     delta = np.empty_like(X)
-    A = X.copy() if anchor is None else np.asarray(anchor, dtype=np.float64)
+    if fidelity:
+        A = X.copy() if anchor is None else np.asarray(anchor, dtype=np.float64)
     for _ in range(iterations):
         _fitting_step(X, F, normals, valence, pinned, delta)
         if fidelity:
