@@ -3,6 +3,7 @@ removal, and animation denoising."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from typing import Annotated
 
 import numpy as np
@@ -12,7 +13,7 @@ from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.denoise import COHERENCE, DEFAULT_METHOD, METHODS
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh import Mesh, load_mesh
-from geoproc.mesh.validate import require_triangle_mesh
+from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import outlier_flags
 from geoproc_cli.common import (
     CheckOpt,
@@ -21,6 +22,7 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    options_given,
     refuse_options,
 )
 
@@ -51,7 +53,7 @@ def denoise(
     fidelity: Annotated[float, typer.Option("--fidelity", help="Data term of the vertex update: every "
                                             "sweep also pulls each vertex back towards its input position "
                                             "by this fraction of the distance, 0 to 1 (0: the plain fit to "
-                                            "the filtered normals).", min=0.0, max=1.0)] = 0.005,
+                                            "the filtered normals).")] = 0.005,
     sigma_r: Annotated[float | None, typer.Option("--sigma-r", help="Range kernel width on normal "
                                                   "differences, as the chord length between unit normals "
                                                   "(> 0; 0.3 is about 17 degrees; default: from the noise level).",
@@ -139,8 +141,10 @@ def denoise(
         threshold = 0.5 if threshold is None else threshold
         if (sigma_r is not None and sigma_r <= 0) or (sigma_s is not None and sigma_s <= 0):
             raise UsageError("--sigma-r and --sigma-s must be > 0")
-        if sigma_r is not None and not sigma_r**2 > 1e-300:  # the range kernel divides by its square
+        if sigma_r is not None and not sigma_r > 1e-150:  # the range kernel divides by its square (1e-300)
             raise UsageError(f"--sigma-r {sigma_r:g} is too small: its square underflows")
+        if not 0.0 <= fidelity <= 1.0:
+            raise UsageError(f"--fidelity {fidelity}: must be within [0, 1]")
         if features not in ("l1", "dihedral"):
             raise UsageError(f"--features {features}: use l1 or dihedral")
         if feature_tau < 0 or not 0 <= feature_angle <= 180:
@@ -157,7 +161,9 @@ def denoise(
         elif outliers:
             _outliers(run, input, output, k, threshold, keep_all, refined, no_clean)
         else:
-            _mesh(run, input, output, reference, method, dp, no_clean)
+            given = options_given(ctx, "sigma_r", "sigma_s", "normal_iterations", "vertex_iterations",
+                                  "fidelity")
+            _mesh(run, input, output, reference, method, dp, no_clean, given)
 
 
 _FILTER_OPTIONS = ("method", "rounds", "normal_iterations", "vertex_iterations", "fidelity", "sigma_r",
@@ -186,7 +192,7 @@ def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynam
                    "only with --features dihedral" if features == "l1" else "only with --features l1")
 
 
-def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
+def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str]) -> None:
     from geoproc.denoise.mesh_denoise import denoise_mesh
     from geoproc.denoise.metrics import reference_metrics
     from geoproc.denoise.validate import reference_in_input_order, require_denoisable
@@ -204,46 +210,57 @@ def _mesh(run, input, output, reference, method, dp, no_clean) -> None:
     if reference is not None:
         ref = run.read_input(reference, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
         ref_V = reference_in_input_order(mesh.F, len(mesh.V), ref.F, ref.V, reference)
-    with run.timer("denoise"), run.progress(f"denoise ({method})") as update:
-        try:
-            res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
-        except InputError as exc:  # a problem of the mesh found by the method: name the file
-            if exc.path is not None:
-                raise
-            raise InputError(path or input, exc.problem) from None
-        except UsageError as exc:  # an option too small for this mesh's spacing: name the mesh too
-            raise UsageError(f"{path or input}: {exc}") from None
+    with run.timer("denoise"), run.progress(f"denoise ({method})") as update, _naming_the_input(path or input):
+        res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
     out = Mesh(res.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields))
     out.face_fields["feature"] = res.feature
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
                         "feature_faces": int(res.feature.sum())})
     run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
-    _note_unused_filter_options(run, res.info, dp)
+    _note_unused_filter_options(run, res.info, dp, given)
     if ref_V is not None:
         with run.timer("metrics"):
             run.metrics.update(reference_metrics(res.V, mesh.V, mesh.F, ref_V))
     run.write_mesh(output, out)
 
 
-def _note_unused_filter_options(run, info: dict, dp) -> None:
-    """A note when no filter pass ran (the mesh read as clean, or --rounds /
-    --normal-iterations 0) although filter options were given."""
-    if info.get("outer_iterations", 1) and info.get("normal_iterations", 1):
-        return
-    given = [name for name, value in (("--sigma-r", dp.sigma_r), ("--sigma-s", dp.sigma_s_scale),
-                                      ("--normal-iterations", dp.normal_iterations)) if value is not None]
-    if not given:
-        return
+@contextmanager
+def _naming_the_input(path: str):
+    """Errors the method finds in the data (a problem of the mesh, or an
+    option too small for its spacing) name the input file."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.path is not None:
+            raise
+        raise InputError(path, exc.problem) from None
+    except UsageError as exc:
+        raise UsageError(f"{path}: {exc}") from None
+
+
+def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
+    """A note when options were given (``given``: their flags) for work that
+    did not run: the filter's when no filter pass ran (the mesh read as clean,
+    or --rounds / --normal-iterations 0), the vertex update's when no round
+    ran, --fidelity when no vertex sweep ran."""
+    rounds = info.get("outer_iterations", 1)
+    filtered = rounds and info.get("normal_iterations", 1)
     counts = (("--rounds", "outer_iterations", dp.outer_iterations),
               ("--normal-iterations", "normal_iterations", dp.normal_iterations))
-    zero = [opt for opt, _, value in counts if value == 0]
-    if zero:
-        why = f"no filter pass ran ({' and '.join(opt + ' 0' for opt in zero)})"
-    else:
-        auto = [opt for opt, key, value in counts if value is None and info.get(key) == 0]
-        why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so nothing "
-               f"was filtered; give {' and '.join(auto)} to filter anyway")
-    run.note(f"{', '.join(given)} not used: {why}")
+    zero = [opt for opt, _, value in counts if value == 0]  # the cause, not an unused option
+    unused = [o for o in given if o in ("--sigma-r", "--sigma-s", "--normal-iterations") and not filtered]
+    unused += [o for o in given if o in ("--vertex-iterations", "--fidelity") and not rounds]
+    unused = [o for o in unused if o not in zero]
+    if unused:
+        if zero:
+            why = f"no filter pass ran ({' and '.join(opt + ' 0' for opt in zero)})"
+        else:
+            auto = [opt for opt, key, value in counts if value is None and info.get(key) == 0]
+            why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so "
+                   f"nothing was filtered; give {' and '.join(auto)} to filter anyway")
+        run.note(f"{', '.join(unused)} not used: {why}")
+    if rounds and "--fidelity" in given and not info.get("vertex_iterations", 1):
+        run.note("--fidelity not used: no vertex sweep ran (--vertex-iterations 0)")
 
 
 def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> None:
@@ -312,9 +329,11 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     anim = run.load_animation(input)
     if anim.n_frames < 3:
         raise InputError(anim.path, f"has {anim.n_frames} frame{'s' if anim.n_frames != 1 else ''}; --dynamic "
-                         "needs at least 3 (denoise a single frame as a mesh)")
-    require_triangle_mesh(Mesh(anim.V[0], anim.F, log=_log(anim.path)))
+                         "needs at least 3 (save a single frame as a mesh file and denoise it without --dynamic)")
+    require_triangle_frames(anim.V, anim.F, anim.path)
     require_denoisable(anim.F, anim.path)
+    if "outlier" in anim.fields:  # carried to the output: refused as perturb and --outliers refuse it
+        outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path)
     ref_V = None
     if reference == "-":
         raise UsageError("--reference -: an animation reference is read from a .npz file or a folder")
@@ -324,9 +343,10 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
             raise InputError(reference, f"reference has {ref.V.shape[0]} frames of {ref.V.shape[1]} "
                              f"vertices; the input {anim.V.shape[0]} of {anim.V.shape[1]}")
         ref_V = reference_in_input_order(anim.F, anim.V.shape[1], ref.F, ref.V, reference)
-    with run.timer("denoise"), run.progress("denoise (dynamic)") as update:
+    with run.timer("denoise"), run.progress("denoise (dynamic)") as update, _naming_the_input(anim.path):
         V, info = denoise_animation(anim.V, anim.F, method, dp, progress=update, coherence=coherence)
-    run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]), "faces": len(anim.F)})
+    run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]), "faces": len(anim.F),
+                        "vertex_iterations": dp.vertex_iterations, "fidelity": dp.fidelity})
     run.metrics.update({k: v for k, v in info.items() if np.isscalar(v)})
     if ref_V is not None:
         with run.timer("metrics"):
@@ -336,12 +356,6 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
                 run.metrics[key] = (int(sum(values)) if key.endswith("flipped_faces") else
                                     float(max(values)) if key == "max_normal_angle_deg" else float(np.mean(values)))
     run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, dict(anim.fields), output)))
-
-
-def _log(path: str):
-    from geoproc.mesh.mesh import LoadLog
-
-    return LoadLog(path=path)
 
 
 def register(app: typer.Typer) -> None:

@@ -9,7 +9,7 @@ import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.errors import UsageError
-from geoproc.mesh.validate import require_triangle_mesh
+from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import NoiseSpec, noise_scale, outlier_flags, perturb_positions
 from geoproc_cli.common import (
     CheckOpt,
@@ -80,7 +80,9 @@ def perturb(
         if input != "-" and is_animation_path(input):
             if not output.lower().endswith(".npz"):
                 raise UsageError(f"{output}: an animation is written as .npz")
+            refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")
             anim = run.load_animation(input)
+            require_triangle_frames(anim.V, anim.F, anim.path)  # normals and the edge-length unit
             _note_fractions_of_none(run, int(anim.V.shape[1]), impulsive, outliers)
             with run.timer("compute"):
                 frames, flags = [], []

@@ -38,6 +38,7 @@ from geoproc.denoise.face_geometry import face_normals_and_areas, vertex_normals
 from geoproc.denoise.mesh_denoise import DEFAULT_METHOD, DenoiseParams, denoise_mesh
 from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import update_vertices
+from geoproc.errors import InputError, UsageError
 
 
 def normal_heights(V: np.ndarray, F: np.ndarray, smoothing: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
@@ -59,6 +60,8 @@ def normal_heights(V: np.ndarray, F: np.ndarray, smoothing: float = 0.5) -> tupl
     """
     T, n = V.shape[:2]
     A = sp.csr_matrix(igl.adjacency_matrix(F), dtype=np.float64)
+    if A.shape[0] < n:  # vertices after the last one a face uses: no neighbours
+        A.resize((n, n))
     L = sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A
     solve = spla.factorized((sp.identity(n) + smoothing * L).tocsc())
     H = np.empty((T, n))
@@ -243,7 +246,12 @@ def denoise_animation(
     per_frame = replace(p, features="none")  # only the positions are used
     static = np.empty_like(V, dtype=np.float64)
     for t in range(T):
-        static[t] = denoise_mesh(V[t], F, method, per_frame).V
+        try:
+            static[t] = denoise_mesh(V[t], F, method, per_frame).V
+        except InputError as exc:  # say which frame
+            raise InputError(exc.path, f"frame {t}: {exc.problem}") from None
+        except UsageError as exc:
+            raise UsageError(f"frame {t}: {exc}") from None
         if progress is not None:
             progress(0.9 * (t + 1) / T)
     fixed = None

@@ -18,6 +18,16 @@ def require_triangle_mesh(mesh: Mesh) -> None:
         raise InputError(path, "degenerate mesh: every face has zero area")
 
 
+def require_triangle_frames(V: np.ndarray, F: np.ndarray, path: str | None) -> None:
+    """Refuse an animation (V of shape (frames, n, 3), shared triangles F)
+    any of whose frames has no face of nonzero area, naming the first such frame."""
+    if len(F) == 0:
+        raise InputError(path, "has no faces; this method needs a triangle mesh")
+    for t in range(len(V)):
+        if not (face_areas(V[t], F) > 0).any():
+            raise InputError(path, f"frame {t}: degenerate mesh: every face has zero area")
+
+
 def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> None:
     """Refuse a face that repeats a vertex (its edges would count twice) or an
     edge shared by more than two faces, naming the first; ``why`` ends the

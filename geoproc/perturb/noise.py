@@ -58,22 +58,26 @@ def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def point_cloud_normals(P: np.ndarray, k: int = 16) -> np.ndarray:
     """(n, 3) unit normals of a point cloud: the least-variance direction of each
-    point's k nearest neighbours (unoriented)."""
-    k = min(k, len(P))
-    _, idx = cKDTree(P).query(P, k=k)
-    Q = P[idx] - P[idx].mean(axis=1, keepdims=True)
+    point's k nearest distinct neighbours (unoriented; copies of a point share
+    its normal)."""
+    U, inverse = np.unique(np.asarray(P, dtype=np.float64), axis=0, return_inverse=True)
+    k = min(k, len(U))
+    _, idx = cKDTree(U).query(U, k=k)
+    Q = U[idx] - U[idx].mean(axis=1, keepdims=True)
     _, W = np.linalg.eigh(np.einsum("nki,nkj->nij", Q, Q))
-    return W[:, :, 0]
+    return W[:, :, 0][np.ravel(inverse)]
 
 
 def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     """Unit of ``sigma``: mean edge length of a mesh, or mean nearest-neighbour
-    distance of a point cloud (``F`` with no rows)."""
+    distance of a point cloud (``F`` with no rows), over its distinct points
+    (a point stored twice is not its own neighbour at distance 0)."""
     if len(F):
         return mean_edge_length(V, F)
-    if len(V) < 2:
+    U = np.unique(np.asarray(V, dtype=np.float64), axis=0)
+    if len(U) < 2:
         return 0.0
-    d, _ = cKDTree(V).query(V, k=2)
+    d, _ = cKDTree(U).query(U, k=2)
     return float(d[:, 1].mean())
 
 

@@ -392,3 +392,54 @@ def test_fidelity_option_reaches_the_vertex_update(cli, cube_pair, tmp_path):
     out = tmp_path / "x.ply"
     p = cli("denoise", noisy, "--fidelity", "1.5", "-o", out)
     assert p.returncode == 2 and "--fidelity" in p.stderr and not out.exists()
+
+
+def test_dynamic_checks_every_frame_and_names_file_and_frame(cli, dfx, tmp_path):
+    Vn, F, _ = dfx.noisy_wave(frames=4)
+    out = tmp_path / "d.npz"
+    flat = Vn.copy()
+    flat[2][:, 1:] = 0.0  # every point of frame 2 on a line: no face of any area
+    src = tmp_path / "flat.npz"
+    src.write_bytes(animation_to_bytes(Animation(flat, F)))
+    p = cli("denoise", src, "--dynamic", "-o", out)
+    assert _one_line_error(p) and "flat.npz: frame 2: degenerate mesh" in p.stderr and not out.exists()
+    # a problem the method finds in one frame names the file and the frame
+    src = tmp_path / "wave.npz"
+    src.write_bytes(animation_to_bytes(Animation(Vn, F)))
+    p = cli("denoise", src, "--dynamic", "--sigma-s", "1e-160", "-o", out)
+    assert _one_line_error(p) and "wave.npz: frame 0: spatial kernel width" in p.stderr and not out.exists()
+    # the outlier field travels to the output: non-finite values are refused there too
+    src = tmp_path / "inf.npz"
+    src.write_bytes(animation_to_bytes(Animation(Vn, F, {"outlier": np.full(Vn.shape[:2], np.inf)})))
+    p = cli("denoise", src, "--dynamic", "-o", out)
+    assert _one_line_error(p) and "'outlier' property has non-finite values" in p.stderr and not out.exists()
+
+
+def test_dynamic_with_an_unused_last_vertex(cli, dfx, tmp_path):
+    Vn, F, _ = dfx.noisy_wave(frames=3)
+    extra = np.concatenate([Vn, np.full((3, 1, 3), 5.0)], axis=1)
+    src, out, rep = tmp_path / "extra.npz", tmp_path / "d.npz", tmp_path / "r.json"
+    src.write_bytes(animation_to_bytes(Animation(extra, F)))
+    p = cli("denoise", src, "--dynamic", "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    V = load_animation(out).V
+    assert np.isfinite(V).all() and np.array_equal(V[:, -1], extra[:, -1])
+    assert _metrics(rep)["fidelity"] == 0.005
+
+
+def test_huge_sigma_r_is_a_plain_average(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "torus.ply", "--sigma-r", "1e200", "--rounds", "1", "-o", out)
+    assert p.returncode == 0, p.stderr
+
+
+def test_fit_options_unused_are_noted(cli, fixture_dir, tmp_path):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "torus.ply", "--fidelity", "0.1", "-o", out)
+    assert p.returncode == 0 and "note: --fidelity not used: the mesh reads as clean" in p.stderr
+    p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--vertex-iterations", "0",
+            "--fidelity", "0.1", "-o", out)
+    assert p.returncode == 0 and "note: --fidelity not used: no vertex sweep ran" in p.stderr
+    p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--normal-iterations", "0",
+            "--sigma-r", "0.3", "-o", out)
+    assert "note: --sigma-r not used: no filter pass ran (--normal-iterations 0)" in p.stderr

@@ -93,6 +93,21 @@ def test_bad_options_exit_2_without_output(cli, fixture_dir, tmp_path):
     assert p.returncode == 2 and not out.exists()
 
 
+def test_animation_with_a_degenerate_frame_or_no_clean_exit_2(cli, tmp_path):
+    from geoproc.animation import Animation, animation_to_bytes
+
+    V, F = denoise_fixtures().wave_animation(3)
+    flat = V.copy()
+    flat[1][:, 1:] = 0.0  # frame 1: every point on a line
+    src, out = tmp_path / "flat.npz", tmp_path / "o.npz"
+    src.write_bytes(animation_to_bytes(Animation(flat, F)))
+    p = cli("perturb", src, "--seed", "1", "--outliers", "0.1", "-o", out)
+    assert p.returncode == 2 and "flat.npz: frame 1: degenerate mesh" in p.stderr and not out.exists()
+    src.write_bytes(animation_to_bytes(Animation(V, F)))
+    p = cli("perturb", src, "--seed", "1", "--no-clean", "-o", out)
+    assert p.returncode == 2 and "--no-clean: not used for an animation" in p.stderr and not out.exists()
+
+
 def test_animation_with_differing_connectivity_exit_2(cli, tmp_path):
     np.savez(tmp_path / "bad.npz", vertices=np.zeros((2, 3, 3)), faces=np.array([[[0, 1, 2]], [[0, 2, 1]]]))
     out = tmp_path / "o.npz"

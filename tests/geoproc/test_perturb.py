@@ -79,6 +79,19 @@ def test_point_cloud_noise_uses_estimated_normals(make_fixtures):
     assert abs(along.std() / noise_scale(V, np.zeros((0, 3), int)) - 0.3) < 0.05 * 0.3
 
 
+def test_point_cloud_stored_twice_has_the_spacing_and_normals_of_one_copy(make_fixtures):
+    V, _ = make_fixtures.icosphere(3)
+    none = np.zeros((0, 3), int)
+    twice = np.vstack([V, V])
+    assert noise_scale(twice, none) == noise_scale(V, none) > 0
+    N = point_cloud_normals(twice)
+    assert np.array_equal(N[: len(V)], N[len(V):])
+    assert np.abs(np.einsum("ij,ij->i", N, twice)).min() > 0.99
+    P, _ = perturb_positions(twice, none, NoiseSpec(sigma=0.3), np.random.default_rng(4))
+    along = np.einsum("ij,ij->i", P - twice, twice)
+    assert abs(along.std() / noise_scale(V, none) - 0.3) < 0.1 * 0.3
+
+
 def test_vertex_normals_of_sphere_are_radial(make_fixtures):
     V, F = make_fixtures.icosphere(3)
     assert np.einsum("ij,ij->i", vertex_normals(V, F), V).min() > 0.999
