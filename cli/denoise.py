@@ -337,6 +337,9 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     ref_V = None
     if reference == "-":
         raise UsageError("--reference -: an animation reference is read from a .npz file or a folder")
+    if reference is not None and not is_animation_path(reference):
+        raise UsageError(f"--reference {reference}: with --dynamic the reference is an animation (.npz or a "
+                         "folder of frame meshes)")
     if reference is not None:
         ref = run.load_animation(reference)
         if ref.V.shape != anim.V.shape:

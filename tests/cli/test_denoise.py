@@ -408,6 +408,10 @@ def test_dynamic_checks_every_frame_and_names_file_and_frame(cli, dfx, tmp_path)
     src.write_bytes(animation_to_bytes(Animation(Vn, F)))
     p = cli("denoise", src, "--dynamic", "--sigma-s", "1e-160", "-o", out)
     assert _one_line_error(p) and "wave.npz: frame 0: spatial kernel width" in p.stderr and not out.exists()
+    mesh = tmp_path / "frame.ply"
+    save_mesh(mesh, Mesh(Vn[0], F))
+    p = cli("denoise", src, "--dynamic", "--reference", mesh, "-o", out)
+    assert _one_line_error(p) and "with --dynamic the reference is an animation" in p.stderr
     # the outlier field travels to the output: non-finite values are refused there too
     src = tmp_path / "inf.npz"
     src.write_bytes(animation_to_bytes(Animation(Vn, F, {"outlier": np.full(Vn.shape[:2], np.inf)})))
