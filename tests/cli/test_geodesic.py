@@ -169,6 +169,21 @@ def test_needles_are_refused_where_the_method_fails(cli, make_fixtures, tmp_path
     assert cli("geodesic", src, "-s", "0", "-m", "varadhan", "-o", out).returncode == 0
 
 
+@pytest.mark.parametrize("args", [["-m", "log-heat"], ["-m", "varadhan", "--laplacian", "intrinsic-delaunay"]])
+def test_faces_degenerate_within_rounding_are_refused_on_the_intrinsic_paths(cli, make_fixtures, tmp_path, args):
+    # a sphere squashed to 1e-20: its 16 equator faces are needles of 1e-20 rad, and
+    # libigl's intrinsic Delaunay flips did not return (memory grew past 15 GB)
+    V, F = make_fixtures.icosphere(2)
+    src, out = tmp_path / "flat.ply", tmp_path / "d.ply"
+    save_mesh(src, Mesh(V * [1, 1, 1e-20], F))
+    p = cli("geodesic", src, "-s", "0", *args, "-o", out)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1 and not out.exists()
+    assert "flat.ply: 16 of 320 faces have an angle below 1e-14 rad" in lines[0]
+    save_mesh(src, Mesh(V * [1, 1, 1e-12], F))  # needles of 1e-12 rad: the flips remove them
+    assert cli("geodesic", src, "-s", "0", *args, "-o", out).returncode == 0
+
+
 def _isolated_vertex_mesh(make_fixtures, tmp_path):
     V, F = make_fixtures.grid(5)
     path = tmp_path / "iso.ply"
