@@ -124,7 +124,11 @@ def wos_solve(
         gs = res.grid
         extent = (gs.x0, gs.x0 + gs.nx * gs.h, gs.y1 - gs.ny * gs.h, gs.y1)
         with run.timer("write"):
-            run.write_bytes(output, exr_bytes(res.U))
+            try:
+                encoded = exr_bytes(res.U)
+            except UsageError as exc:  # boundary data too large for float32: name the domain
+                raise UsageError(f"{domain}: {exc}") from None
+            run.write_bytes(output, encoded)
             name = os.path.basename(domain)
             if image:
                 run.write_bytes(image, png_bytes(res.U, extent, f"{name}: {method.value}, "

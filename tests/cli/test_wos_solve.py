@@ -114,7 +114,7 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("disk.json", ["--boundary", "log(x - 5)"], "--boundary is not finite on the boundary of"),
     ("disk.json", ["--boundary", "1/(x*x + y*y - 1)"], "--boundary is not finite on the boundary"),
     ("rect.json", ["--neumann", "0/0"], "--neumann is not finite on the boundary"),
-    ("disk.json", ["--boundary", "exp(700*x)"], "beyond the float32 range of EXR"),
+    ("disk.json", ["--boundary", "exp(700*x)"], "disk.json: the solution reaches"),
     ("disk.json", ["--boundary", "x", "--kernels", "5", "--ridge", "3"], "--kernels, --ridge: only with a control"),
     ("disk.json", ["--boundary", "x", "--image", "u.tif"], "--image u.tif: must end in .png"),
 ])
@@ -150,3 +150,13 @@ def test_one_walk_has_no_standard_error(cli, inputs, tmp_path):
             tmp_path / "u.exr", "--report", rep, "--check", "mean_standard_error<=1")
     assert p.returncode == 1 and "mean_standard_error<=1 (not measured in this run" in p.stderr
     assert json.loads(rep.read_text())["metrics"]["mean_standard_error"] is None
+
+
+def test_a_mask_without_boundary_expression_is_told_that_a_mask_has_no_values(cli, tmp_path):
+    mask = np.zeros((32, 32), bool)
+    mask[8:24, 8:24] = True
+    wf.write_mask(tmp_path / "square.png", mask)
+    p = cli("wos-solve", tmp_path / "square.png", "--grid", "8", "--walks", "2", "-o", tmp_path / "u.exr")
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1 and not (tmp_path / "u.exr").exists()
+    assert "square.png: give --boundary 'EXPR' (a mask carries no boundary values)" in lines[0]
