@@ -83,7 +83,9 @@ def morse_simplify(
     field g has no ties, its minima and maxima are exactly the kept ones, and
     |f - g| <= P/2 except where cancelled basins and peaks interact (a
     vertex function with exactly the kept extrema cannot always stay within
-    P/2); those vertices are counted in vertices_beyond_half_threshold.
+    P/2); those vertices are counted in vertices_beyond_half_threshold
+    (moves past P/2 within 64 units in the last place of max |f| are rounding
+    and not counted).
 
     Metrics: minima/saddles/maxima before and after, euler_characteristic,
     betti_0/1/2, pairs_removed, pairs_kept, max_abs_change, threshold,
@@ -168,9 +170,12 @@ def morse_simplify(
         if (len(grad.critical_vertices), len(grad.critical_edges), len(grad.critical_triangles)) != c_before:
             raise RuntimeError("gradient critical cells do not match the persistence pairs")
         pers = finite_persistence(before)
-        half_tol = threshold / 2.0 * (1 + 1e-12)
-        # with P = 0 (nothing removed), --barycentric breaks the lower-star
-        # extension's ties by units in the last place: not a move beyond P/2
+        # a move past P/2 by at most 64 units in the last place of the field's
+        # largest value is rounding of the assigned values, not a move beyond
+        # P/2; with P = 0 (nothing removed), --barycentric breaks the
+        # lower-star extension's ties by units in the last place
+        rounding = 64 * np.finfo(np.float64).eps * float(np.abs(f_ref).max(initial=0.0))
+        half_tol = threshold / 2.0 * (1 + 1e-12) + rounding
         beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol)) if threshold > 0 else 0
         b0, b1, b2 = before.betti
         run.metrics.update({

@@ -237,3 +237,18 @@ def test_npy_named_like_a_coordinate(cli, fixture_dir, tmp_path):
     assert {"x_value", "x_value_original"} <= set(load_mesh(out).vertex_fields)
     p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", tmp_path / "missing.npy", "-p", "0.1", "-o", out)
     assert p.returncode == 2 and "missing.npy: no such file" in p.stderr
+
+
+def test_rounding_past_half_threshold_is_not_counted(cli, make_fixtures, tmp_path):
+    # Gaussian curvature of an icosphere: few distinct values, many ties; 60 vertices
+    # moved past P/2 by at most 17 units in the last place, which were counted
+    V, F = make_fixtures.icosphere(3)
+    src, out, rep = tmp_path / "s.ply", tmp_path / "o.ply", tmp_path / "r.json"
+    save_mesh(src, Mesh(V, F))
+    p = cli("morse-simplify", src, "-f", "gaussian-curvature", "-p", "0.05", "--relative", "-o", out,
+            "--report", rep, "--check", "vertices_beyond_half_threshold==0", "-q")
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(out)
+    f, g = m.vertex_fields["gaussian_curvature_original"], m.vertex_fields["gaussian_curvature"]
+    past = np.abs(g - f) - metrics(rep)["threshold"] / 2
+    assert past.max() <= 64 * np.finfo(np.float64).eps * np.abs(f).max()
