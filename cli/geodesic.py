@@ -54,7 +54,7 @@ def read_sources_file(path: str, data: bytes | None = None) -> list[int]:
     separated by spaces, commas or newlines; ``#`` starts a comment."""
     if data is None:
         data = read_input_bytes(path, "file of source indices")
-    text = data.decode("utf-8", errors="replace")
+    text = data.decode("utf-8", errors="replace").removeprefix("\ufeff")  # a BOM some editors write
     out = []
     for lineno, line in enumerate(text.splitlines(), 1):
         for tok in re.split(r"[\s,]+", line.split("#", 1)[0].strip()):
@@ -129,7 +129,8 @@ def geodesic(
         "method": m_name, "time_factor": time_factor, "time": time, "steps": steps,
         "laplacian": laplacian.value if laplacian else DEFAULT_LAPLACIAN.get(m_name),
         "operators": operators.value if operators else DEFAULT_OPERATORS.get(m_name),
-        "solver": solver.value, "reference": reference.value if reference else None,
+        "solver": solver.value if m_name == "log-ode" else None,  # the only method that solves with it
+        "reference": reference.value if reference else None,
         "field_name": field_name, "render": render, "clean": not no_clean,
     }
     with command_run("geodesic", params, report=report, checks=check,

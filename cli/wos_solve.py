@@ -89,10 +89,11 @@ def wos_solve(
     with a control variate, fit_seconds (and rmse, max_abs_error, bias with --exact); all are
     metrics for --check, e.g. --check 'rmse<=0.01'.
     """
+    fitted = method != Method.naive  # the control-variate fit's options (refused with naive)
     params = {"domain": domain, "boundary": boundary, "neumann": neumann, "method": method.value,
-              "walks": walks, "grid": grid, "epsilon": epsilon, "kernels": kernels,
-              "fit_walks": fit_walks, "fit_points": fit_points, "ridge": ridge, "seed": seed,
-              "exact": exact}
+              "walks": walks, "grid": grid, "epsilon": epsilon, "kernels": kernels if fitted else None,
+              "fit_walks": fit_walks if fitted else None, "fit_points": fit_points if fitted else None,
+              "ridge": ridge if fitted else None, "seed": seed, "exact": exact}
     with command_run("wos-solve", params, report=report, checks=check,
                      quiet=quiet, debug=debug) as run:
         from geoproc.wos import load_domain, parse_expression, solve_laplace

@@ -59,7 +59,7 @@ def test_input_properties_are_kept_and_field_renamed(cli, make_fixtures, tmp_pat
 
 def test_sources_file_and_stdout(cli, fixture_dir, tmp_path):
     sf = tmp_path / "s.txt"
-    sf.write_text("# two corners\n0, 440\n")
+    sf.write_text("\ufeff# two corners\n0, 440\n", encoding="utf-8")  # a BOM, as some editors write
     p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", sf, "-m", "exact", "-o", "-")
     assert p.returncode == 0, p.stderr
     assert p.stdout.startswith(b"ply")
@@ -369,3 +369,12 @@ def test_faces_too_thin_for_cotan_weights_are_refused(cli, tmp_path):
         assert not out.exists()
     p = cli("geodesic", src, "-s", "0", "-m", "log-ode", "-o", out)  # the robust intrinsic Laplacian
     assert p.returncode == 0, p.stderr
+
+
+def test_report_params_of_options_the_method_does_not_use_are_null(cli, fixture_dir, tmp_path):
+    rep = tmp_path / "r.json"
+    for method, solver in (("heat", None), ("log-ode", "lu")):
+        p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "-m", method, "-o", tmp_path / "o.ply",
+                "--report", rep)
+        assert p.returncode == 0, p.stderr
+        assert json.loads(rep.read_text())["params"]["solver"] == solver

@@ -160,3 +160,13 @@ def test_a_mask_without_boundary_expression_is_told_that_a_mask_has_no_values(cl
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 2 and len(lines) == 1 and not (tmp_path / "u.exr").exists()
     assert "square.png: give --boundary 'EXPR' (a mask carries no boundary values)" in lines[0]
+
+
+def test_naive_reports_no_fit_parameters(cli, inputs, tmp_path):
+    rep = tmp_path / "r.json"
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--grid", "8", "--walks", "2",
+            "-o", tmp_path / "u.exr", "--report", rep)
+    assert p.returncode == 0, p.stderr
+    params = json.loads(rep.read_text())["params"]
+    assert params["method"] == "naive"
+    assert all(params[k] is None for k in ("kernels", "fit_walks", "fit_points", "ridge"))
