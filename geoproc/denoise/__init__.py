@@ -12,6 +12,12 @@ from __future__ import annotations
 
 import importlib
 
+# the function ``rpca`` shares its name with its module: bound here, it is not
+# replaced by the submodule when another module imports geoproc.denoise.rpca
+# (numpy only, so importing the package stays light)
+from geoproc.denoise.rpca import RPCAResult as RPCAResult
+from geoproc.denoise.rpca import rpca as rpca
+
 METHODS = ("bilateral", "guided", "rpca")
 DEFAULT_METHOD = "guided"
 COHERENCE = ("heights", "normals")  # what --dynamic makes coherent over time; the first is the default
@@ -30,11 +36,9 @@ _NAMES = {
     "detection_scores": "outliers",
     "rpca_animation_outliers": "outliers",
     "rpca_outliers": "outliers",
-    "RPCAResult": "rpca",
-    "rpca": "rpca",
 }
 
-__all__ = ["COHERENCE", "DEFAULT_METHOD", "METHODS", *_NAMES]
+__all__ = ["COHERENCE", "DEFAULT_METHOD", "METHODS", "RPCAResult", "rpca", *_NAMES]
 
 
 def __getattr__(name: str):

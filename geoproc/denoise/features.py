@@ -39,6 +39,7 @@ import scipy.sparse as sp
 
 from geoproc.denoise.face_geometry import vertex_normals
 from geoproc.mesh.topology import unique_edges
+from geoproc.mesh.validate import mesh_arrays
 
 #: default cut on |J| (local mean edge lengths): a crease of about 24 degrees on a regular mesh
 DEFAULT_TAU = 0.12
@@ -233,6 +234,7 @@ def l1_feature_vertices(
     -------
     L1FeatureResult
     """
+    V, F = mesh_arrays(V, F)
     J0, A, _ = normal_laplacian(V, F)
     lam_used = default_lam(J0) if lam is None else float(lam)
     d, z, it, ok = l1_sparse_normal_laplacian(J0, A, lam_used, max_iter=max_iter)

@@ -45,9 +45,11 @@ from geoproc.denoise.guidance import guidance_normals, patch_interior_edges
 from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
+from geoproc.denoise.validate import require_denoisable
 from geoproc.denoise.vertex_update import unfold_faces, update_vertices
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh.topology import boundary_vertices
+from geoproc.mesh.validate import mesh_arrays
 
 
 def edge_dihedral_deg(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> np.ndarray:
@@ -382,6 +384,8 @@ def denoise_mesh(
     p = DenoiseParams() if params is None else params
     if p.features not in FEATURE_METHODS:
         raise ValueError(f"unknown feature method {p.features!r}")
+    V, F = mesh_arrays(V, F)
+    require_denoisable(F, None)
     F, flip = consistent_orientation(F)
     if initial_normals is not None and flip.any():
         initial_normals = np.where(flip[:, None], -initial_normals, initial_normals)

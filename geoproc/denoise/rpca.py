@@ -141,7 +141,18 @@ def rpca(
     -------
     RPCAResult
     """
-    D = np.asarray(D, dtype=np.float64)
+    D = np.asarray(D)
+    if np.iscomplexobj(D) or not (np.issubdtype(D.dtype, np.number) or D.dtype == bool):
+        raise ValueError(f"rpca needs a real matrix, got dtype {D.dtype}")
+    D = D.astype(np.float64)
+    if D.ndim not in (2, 3) or D.size == 0:
+        raise ValueError(f"rpca needs a (p, q) matrix or a (b, p, q) batch with entries, got shape {D.shape}")
+    if not np.isfinite(D).all():
+        raise ValueError(f"rpca needs finite entries; {int((~np.isfinite(D)).sum())} are not")
+    if lam is not None and not lam > 0:
+        raise ValueError(f"rpca: lam must be > 0, got {lam}")
+    if not rho > 1:
+        raise ValueError(f"rpca: rho must be > 1 (the penalty grows by it), got {rho}")
     batched = D.ndim == 3
     if batched and min(D.shape[1:]) <= 4:
         return _rpca_thin(D, lam, tol, max_iter, rho)

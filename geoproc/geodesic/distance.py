@@ -12,7 +12,7 @@ from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.intrinsic import OPERATORS
 from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass
 from geoproc.mesh.topology import face_areas, mean_edge_length, vertex_components
-from geoproc.mesh.validate import require_edge_manifold, require_manifold
+from geoproc.mesh.validate import mesh_arrays, require_edge_manifold, require_manifold
 
 METHODS = ("exact", "heat", "varadhan", "log-splitting", "log-ode", "log-heat")
 SOLVERS = ("lu", "newton", "cvxpy")
@@ -119,7 +119,13 @@ def diffusion_time(h: float, time_factor: float | None = 1.0, time: float | None
 
 def check_sources(sources, n: int, F: np.ndarray, path: str | None) -> np.ndarray:
     """Sources as an int array: at least one, each in [0, n) and used by a face."""
-    raw = [int(s) for s in np.asarray(sources, dtype=object).reshape(-1)]
+    if sources is None:
+        raise UsageError("give at least one source vertex (--source I or --sources-file F)")
+    items = np.asarray(sources, dtype=object).reshape(-1)
+    wrong = [s for s in items if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer))]
+    if wrong:
+        raise UsageError(f"source vertices are integer indices, not {wrong[0]!r}")
+    raw = [int(s) for s in items]
     if len(raw) == 0:
         raise UsageError("give at least one source vertex (--source I or --sources-file F)")
     bad = [s for s in raw if not 0 <= s < n]
@@ -200,10 +206,9 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         raise UsageError(f"unknown operators '{operators}'; choose one of {', '.join(OPERATORS)}")
     if laplacian is not None and laplacian not in LAPLACIANS:
         raise UsageError(f"unknown Laplacian '{laplacian}'; choose cotan or intrinsic-delaunay")
+    V, F = mesh_arrays(V, F, path, allow_point_cloud=True)
     if len(F) == 0:
         raise InputError(path, "is a point cloud (no faces); geodesic distance needs a triangle mesh")
-    V = np.ascontiguousarray(V, dtype=np.float64)
-    F = np.ascontiguousarray(F, dtype=np.int64)
     n = len(V)
     area = face_areas(V, F)
     if not (area > 0).any():

@@ -69,8 +69,14 @@ class Mesh:
     log: LoadLog = field(default_factory=LoadLog)
 
     def __post_init__(self) -> None:
-        self.V = np.ascontiguousarray(self.V, dtype=np.float64).reshape(-1, 3)
-        self.F = np.ascontiguousarray(self.F, dtype=np.int64).reshape(-1, 3)
+        V, F = np.asarray(self.V), np.asarray(self.F)
+        for name, a in (("V", V), ("F", F)):  # no reshaping of other shapes into rows of 3
+            if a.size and (a.ndim != 2 or a.shape[1] != 3):
+                raise ValueError(f"Mesh.{name} must have shape (k, 3), not {a.shape}")
+        if F.size and not np.issubdtype(F.dtype, np.integer) and not np.array_equal(F, np.round(F)):
+            raise ValueError("Mesh.F must hold integer vertex indices")
+        self.V = np.ascontiguousarray(V, dtype=np.float64).reshape(-1, 3)
+        self.F = np.ascontiguousarray(F, dtype=np.int64).reshape(-1, 3)
 
     @property
     def is_point_cloud(self) -> bool:

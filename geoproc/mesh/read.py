@@ -22,6 +22,7 @@ from geoproc.errors import InputError
 from geoproc.fileio import file_extension, read_input_bytes, require_input_file
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
+from geoproc.mesh.validate import require_indices_below
 
 MESH_FORMATS = ("obj", "ply", "off", "stl")
 
@@ -168,15 +169,7 @@ def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: 
             path, f"{int(bad.sum())} vertices have non-finite coordinates (first: vertex {first})"
         )
     require_coordinates_in_range(V, path)
-    if len(F):
-        out = (F < 0) | (F >= len(V))
-        if out.any():
-            f = int(np.flatnonzero(out.any(axis=1))[0])
-            raise InputError(
-                path,
-                f"face index out of range: face {f} references vertex {int(F[f][out[f]][0])}, "
-                f"but there are {len(V)} vertices (0-based)",
-            )
+    require_indices_below(F, len(V), path)
 
 
 def _fan_triangulate(faces: list) -> tuple[np.ndarray, int]:

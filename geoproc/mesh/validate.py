@@ -9,6 +9,64 @@ from geoproc.mesh.mesh import Mesh
 from geoproc.mesh.topology import face_areas, nonmanifold_edges, nonmanifold_vertices
 
 
+def mesh_arrays(V, F, path: str | None = None, allow_point_cloud: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and triangles as the library's functions take them, checked.
+
+    Parameters
+    ----------
+    V : array-like (n, 3) of real numbers; F : array-like (m, 3) of integers
+        (any integer dtype, a list, any memory layout).
+    path : str, optional
+        Named in the error.
+    allow_point_cloud : bool
+        Accept no faces.
+
+    Returns
+    -------
+    (n, 3) C-contiguous float64 positions and (m, 3) C-contiguous int64 triangles;
+    InputError for another shape or dtype, non-finite or overflowing
+    coordinates, or face indices outside ``0..n-1``
+    (:func:`geoproc.mesh.read.validate_arrays`).
+    """
+    from geoproc.mesh.read import validate_arrays
+
+    V = np.asarray(V)
+    if np.iscomplexobj(V) or not (np.issubdtype(V.dtype, np.integer) or np.issubdtype(V.dtype, np.floating)):
+        raise InputError(path, f"vertex positions must be real numbers, not {V.dtype}")
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise InputError(path, f"vertex positions must have shape (n, 3), not {V.shape}")
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = triangle_array(F, path)
+    validate_arrays(V, F, path, allow_point_cloud)
+    return V, F
+
+
+def triangle_array(F, path: str | None = None) -> np.ndarray:
+    """(m, 3) C-contiguous int64 triangles from an array-like of integers (any
+    integer dtype, a list, any layout; no rows when empty); InputError for
+    another shape or dtype. Indices are checked against the vertex count by
+    :func:`require_indices_below`."""
+    F = np.asarray(F)
+    if F.size == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    if not np.issubdtype(F.dtype, np.integer):
+        raise InputError(path, f"face indices must be integers, not {F.dtype}")
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise InputError(path, f"faces must have shape (m, 3) (triangles), not {F.shape}")
+    return np.ascontiguousarray(F, dtype=np.int64)
+
+
+def require_indices_below(F: np.ndarray, n: int, path: str | None = None) -> None:
+    """InputError naming the first face with an index outside ``0..n-1``."""
+    if len(F) == 0:
+        return
+    out = (F < 0) | (F >= n)
+    if out.any():
+        f = int(np.flatnonzero(out.any(axis=1))[0])
+        raise InputError(path, f"face index out of range: face {f} references vertex {int(F[f][out[f]][0])}, "
+                               f"but there are {n} vertices (0-based)")
+
+
 def require_triangle_mesh(mesh: Mesh) -> None:
     """Refuse a point cloud or a mesh whose faces all have zero area."""
     path = mesh.log.path or None

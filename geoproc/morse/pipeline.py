@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geoproc.errors import InputError, UsageError
+from geoproc.mesh.validate import require_indices_below, triangle_array
 from geoproc.morse.complex import SurfaceComplex, surface_complex
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.order import vertex_order
@@ -58,10 +60,20 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
     exact_windows : int
         Windows re-solved exactly (see :func:`simplify_function`).
     """
-    f = np.asarray(f, dtype=np.float64)
+    f = np.asarray(f)
+    if np.iscomplexobj(f) or not (np.issubdtype(f.dtype, np.number) or f.dtype == bool) or f.ndim != 1:
+        raise InputError(path, f"vertex values must be a 1-D array of real numbers, not {f.dtype} {f.shape}")
+    f = f.astype(np.float64)
+    if not np.isfinite(f).all():
+        raise InputError(path, f"{int((~np.isfinite(f)).sum())} vertex values are not finite "
+                               f"(first: vertex {int(np.flatnonzero(~np.isfinite(f))[0])})")
+    if not (np.isfinite(threshold) and threshold >= 0):
+        raise UsageError(f"the persistence threshold must be a finite number >= 0, not {threshold}")
     n = len(f)
+    F = triangle_array(F, path)
+    require_indices_below(F, n, path)
     order, rank = vertex_order(f)
-    cx = surface_complex(rank[np.asarray(F, dtype=np.int64)], n, path)
+    cx = surface_complex(rank[F], n, path)
     fr = f[order]
     grad = discrete_gradient(cx, fr)
     pairs = lower_star_persistence(cx, fr)

@@ -16,6 +16,7 @@ from scipy.spatial import cKDTree
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh.read import MAX_COORDINATE
 from geoproc.mesh.topology import mean_edge_length
+from geoproc.mesh.validate import mesh_arrays
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,16 @@ class NoiseSpec:
     outliers: float = 0.0
     outlier_range: float = 0.02
 
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.sigma) and self.sigma >= 0):
+            raise UsageError(f"noise sigma must be a finite number >= 0, not {self.sigma}")
+        for name in ("impulsive", "outliers"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise UsageError(f"{name} is a fraction in [0, 1], not {value}")
+        if not (np.isfinite(self.outlier_range) and self.outlier_range >= 0):
+            raise UsageError(f"outlier_range must be a finite number >= 0, not {self.outlier_range}")
+
 
 def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n, 3) unit area-weighted vertex normals of a triangle mesh (libigl);
@@ -72,6 +83,7 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     """Unit of ``sigma``: mean edge length of a mesh, or mean nearest-neighbour
     distance of a point cloud (``F`` with no rows), over its distinct points
     (a point stored twice is not its own neighbour at distance 0)."""
+    V, F = mesh_arrays(V, F, allow_point_cloud=True)
     if len(F):
         return mean_edge_length(V, F)
     U = np.unique(np.asarray(V, dtype=np.float64), axis=0)
@@ -100,6 +112,9 @@ def perturb_positions(
     V_noisy : (n, 3) float64
     outlier : (n,) float64, 1.0 on the vertices moved as outliers.
     """
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng must be a numpy Generator (np.random.default_rng(seed)), not {type(rng).__name__}")
+    V, F = mesh_arrays(V, F, path, allow_point_cloud=True)
     n = len(V)
     if spec.direction not in ("normal", "random"):
         raise InputError(path, f"unknown noise direction '{spec.direction}' (normal or random)")

@@ -390,3 +390,19 @@ def test_dihedral_tail_separates_creases_from_curvature(make_fixtures, dfx):
     _, tail_sphere = smoothed_dihedral_stats(*make_fixtures.icosphere(3))
     _, tail_cube = smoothed_dihedral_stats(*dfx.subdivided_cube(8))
     assert tail_sphere < 3 and tail_cube > 11.5
+
+
+def test_denoise_mesh_checks_its_arrays(make_fixtures):
+    from geoproc.errors import InputError
+
+    V, F = make_fixtures.icosphere(2)
+    Vn = V + 0.01 * np.random.default_rng(0).standard_normal(V.shape)
+    a = denoise_mesh(Vn.tolist(), F.tolist())
+    b = denoise_mesh(Vn.astype(np.float64), F.astype(np.int32))
+    assert np.array_equal(a.V, b.V)
+    bad = Vn.copy()
+    bad[3] = np.nan
+    for args, message in (((bad, F), "non-finite coordinates"), ((Vn, np.r_[F, [[0, 1, 999]]]), "vertex 999"),
+                          ((Vn, np.zeros((0, 3), int)), "no faces")):
+        with pytest.raises(InputError, match=message):
+            denoise_mesh(*args)

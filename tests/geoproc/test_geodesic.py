@@ -461,3 +461,18 @@ def test_symmetric_corner_gives_equal_distances(method, scale):
     F = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
     d = gd.geodesic_distance(V, F, [0], method).distance[1:]
     assert np.ptp(d) <= 1e-12 * d.max() and d.max() > 0
+
+
+def test_sources_must_be_integer_indices_and_arrays_are_checked(make_fixtures):
+    V, F = make_fixtures.grid(5)
+    for bad in ([1.5], ["1"], [True], None):
+        with pytest.raises(UsageError):
+            gd.geodesic_distance(V, F, bad, method="exact")
+    d = gd.geodesic_distance(V.tolist(), F.astype(np.int32), np.array([0], dtype=np.uint16), method="exact")
+    assert np.allclose(d.distance, np.linalg.norm(V - V[0], axis=1), atol=1e-12)
+    Vn = V.copy()
+    Vn[3] = np.nan
+    with pytest.raises(InputError, match="non-finite coordinates"):
+        gd.geodesic_distance(Vn, F, [0])
+    with pytest.raises(InputError, match="references vertex -1"):
+        gd.geodesic_distance(V, np.r_[F, [[0, 5, -1]]], [0])

@@ -243,3 +243,21 @@ def test_armadillo_noisy_height(shared_data, rel):
     assert len(have) == len(want)
     moved = len(want) - sum((Counter(want) & Counter(have)).values())
     assert moved <= max(10, 0.002 * len(want))
+
+
+def test_bad_input_to_the_library_function_is_refused(make_fixtures):
+    from geoproc.errors import InputError, UsageError
+    from geoproc.morse import morse_simplify
+
+    V, F = make_fixtures.icosphere(2)
+    f = V[:, 2].copy()
+    with pytest.raises(InputError, match="references vertex -1"):
+        morse_simplify(np.r_[F, [[0, 1, -1]]], f, 0.2)
+    fn = f.copy()
+    fn[3] = np.nan
+    with pytest.raises(InputError, match="not finite"):
+        morse_simplify(F, fn, 0.2)
+    for P in (float("nan"), -1.0):
+        with pytest.raises(UsageError, match="threshold"):
+            morse_simplify(F, f, P)
+    assert np.array_equal(morse_simplify(F.tolist(), f.tolist(), 0.2).g, morse_simplify(F, f, 0.2).g)

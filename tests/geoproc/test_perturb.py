@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geoproc.errors import InputError
+from geoproc.errors import InputError, UsageError
 from geoproc.perturb import NoiseSpec, noise_scale, perturb_positions, point_cloud_normals, vertex_normals
 
 
@@ -101,3 +101,22 @@ def test_unknown_direction_is_refused(sphere):
     V, F = sphere
     with pytest.raises(InputError):
         perturb_positions(V, F, NoiseSpec(sigma=0.1, direction="sideways"), np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"sigma": float("nan")}, "sigma must be a finite number"), ({"sigma": -1.0}, "sigma must be"),
+    ({"outliers": 2.0}, "outliers is a fraction"), ({"impulsive": -0.5}, "impulsive is a fraction"),
+    ({"outlier_range": float("inf")}, "outlier_range must be"),
+])
+def test_noise_settings_out_of_range_are_refused(kwargs, message):
+    with pytest.raises(UsageError, match=message):
+        NoiseSpec(**kwargs)
+
+
+def test_perturb_takes_lists_and_needs_a_generator(make_fixtures):
+    V, F = make_fixtures.icosphere(1)
+    a, _ = perturb_positions(V.tolist(), F.tolist(), NoiseSpec(sigma=0.3), np.random.default_rng(1))
+    b, _ = perturb_positions(V, F, NoiseSpec(sigma=0.3), np.random.default_rng(1))
+    assert np.array_equal(a, b)
+    with pytest.raises(TypeError, match="Generator"):
+        perturb_positions(V, F, NoiseSpec(sigma=0.3), 5)

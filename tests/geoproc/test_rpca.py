@@ -71,3 +71,27 @@ def test_shrink_and_randomized_svd():
     X = rng.standard_normal((300, 8)) @ rng.standard_normal((8, 200))
     _, s, _ = randomized_svd(X, 8)
     assert np.allclose(s, np.linalg.svd(X, compute_uv=False)[:8], rtol=1e-8)
+
+
+def test_package_name_is_the_function_even_after_the_module_is_imported():
+    import importlib
+
+    import geoproc.denoise as pkg
+
+    importlib.import_module("geoproc.denoise.rpca")
+    importlib.import_module("geoproc.denoise.mesh_denoise")  # imports the submodule too
+    assert callable(pkg.rpca) and pkg.rpca is rpca
+
+
+@pytest.mark.parametrize("D, kwargs, message", [
+    (np.zeros((0, 5)), {}, "with entries"),
+    (np.ones(5), {}, "got shape"),
+    (np.ones((5, 5)) + 1j, {}, "real matrix"),
+    (np.where(np.eye(5) > 0, np.nan, 1.0), {}, "finite entries"),
+    (np.where(np.eye(5, 3)[None] > 0, np.nan, 1.0), {}, "finite entries"),  # a batch of thin matrices
+    (np.ones((5, 5)), {"lam": -1.0}, "lam must be > 0"),
+    (np.ones((5, 5)), {"rho": 0.5}, "rho must be > 1"),
+])
+def test_bad_input_is_refused(D, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        rpca(D, **kwargs)

@@ -1,0 +1,53 @@
+"""Array checks shared by the library's entry points (geoproc.mesh.validate.mesh_arrays)
+and the Mesh container's shape checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoproc.errors import InputError
+from geoproc.mesh import Mesh
+from geoproc.mesh.validate import mesh_arrays
+
+V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+F = np.array([[0, 1, 2], [1, 3, 2]])
+
+
+def test_lists_dtypes_and_layouts_give_float64_and_int64_rows():
+    for Vin, Fin in ((V.tolist(), F.tolist()), (V.astype(np.float32), F.astype(np.uint16)),
+                     (np.asfortranarray(V), F.T.copy().T), (np.c_[V, V][:, :3], F)):
+        Vo, Fo = mesh_arrays(Vin, Fin)
+        assert Vo.dtype == np.float64 and Fo.dtype == np.int64
+        assert Vo.flags.c_contiguous and Fo.flags.c_contiguous
+        assert np.array_equal(Fo, F) and np.allclose(Vo, V)
+    Vo, Fo = mesh_arrays(V, [], allow_point_cloud=True)
+    assert Fo.shape == (0, 3)
+
+
+@pytest.mark.parametrize("Vin, Fin, message", [
+    (V[:, :2], F, "shape (n, 3), not (4, 2)"),
+    (V + 1j, F, "real numbers"),
+    (np.where(np.arange(12).reshape(4, 3) == 4, np.nan, V), F,
+     "1 vertices have non-finite coordinates (first: vertex 1)"),
+    (V, F.astype(float), "integers, not float64"),
+    (V, np.c_[F, F[:, :1]], "shape (m, 3) (triangles), not (2, 4)"),
+    (V, np.r_[F, [[0, 1, -1]]], "face 2 references vertex -1"),
+    (V, np.r_[F, [[0, 1, 4]]], "face 2 references vertex 4, but there are 4 vertices"),
+    (V, [], "mesh has no faces"),
+])
+def test_bad_arrays_are_named(Vin, Fin, message):
+    with pytest.raises(InputError) as exc:
+        mesh_arrays(Vin, Fin)
+    assert message in str(exc.value)
+
+
+def test_mesh_container_refuses_other_shapes_instead_of_reshaping():
+    with pytest.raises(ValueError, match="shape"):
+        Mesh(np.arange(12.0).reshape(6, 2), F)
+    with pytest.raises(ValueError, match="shape"):
+        Mesh(np.zeros((20, 3)), np.arange(12).reshape(3, 4))
+    with pytest.raises(ValueError, match="integer"):
+        Mesh(V, [[0, 1, 2.7]])
+    assert Mesh(V, [[0.0, 1.0, 2.0]]).F.dtype == np.int64  # integral floats are indices
+    assert Mesh(np.zeros((0, 3)), []).F.shape == (0, 3)
