@@ -94,10 +94,13 @@ class Run:
         self._t0 = time.perf_counter()
 
     # ---- inputs ---------------------------------------------------------
-    def add_input(self, path: str | os.PathLike, data: bytes | None = None) -> None:
-        """Record an input file (or ``-``) with its SHA-256 for the report."""
+    def add_input(self, path: str | os.PathLike, data: bytes | None = None, digest: str = "") -> None:
+        """Record an input file (or ``-``) with its SHA-256 for the report: of
+        ``data``, or the ``digest`` of the bytes the reader parsed, else of the
+        file read again."""
         name = os.fspath(path)
-        digest = sha256_bytes(data) if data is not None else sha256_file(name)
+        if not digest:
+            digest = sha256_bytes(data) if data is not None else sha256_file(name)
         self.inputs.append({"path": name, "sha256": digest})
 
     @staticmethod
@@ -123,7 +126,9 @@ class Run:
         name = os.fspath(path)
         data = self.read_stdin() if name == "-" else None
         out = read(name, data)
-        self.add_input(name, data)
+        # a mesh carries the hash of the bytes it was parsed from: the file is
+        # not read twice (it may have changed since, or be a pipe)
+        self.add_input(name, data, getattr(getattr(out, "log", None), "sha256", ""))
         return out
 
     def load_mesh(self, path: str | os.PathLike, clean: bool = True) -> Mesh:

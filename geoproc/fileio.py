@@ -18,9 +18,13 @@ from geoproc.errors import InputError
 
 
 def _temp_beside(path: str) -> tuple[int, str]:
-    """Open a temporary file in the folder of ``path``: (descriptor, name)."""
-    return tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp",
-                            dir=os.path.dirname(os.path.abspath(path)))
+    """Open a temporary file in the folder of ``path``: (descriptor, name). The
+    name starts with at most the first 200 bytes of the target's, so that it
+    stays within the 255-byte name limit whatever the target's length."""
+    base = os.fsencode(os.path.basename(path))[:200]
+    fd, name = tempfile.mkstemp(prefix=b"." + base + b".", suffix=b".tmp",
+                                dir=os.fsencode(os.path.dirname(os.path.abspath(path))))
+    return fd, os.fsdecode(name)
 
 
 def _discard(temps: list[str]) -> None:

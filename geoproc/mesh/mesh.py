@@ -27,6 +27,9 @@ class LoadLog:
         Vertices removed because no face used them.
     cleaned : bool
         False when the mesh was kept as stored (``--no-clean``).
+    sha256 : str
+        Hex SHA-256 of the bytes parsed ("" when the mesh was not read from bytes):
+        what a report records, without reading the file a second time.
     """
 
     path: str = ""
@@ -37,6 +40,7 @@ class LoadLog:
     merged_vertices: int = 0
     removed_unreferenced: int = 0
     cleaned: bool = True
+    sha256: str = ""
 
     def as_dict(self) -> dict:
         """Plain-dict form, for reports."""

@@ -19,7 +19,7 @@ import warnings
 import numpy as np
 
 from geoproc.errors import InputError
-from geoproc.fileio import file_extension, read_input_bytes, require_input_file
+from geoproc.fileio import file_extension, read_input_bytes, require_input_file, sha256_bytes
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
 from geoproc.mesh.validate import require_indices_below
@@ -84,7 +84,7 @@ def sniff_format(data: bytes, path: str = "-") -> str:
     first = head.split(None, 1)[0] if head.strip() else b""
     if _OFF_KEYWORD.fullmatch(first) or first.lower() == b"off":
         return "off"
-    if re.match(rb"\d+[ \t]+\d+([ \t]+\d+)?[ \t]*\r?\n", head):  # OFF without its optional keyword
+    if re.match(rb"\d+[ \t]+\d+([ \t]+\d+)?[ \t]*(#[^\n]*)?\r?\n", head):  # OFF without its keyword
         return "off"
     if head.startswith(b"solid") and b"facet" in data[:4096]:
         return "stl"
@@ -118,6 +118,7 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
         stored_faces=len(mesh.F),
         triangulated_polygons=polys,
         cleaned=clean,
+        sha256=sha256_bytes(data),
     )
     validate_arrays(mesh.V, mesh.F, path, allow_point_cloud=(fmt == "ply"))
     if clean:
@@ -217,12 +218,13 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
             raise InputError(path, f"PLY vertex element has no '{axis}' property")
         if vert.dtype[axis].kind not in "fiu" or vert.dtype[axis].shape != ():
             raise InputError(path, f"PLY vertex property '{axis}' is not a number (a list?)")
-    V = np.column_stack([np.asarray(vert[a], dtype=np.float64) for a in "xyz"])
-    vfields = {
-        n: np.asarray(vert[n], dtype=np.float64)
-        for n in vert.dtype.names
-        if n not in ("x", "y", "z") and vert.dtype[n].shape == () and vert.dtype[n].kind in "fiub"
-    }
+    with np.errstate(invalid="ignore"):  # a signalling NaN stored as float32 widens quietly (refused below)
+        V = np.column_stack([np.asarray(vert[a], dtype=np.float64) for a in "xyz"])
+        vfields = {
+            n: np.asarray(vert[n], dtype=np.float64)
+            for n in vert.dtype.names
+            if n not in ("x", "y", "z") and vert.dtype[n].shape == () and vert.dtype[n].kind in "fiub"
+        }
     F = np.zeros((0, 3), dtype=np.int64)
     ffields: dict[str, np.ndarray] = {}
     polys = 0
@@ -231,15 +233,17 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
         key = next((k for k in ("vertex_indices", "vertex_index") if k in fdata.dtype.names), None)
         if key is None:
             raise InputError(path, "PLY face element has no 'vertex_indices' list")
+        _require_list_property(fdata, key, "face", path)
         faces = list(fdata[key])
         short = [i for i, f in enumerate(faces) if len(f) < 3]
         if short:
             raise InputError(path, f"face {short[0]} has fewer than 3 corners")
         _require_integer_indices(faces, path)
         F, polys = _fan_triangulate(faces)
-        if polys == 0:
-            ffields = {
-                n: np.asarray(fdata[n], dtype=np.float64)
+        per_face = np.fromiter((len(f) - 2 for f in faces), dtype=np.int64, count=len(faces))
+        with np.errstate(invalid="ignore"):
+            ffields = {  # a polygon's values go to each triangle of its fan
+                n: np.repeat(np.asarray(fdata[n], dtype=np.float64), per_face)
                 for n in fdata.dtype.names
                 if n != key and fdata.dtype[n].shape == () and fdata.dtype[n].kind in "fiub"
             }
@@ -247,11 +251,20 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
         sdata = ply["tristrips"].data
         if "vertex_indices" not in sdata.dtype.names:
             raise InputError(path, "PLY tristrips element has no 'vertex_indices' list")
+        _require_list_property(sdata, "vertex_indices", "tristrips", path)
         strips = list(sdata["vertex_indices"])
         _require_integer_indices(strips, path, "tristrips row")
         F = np.concatenate([F, _strip_triangles(strips)])
         ffields = {}  # per-face properties belong to the face element alone
     return Mesh(V, F, vfields, ffields), polys
+
+
+def _require_list_property(data: np.ndarray, key: str, element: str, path: str) -> None:
+    """InputError unless the PLY property ``key`` of ``element`` is a list (plyfile
+    stores lists as objects; a scalar property holds one index per row)."""
+    if data.dtype[key].kind != "O":
+        raise InputError(path, f"PLY {element} property '{key}' is a single {data.dtype[key]} per {element}, "
+                               "not a list of vertex indices")
 
 
 def _strip_triangles(strips: list) -> np.ndarray:

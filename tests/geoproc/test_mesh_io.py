@@ -338,3 +338,56 @@ def test_ply_unsigned_strip_restart_marker():
 def test_obj_vertical_tab_and_form_feed_are_blanks():
     m = read_mesh_bytes(b"v\x0b0 0 0\nv 1\x0c0 0\nv 0 1 0\nf 1 2 3\n", "obj", clean=False)
     assert m.V.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+
+
+_PLY_HEAD = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+             "element {el} {n}\n{prop}\nend_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n")
+
+
+@pytest.mark.parametrize("element", ["face", "tristrips"])
+def test_ply_index_property_that_is_not_a_list_is_an_input_error(element):
+    data = _PLY_HEAD.format(el=element, n=2, prop="property int vertex_indices") + "0\n1\n"
+    with pytest.raises(InputError, match=f"PLY {element} property 'vertex_indices' is a single int32"):
+        read_mesh_bytes(data.encode(), "ply", "s.ply")
+
+
+def test_ply_polygon_face_properties_follow_their_fan_triangles():
+    data = _PLY_HEAD.format(el="face", n=2, prop="property list uchar int vertex_indices\nproperty float region")
+    data = data.replace("element face 2", "element face 2").replace("1 1 0\n", "1 1 0\n0 0 1\n")
+    data = data.replace("element vertex 4", "element vertex 5") + "4 0 1 3 2 7\n3 0 2 4 9\n"
+    m = read_mesh_bytes(data.encode(), "ply", "q.ply", clean=False)
+    assert len(m.F) == 3 and m.log.triangulated_polygons == 1
+    assert m.face_fields["region"].tolist() == [7.0, 7.0, 9.0]
+
+
+def test_signalling_nan_is_refused_without_a_warning():
+    import struct
+    import warnings
+
+    head = (b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            b"property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n")
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], "<f4")
+    V.view("<u4")[1, 0] = 0x7FA00000  # a signalling NaN
+    body = V.tobytes() + bytes([3]) + struct.pack("<3i", 0, 1, 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match="non-finite coordinates"):
+            read_mesh_bytes(head + body, "ply", "snan.ply")
+
+
+def test_keywordless_off_with_a_comment_on_its_counts_line_is_sniffed():
+    data = b"4 4 6 # counts\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
+    assert sniff_format(data) == "off"
+
+
+def test_the_log_carries_the_hash_of_the_bytes_parsed(fixture_dir):
+    import hashlib
+
+    path = fixture_dir / "icosphere.ply"
+    assert load_mesh(path).log.sha256 == hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_atomic_write_to_a_name_near_the_length_limit(tmp_path):
+    target = tmp_path / ("c" * 251 + ".ply")  # 255 bytes: the temporary name must not be longer
+    write_files_atomic([(target, b"data")])
+    assert target.read_bytes() == b"data" and [p.name for p in tmp_path.iterdir()] == [target.name]
