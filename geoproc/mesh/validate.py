@@ -118,17 +118,22 @@ def require_manifold(mesh: Mesh, why: str = "") -> None:
 
 
 def require_vertex_field(mesh: Mesh, values: np.ndarray, name: str, path: str | None = None) -> np.ndarray:
-    """Check a per-vertex scalar field: real numbers, one per vertex, all finite,
-    spanning a finite range (max - min, which persistence and relative
-    thresholds need). ``path`` names the file in errors (default: the mesh's).
-    Returns float64 (n,)."""
-    path = path or mesh.log.path or None
+    """Check a per-vertex scalar field of ``mesh`` (:func:`vertex_field_values`);
+    ``path`` names the file in errors (default: the mesh's). Returns float64 (n,)."""
+    return vertex_field_values(values, len(mesh.V), name, path or mesh.log.path or None)
+
+
+def vertex_field_values(values, n: int, name: str, path: str | None = None) -> np.ndarray:
+    """Check a scalar field on ``n`` vertices: real numbers, one per vertex, all
+    finite, spanning a finite range (max - min, which persistence and relative
+    thresholds need). Returns float64 (n,); InputError naming ``path`` and the
+    field ``name`` otherwise."""
     values = np.asarray(values)
     if values.dtype.kind not in "fiub":
         raise InputError(path, f"field '{name}' must hold real numbers, got dtype {values.dtype}")
     a = np.asarray(values, dtype=np.float64).reshape(-1)
-    if len(a) != len(mesh.V):
-        raise InputError(path, f"field '{name}' has {len(a)} values for {len(mesh.V)} vertices")
+    if len(a) != n:
+        raise InputError(path, f"field '{name}' has {len(a)} values for {n} vertices")
     bad = ~np.isfinite(a)
     if bad.any():
         raise InputError(

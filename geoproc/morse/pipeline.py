@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geoproc.errors import InputError, UsageError
-from geoproc.mesh.validate import require_indices_below, triangle_array
+from geoproc.errors import UsageError
+from geoproc.mesh.validate import require_indices_below, triangle_array, vertex_field_values
 from geoproc.morse.complex import SurfaceComplex, surface_complex
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.order import vertex_order
@@ -60,13 +60,7 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
     exact_windows : int
         Windows re-solved exactly (see :func:`simplify_function`).
     """
-    f = np.asarray(f)
-    if np.iscomplexobj(f) or not (np.issubdtype(f.dtype, np.number) or f.dtype == bool) or f.ndim != 1:
-        raise InputError(path, f"vertex values must be a 1-D array of real numbers, not {f.dtype} {f.shape}")
-    f = f.astype(np.float64)
-    if not np.isfinite(f).all():
-        raise InputError(path, f"{int((~np.isfinite(f)).sum())} vertex values are not finite "
-                               f"(first: vertex {int(np.flatnonzero(~np.isfinite(f))[0])})")
+    f = vertex_field_values(f, np.size(f), "f", path)  # one value per vertex: n is its length
     if not (np.isfinite(threshold) and threshold >= 0):
         raise UsageError(f"the persistence threshold must be a finite number >= 0, not {threshold}")
     n = len(f)
