@@ -195,7 +195,7 @@ def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynam
 def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str]) -> None:
     from geoproc.denoise.mesh_denoise import denoise_mesh
     from geoproc.denoise.metrics import reference_metrics
-    from geoproc.denoise.validate import reference_in_input_order, require_denoisable
+    from geoproc.denoise.validate import reference_in_input_order
 
     run.one_stdin(input, reference)
     if input != "-" and is_animation_path(input):
@@ -204,8 +204,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     path = mesh.log.path or None
     if mesh.is_point_cloud:
         raise InputError(path, "is a point cloud (no faces); use --outliers for point clouds")
-    require_triangle_mesh(mesh)
-    require_denoisable(mesh.F, path)
+    require_triangle_mesh(mesh)  # the edge check is denoise_mesh's own, its error named below
     ref_V = None
     if reference is not None:
         ref = run.read_input(reference, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
