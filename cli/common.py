@@ -27,7 +27,7 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Annotated, TypeVar
 
@@ -233,12 +233,6 @@ class Run:
                              f"coordinates reach {big:.3g} (write .ply, .obj or .off)")
         self._outputs.append((name, mesh_to_bytes(mesh, ext, binary=not ascii)))
 
-    def _check_output_folders(self) -> None:
-        for name, _ in self._outputs:
-            folder = os.path.dirname(os.path.abspath(name))
-            if name != "-" and not os.path.isdir(folder):
-                raise UsageError(f"{name}: output folder '{folder}' does not exist")
-
     def write_stdout(self, data: bytes) -> None:
         """Queue bytes for standard output; written only when the run succeeds."""
         self._outputs.append(("-", data))
@@ -251,13 +245,13 @@ class Run:
         unwritable report, or a full or closed standard output, leaves no file
         behind).
         """
-        self._check_output_folders()
+        _require_output_folders([name for name, _ in self._outputs])
         self.timings["total"] = time.perf_counter() - self._t0
         outputs = list(self._outputs)
         if report is not None:
             rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings)
             outputs.append((os.fspath(report), report_json(rep).encode()))
-        _require_distinct_outputs(outputs, [i["path"] for i in self.inputs], report)
+        _require_distinct_outputs([name for name, _ in outputs], [i["path"] for i in self.inputs], report)
         piped = b"".join(data for name, data in outputs if name == "-")
         try:
             write_files_atomic([(name, data) for name, data in outputs if name != "-"],
@@ -284,17 +278,16 @@ def _write_stdout(data: bytes) -> None:
         raise OSError(errno.EBADF, "standard output is closed", "-") from None
 
 
-def _require_distinct_outputs(outputs: list[tuple[str, bytes]], inputs: list[str],
-                              report: Path | None) -> None:
+def _require_distinct_outputs(names: list[str], inputs: list[str], report: Path | None) -> None:
     """Refuse two outputs on one path (standard output included) and an output
     that would overwrite an input."""
-    if sum(name == "-" for name, _ in outputs) > 1:
+    if sum(name == "-" for name in names) > 1:
         what = "--report - and another output" if report is not None and os.fspath(report) == "-" \
             else "two outputs"
         raise UsageError(f"{what} both write to standard output; give all but one a file name")
     seen: set[str] = set()
     sources = {os.path.realpath(p) for p in inputs if p != "-"}
-    for name, _ in outputs:
+    for name in names:
         if name == "-":
             continue
         real = os.path.realpath(name)
@@ -303,6 +296,14 @@ def _require_distinct_outputs(outputs: list[tuple[str, bytes]], inputs: list[str
         if real in sources:
             raise UsageError(f"{name}: is also an input; write the result to another file")
         seen.add(real)
+
+
+def _require_output_folders(names: list[str]) -> None:
+    """Refuse an output whose folder does not exist."""
+    for name in names:
+        folder = os.path.dirname(os.path.abspath(name))
+        if name != "-" and not os.path.isdir(folder):
+            raise UsageError(f"{name}: output folder '{folder}' does not exist")
 
 
 def _require_finite_options(params: dict) -> None:
@@ -350,8 +351,16 @@ def command_run(
     checks: list[str] | None = None,
     quiet: bool = False,
     debug: bool = False,
+    outputs: Sequence[str | os.PathLike | None] = (),
+    inputs: Sequence[str | os.PathLike | None] = (),
 ) -> Iterator[Run]:
     """Run a subcommand body under the command-line contract (see module doc).
+
+    ``outputs`` (the output paths the options name, None for one not given)
+    and ``inputs`` (the input paths) are checked before the body runs: every
+    output folder exists, no two outputs share a path, and no output is an
+    input. A mistyped output path then fails at once, not after the work;
+    the outputs are checked again when they are written.
 
     Exit codes: 0 success, 1 a --check failed, 2 bad input or usage, 3 an
     internal error (a bug; --debug shows the traceback).
@@ -366,6 +375,9 @@ def command_run(
                 and not os.path.isdir(os.path.dirname(os.path.abspath(report))):
             folder = os.path.dirname(os.path.abspath(report))
             raise UsageError(f"--report {report}: output folder '{folder}' does not exist")
+        named = [os.fspath(p) for p in (*outputs, report) if p is not None]
+        _require_output_folders(named)
+        _require_distinct_outputs(named, [os.fspath(p) for p in inputs if p is not None], report)
         yield run
         failures = evaluate_checks(parsed, run.metrics)  # raises on unknown metric names
         run._commit(report)

@@ -126,8 +126,8 @@ def denoise(
               "k": k, "threshold": threshold, "keep_all": keep_all, "refined": refined, "dynamic": dynamic,
               "coherence": coherence_used,
               "clean": not no_clean}
-    with command_run("denoise", params, report=report, checks=check,
-                     quiet=quiet, debug=debug) as run:
+    with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
+                     outputs=[output], inputs=[input, reference]) as run:
         if method not in METHODS:
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:

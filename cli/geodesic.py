@@ -133,8 +133,8 @@ def geodesic(
         "reference": reference.value if reference else None,
         "field_name": field_name, "render": render, "clean": not no_clean,
     }
-    with command_run("geodesic", params, report=report, checks=check,
-                     quiet=quiet, debug=debug) as run:
+    with command_run("geodesic", params, report=report, checks=check, quiet=quiet, debug=debug,
+                     outputs=[output, render], inputs=[mesh, sources_file]) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
         if output != "-" and not output.lower().endswith(".ply"):

@@ -42,8 +42,8 @@ def info(
     --check, e.g. --check 'genus==0'.
     """
     params = {"mesh": mesh, "clean": not no_clean}
-    with command_run("info", params, report=report, checks=check,
-                     quiet=quiet, debug=debug) as run:
+    with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
+                     inputs=[mesh]) as run:
         m = run.load_mesh(mesh, clean=not no_clean)
         with run.timer("compute"):
             summary = mesh_info(m)

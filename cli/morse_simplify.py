@@ -102,8 +102,9 @@ def morse_simplify(
               "output": output, "critical": str(critical) if critical else None,
               "diagram": str(diagram) if diagram else None, "exact_windows": exact_windows,
               "barycentric": barycentric, "clean": not no_clean}
-    with command_run("morse-simplify", params, report=report, checks=check,
-                     quiet=quiet, debug=debug) as run:
+    with command_run("morse-simplify", params, report=report, checks=check, quiet=quiet, debug=debug,
+                     outputs=[output, critical, diagram],
+                     inputs=[mesh, field if field.lower().endswith(".npy") else None]) as run:
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
         from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field

@@ -59,8 +59,8 @@ def perturb(
     """
     params = {"input": input, "noise": noise, "direction": direction, "impulsive": impulsive,
               "outliers": outliers, "outlier_range": outlier_range, "seed": seed, "clean": not no_clean}
-    with command_run("perturb", params, report=report, checks=check,
-                     quiet=quiet, debug=debug) as run:
+    with command_run("perturb", params, report=report, checks=check, quiet=quiet, debug=debug,
+                     outputs=[output], inputs=[input]) as run:
         if noise < 0:
             raise UsageError(f"--noise {noise}: must be >= 0")
         if direction not in ("normal", "random"):

@@ -94,8 +94,8 @@ def wos_solve(
               "walks": walks, "grid": grid, "epsilon": epsilon, "kernels": kernels if fitted else None,
               "fit_walks": fit_walks if fitted else None, "fit_points": fit_points if fitted else None,
               "ridge": ridge if fitted else None, "seed": seed, "exact": exact}
-    with command_run("wos-solve", params, report=report, checks=check,
-                     quiet=quiet, debug=debug) as run:
+    with command_run("wos-solve", params, report=report, checks=check, quiet=quiet, debug=debug,
+                     outputs=[output, image, error_image], inputs=[domain]) as run:
         from geoproc.wos import load_domain, parse_expression, solve_laplace
         from geoproc.wos.images import exr_bytes, png_bytes
 

@@ -302,6 +302,37 @@ def test_stdout_failures_same_paths_and_early_stdout_leave_nothing(fixture_dir, 
     assert sorted(f.name for f in tmp_path.iterdir()) == ["d.json", "t.ply"]
 
 
+def test_output_paths_are_refused_before_any_input_is_read(cli, fixture_dir, tmp_path):
+    # the paths are checked first: a mistyped -o fails at once, not after the work
+    garbage = tmp_path / "garbage.ply"
+    garbage.write_bytes(b"not a mesh")
+    domain = tmp_path / "garbage.json"
+    domain.write_bytes(b"{")
+    missing, nodir = tmp_path / "missing.ply", tmp_path / "nodir"
+    commands = (
+        ["denoise", missing, "-o", nodir / "o.ply"],
+        ["geodesic", missing, "-s", "0", "-o", tmp_path / "o.ply", "--render", nodir / "r.png"],
+        ["morse-simplify", missing, "-f", "z", "-p", "0.1", "-o", tmp_path / "o.ply", "--diagram", nodir / "d.png"],
+        ["perturb", missing, "--seed", "1", "-o", nodir / "o.ply"],
+        ["wos-solve", tmp_path / "missing.json", "--boundary", "x", "-o", tmp_path / "u.exr",
+         "--image", nodir / "u.png"],
+        ["info", missing, "--report", nodir / "r.json"],
+    )
+    for args in commands:
+        p = cli(*args)
+        assert p.returncode == 2 and "output folder" in p.stderr and "missing" not in p.stderr, (args, p.stderr)
+    for args in (["denoise", garbage, "-o", garbage], ["perturb", garbage, "--seed", "1", "-o", garbage],
+                 ["geodesic", garbage, "-s", "0", "-o", garbage],
+                 ["denoise", fixture_dir / "torus.ply", "--reference", garbage, "-o", garbage],
+                 ["wos-solve", domain, "--boundary", "x", "-o", tmp_path / "u.exr", "--report", domain]):
+        p = cli(*args)
+        assert p.returncode == 2, (args, p.stderr)
+        line = _one_error_line(p.stderr, str(args[-1]))
+        assert line.endswith("is also an input; write the result to another file"), line
+    assert garbage.read_bytes() == b"not a mesh" and domain.read_bytes() == b"{"
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["garbage.json", "garbage.ply"]
+
+
 def test_coordinates_beyond_the_safe_range_are_refused(cli, fixture_dir, tmp_path):
     torus = load_mesh(fixture_dir / "torus.ply")
     for scale, fragment in ((1e80, "overflow products of squared lengths"), (1e-60, "areas underflow")):
