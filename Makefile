@@ -9,6 +9,9 @@ STAMP  := $(VENV)/.setup-stamp
 FIXTURES := fixtures/data/.stamp
 DEMO   := out/demo
 PYTEST_ARGS ?=
+# pytest-xdist workers: one per core this process may use, at most 4 (memory);
+# TEST_WORKERS=0 runs the tests in one process
+TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); [ "$$n" -gt 4 ] && n=4; echo $$n)
 
 .PHONY: setup fixtures test test-all demo demo-info demo-geodesic demo-morse-simplify demo-wos-solve demo-perturb demo-denoise demo-summary bench lint clean
 
@@ -28,10 +31,10 @@ $(FIXTURES): fixtures/make_fixtures.py $(STAMP)
 	touch $@
 
 test: $(STAMP)
-	$(PY) -m pytest -q $(PYTEST_ARGS)
+	$(PY) -m pytest -q -n $(TEST_WORKERS) $(PYTEST_ARGS)
 
 test-all: $(STAMP)
-	$(PY) -m pytest -q -m "" $(PYTEST_ARGS)
+	$(PY) -m pytest -q -n $(TEST_WORKERS) -m "" $(PYTEST_ARGS)
 
 # ---- demo: every subcommand on the project's own fixtures, into out/demo ----
 demo: demo-summary
