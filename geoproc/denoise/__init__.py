@@ -26,6 +26,8 @@ _NAMES = {
     "DenoiseParams": "mesh_denoise",
     "DenoiseResult": "mesh_denoise",
     "denoise_mesh": "mesh_denoise",
+    "FaceConnectivity": "connectivity",
+    "face_connectivity": "connectivity",
     "median_dihedral_deg": "mesh_denoise",
     "denoise_errors": "metrics",
     "denoise_animation": "dynamic",

@@ -34,11 +34,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from geoproc.denoise import COHERENCE
+from geoproc.denoise.connectivity import face_connectivity
 from geoproc.denoise.face_geometry import face_normals_and_areas, vertex_normals
 from geoproc.denoise.mesh_denoise import DEFAULT_METHOD, DenoiseParams, denoise_mesh
 from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import update_vertices
 from geoproc.errors import InputError, UsageError
+from geoproc.mesh.validate import mesh_arrays
 
 
 def normal_heights(V: np.ndarray, F: np.ndarray, smoothing: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
@@ -245,9 +247,13 @@ def denoise_animation(
     p = DenoiseParams() if params is None else params
     per_frame = replace(p, features="none")  # only the positions are used
     static = np.empty_like(V, dtype=np.float64)
+    conn = None  # the faces, checked and prepared once for all frames
     for t in range(T):
         try:
-            static[t] = denoise_mesh(V[t], F, method, per_frame).V
+            if conn is None:
+                Vt, Ft = mesh_arrays(V[t], F)
+                conn = face_connectivity(Ft, len(Vt))
+            static[t] = denoise_mesh(V[t], F, method, per_frame, connectivity=conn).V
         except InputError as exc:  # say which frame
             raise InputError(exc.path, f"frame {t}: {exc.problem}") from None
         except UsageError as exc:

@@ -33,19 +33,18 @@ import numpy as np
 
 from geoproc.denoise import DEFAULT_METHOD, METHODS
 from geoproc.denoise.bilateral import bilateral_normal_filter, spatial_weights
+from geoproc.denoise.connectivity import FaceConnectivity, face_connectivity
 from geoproc.denoise.crease_targets import bisect_collapsed_targets, input_side_targets
 from geoproc.denoise.face_geometry import (
     face_centroids,
     face_edge_neighbors,
     face_normals_and_areas,
-    face_ring_csr,
 )
 from geoproc.denoise.features import dihedral_feature_faces, l1_feature_faces
-from geoproc.denoise.guidance import guidance_normals, patch_interior_edges
+from geoproc.denoise.guidance import guidance_normals
 from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
-from geoproc.denoise.validate import require_denoisable
 from geoproc.denoise.vertex_update import unfold_faces, update_vertices
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh.topology import boundary_vertices
@@ -275,10 +274,14 @@ class FilterPlan:
     fine: bool = False
 
 
-def smoothed_dihedral_stats(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> tuple[float,
-                                                                                                        float]:
+def smoothed_dihedral_stats(V: np.ndarray, F: np.ndarray,
+                            connectivity: FaceConnectivity | None = None) -> tuple[float, float]:
     """Dihedral angles left after a plain smoothing (bilateral normal filter
     with a broad range kernel, 2 rounds of 3 passes).
+
+    ``connectivity`` is :func:`geoproc.denoise.connectivity.face_connectivity`
+    of F (built here when not given); the angles are measured on its
+    consistently turned faces.
 
     Returns
     -------
@@ -289,10 +292,11 @@ def smoothed_dihedral_stats(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | 
         Their 99th percentile over the median: large where creases survive the
         smoothing, small on smooth curved surfaces.
     """
-    enb = face_edge_neighbors(F) if edge_nb is None else edge_nb
+    conn = face_connectivity(F, len(V)) if connectivity is None else connectivity
+    enb = conn.edge_nb
     plain = FilterPlan(outer_iterations=2, normal_iterations=3, sigma_r=1.0, spatial_scale=1.0)
-    r = filter_and_fit(V, F, "bilateral", DenoiseParams(features="none"), plain, enb)
-    ang = edge_dihedral_deg(r.V, F, enb)
+    r = filter_and_fit(V, conn, "bilateral", DenoiseParams(features="none"), plain)
+    ang = edge_dihedral_deg(r.V, conn.F, enb)
     if len(ang) == 0:
         return 0.0, 0.0
     med = float(np.median(ang))
@@ -359,6 +363,7 @@ def denoise_mesh(
     params: DenoiseParams | None = None,
     progress: Callable[[float], None] | None = None,
     initial_normals: np.ndarray | None = None,
+    connectivity: FaceConnectivity | None = None,
 ) -> DenoiseResult:
     """Denoise a triangle mesh while keeping its sharp features.
 
@@ -374,6 +379,9 @@ def denoise_mesh(
     initial_normals : (m, 3) float64, optional
         Start the first round from these unit normals instead of the input's
         face normals (the dynamic method passes its temporally coherent normals).
+    connectivity : FaceConnectivity, optional
+        :func:`geoproc.denoise.connectivity.face_connectivity` of F, when the
+        caller has it (the frames of an animation share it); built here otherwise.
 
     Returns
     -------
@@ -385,15 +393,18 @@ def denoise_mesh(
     if p.features not in FEATURE_METHODS:
         raise ValueError(f"unknown feature method {p.features!r}")
     V, F = mesh_arrays(V, F)
-    require_denoisable(F, None)
-    F, flip = consistent_orientation(F)
+    if connectivity is None:
+        connectivity = face_connectivity(F, len(V))
+    elif not connectivity.matches(F, len(V)):
+        raise ValueError("connectivity was built from other faces or another vertex count")
+    conn = connectivity
+    F, flip, edge_nb = conn.F, conn.flip, conn.edge_nb
     if initial_normals is not None and flip.any():
         initial_normals = np.where(flip[:, None], -initial_normals, initial_normals)
-    edge_nb = face_edge_neighbors(F)
     noise_deg = median_dihedral_deg(V, F, edge_nb)
     rough = roughness(V, F, edge_nb)
     needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
-    coarse, tail = smoothed_dihedral_stats(V, F, edge_nb) if needs_schedule and rough >= 0.03 else (0.0, np.inf)
+    coarse, tail = smoothed_dihedral_stats(V, F, conn) if needs_schedule and rough >= 0.03 else (0.0, np.inf)
     sched = default_schedule(rough, coarse, tail)
     # automatic schedule at strong noise: the last round repairs faces the fit
     # squashed against a crease; on finely meshed surfaces (the narrow-kernel
@@ -406,7 +417,7 @@ def denoise_mesh(
         spatial_scale=sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale,
         guidance_mix=sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0,
         strong=strong, fine=strong and sched["coarse_weight"] < 0.5)
-    res = filter_and_fit(V, F, method, p, plan, edge_nb, progress, initial_normals)
+    res = filter_and_fit(V, conn, method, p, plan, progress, initial_normals)
     res.info = {"noise_median_dihedral_deg": noise_deg, "noise_roughness": rough, "coarseness_deg": coarse,
                 "dihedral_tail_ratio": tail if np.isfinite(tail) else None, "reoriented_faces": int(flip.sum()),
                 **res.info}
@@ -415,31 +426,12 @@ def denoise_mesh(
     return res
 
 
-def consistent_orientation(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Faces turned to agree with their edge neighbours in each connected
-    patch (``igl.bfs_orient``): the filters compare face normals, and a face
-    stored the other way round reads as a crease of 180 degrees.
-
-    Returns the (m, 3) reoriented faces and the (m,) bool mask of the faces turned.
-    """
-    import igl
-
-    F = np.ascontiguousarray(F, dtype=np.int64)
-    if len(F) == 0:
-        return F, np.zeros(0, dtype=bool)
-    Fo, _ = igl.bfs_orient(F)
-    Fo = np.asarray(Fo, dtype=np.int64)
-    flip = ~np.any([(Fo == np.roll(F, r, axis=1)).all(axis=1) for r in range(3)], axis=0)
-    return Fo, flip
-
-
 def filter_and_fit(
     V: np.ndarray,
-    F: np.ndarray,
+    conn: FaceConnectivity,
     method: str,
     p: DenoiseParams,
     plan: FilterPlan,
-    edge_nb: np.ndarray,
     progress: Callable[[float], None] | None = None,
     initial_normals: np.ndarray | None = None,
 ) -> DenoiseResult:
@@ -447,13 +439,15 @@ def filter_and_fit(
 
     Parameters
     ----------
-    V : (n, 3) float64 positions; F : (m, 3) int64 triangles.
+    V : (n, 3) float64 positions.
+    conn : FaceConnectivity
+        :func:`geoproc.denoise.connectivity.face_connectivity` of the faces;
+        the filter works on its consistently turned faces ``conn.F``.
     method : {"bilateral", "guided", "rpca"}
     p : DenoiseParams
         Read for what the plan does not hold: vertex sweeps and fidelity, boundary
         pinning, patch size, fold repair, input-side step, features.
     plan : FilterPlan
-    edge_nb : (m, 3) int64 :func:`face_edge_neighbors` of F.
     progress, initial_normals : as for :func:`denoise_mesh`.
 
     Returns
@@ -464,7 +458,7 @@ def filter_and_fit(
     n = len(V)
     outer, inner, sigma_r = plan.outer_iterations, plan.normal_iterations, plan.sigma_r
     mix, strong, fine = plan.guidance_mix, plan.strong, plan.fine
-    ring = face_ring_csr(F, n, 1)
+    F, edge_nb, ring = conn.F, conn.edge_nb, conn.ring
     fixed = None
     if p.pin_boundary:
         on_boundary = boundary_vertices(F)
@@ -497,7 +491,7 @@ def filter_and_fit(
     patch = nearest_faces_in_ring(C, ring, p.patch_size) if method == "rpca" else None
     # guidance blended away entirely (mix 1) is the plain bilateral filter: no guidance to compute
     plain = method == "bilateral" or mix >= 1.0
-    inside = None if plain else patch_interior_edges(ring, edge_nb)
+    inside = None if plain else conn.inside
     total = max(outer * inner, 1)
     done = 0
     sparse = np.zeros(len(F))

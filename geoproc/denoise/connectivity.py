@@ -1,0 +1,87 @@
+"""What the mesh denoisers need from the faces alone, built once per connectivity.
+
+:func:`geoproc.denoise.mesh_denoise.denoise_mesh` builds it for its mesh; an
+animation (:func:`geoproc.denoise.dynamic.denoise_animation`) builds it once and
+passes it to every frame, whose faces are the same.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from geoproc.denoise.face_geometry import face_edge_neighbors, face_ring_csr
+from geoproc.denoise.guidance import patch_interior_edges
+from geoproc.denoise.validate import require_denoisable
+
+
+@dataclass(eq=False)
+class FaceConnectivity:
+    """Faces of one mesh, turned consistently, with their neighbourhoods.
+
+    Attributes
+    ----------
+    faces : (m, 3) int64 the faces as given.
+    n : int
+        Number of vertices.
+    F : (m, 3) int64 the faces turned to agree with their edge neighbours
+        (:func:`consistent_orientation`).
+    flip : (m,) bool faces that were turned.
+    edge_nb : (m, 3) int64 :func:`geoproc.denoise.face_geometry.face_edge_neighbors` of F.
+    ring : CSR (indptr, indices) the faces sharing a vertex with each face
+        (:func:`geoproc.denoise.face_geometry.face_ring_csr`, one ring).
+    """
+
+    faces: np.ndarray
+    n: int
+    F: np.ndarray
+    flip: np.ndarray
+    edge_nb: np.ndarray
+    ring: tuple[np.ndarray, np.ndarray]
+
+    @cached_property
+    def inside(self) -> tuple[np.ndarray, np.ndarray]:
+        """The edges inside every ring patch
+        (:func:`geoproc.denoise.guidance.patch_interior_edges`), built on first use."""
+        return patch_interior_edges(self.ring, self.edge_nb)
+
+    def matches(self, F: np.ndarray, n: int) -> bool:
+        """Whether this was built from faces ``F`` over ``n`` vertices."""
+        return n == self.n and np.array_equal(F, self.faces)
+
+
+def face_connectivity(F: np.ndarray, n: int) -> FaceConnectivity:
+    """Check the faces for denoising (:func:`geoproc.denoise.validate.require_denoisable`)
+    and build their :class:`FaceConnectivity`.
+
+    Parameters
+    ----------
+    F : (m, 3) int64 triangles over ``n`` vertices (indices already checked in range).
+    n : int
+        Number of vertices.
+    """
+    faces = np.ascontiguousarray(F, dtype=np.int64)
+    require_denoisable(faces, None)
+    Fo, flip = consistent_orientation(faces)
+    return FaceConnectivity(faces=faces, n=int(n), F=Fo, flip=flip, edge_nb=face_edge_neighbors(Fo),
+                            ring=face_ring_csr(Fo, n, 1))
+
+
+def consistent_orientation(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Faces turned to agree with their edge neighbours in each connected
+    patch (``igl.bfs_orient``): the filters compare face normals, and a face
+    stored the other way round reads as a crease of 180 degrees.
+
+    Returns the (m, 3) reoriented faces and the (m,) bool mask of the faces turned.
+    """
+    import igl
+
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    if len(F) == 0:
+        return F, np.zeros(0, dtype=bool)
+    Fo, _ = igl.bfs_orient(F)
+    Fo = np.asarray(Fo, dtype=np.int64)
+    flip = ~np.any([(Fo == np.roll(F, r, axis=1)).all(axis=1) for r in range(3)], axis=0)
+    return Fo, flip

@@ -1,0 +1,46 @@
+"""The faces' structures shared by the frames of an animation (FaceConnectivity)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoproc.denoise import denoise_mesh, face_connectivity
+from geoproc.errors import InputError
+
+
+def test_faces_are_turned_to_agree_with_their_neighbours(make_fixtures):
+    V, F = make_fixtures.icosphere(2)
+    turned = np.random.default_rng(0).random(len(F)) < 0.3
+    Fm = F.copy()
+    Fm[turned] = Fm[turned][:, ::-1]
+    conn = face_connectivity(Fm, len(V))
+    assert np.array_equal(conn.flip, turned) or np.array_equal(conn.flip, ~turned)
+    # consistently oriented: every directed edge of the closed sphere occurs exactly once
+    directed = np.concatenate([conn.F[:, [0, 1]], conn.F[:, [1, 2]], conn.F[:, [2, 0]]])
+    assert len(np.unique(directed, axis=0)) == 3 * len(F)
+    assert (conn.edge_nb >= 0).all() and conn.matches(Fm, len(V)) and not conn.matches(F, len(V))
+
+
+def test_given_connectivity_gives_the_same_result_and_must_match(dfx_noisy_cube):
+    V, F, _ = dfx_noisy_cube
+    conn = face_connectivity(F, len(V))
+    a, b = denoise_mesh(V, F), denoise_mesh(V, F, connectivity=conn)
+    assert np.array_equal(a.V, b.V) and np.array_equal(a.feature, b.feature)
+    with pytest.raises(ValueError, match="other faces"):
+        denoise_mesh(V, F[::-1], connectivity=conn)
+    with pytest.raises(ValueError, match="other faces"):
+        denoise_mesh(np.vstack([V, V[:1]]), F, connectivity=conn)
+
+
+def test_non_manifold_faces_are_refused_once():
+    F = np.array([[0, 1, 2], [0, 2, 1], [0, 1, 3]])
+    with pytest.raises(InputError, match="two faces per edge"):
+        face_connectivity(F, 4)
+
+
+@pytest.fixture(scope="module")
+def dfx_noisy_cube():
+    from tests.conftest import load_fixture_module
+
+    return load_fixture_module("denoise_fixtures").noisy_cube(n=8, sigma=0.3, seed=2)
