@@ -37,7 +37,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from geoproc.errors import GeoprocError, InputError, UsageError
-from geoproc.fileio import sha256_bytes, sha256_file, write_files_atomic
+from geoproc.fileio import read_input_bytes, sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
 from geoproc.report import build_report, evaluate_checks, parse_check
@@ -120,11 +120,18 @@ class Run:
             raise InputError("-", "standard input is closed")
         return sys.stdin.buffer.read()
 
-    def read_input(self, path: str | os.PathLike, read: Callable[[str, bytes | None], T]) -> T:
-        """``read(path, data)``, ``data`` being standard input's bytes when the
-        path is ``-`` (else None), then the input recorded for the report."""
+    def read_input(self, path: str | os.PathLike, read: Callable[[str, bytes | None], T],
+                   what: str | None = None) -> T:
+        """``read(path, data)``, then the input recorded for the report.
+
+        ``data`` is standard input's bytes when the path is ``-``; with ``what``
+        (the kind of file, for the error when it is missing) the file's bytes,
+        read here once, so that the recorded hash is that of the bytes parsed
+        (a pipe such as ``<(seq 0 9)`` cannot be read twice); else None, and
+        the reader opens the file itself.
+        """
         name = os.fspath(path)
-        data = self.read_stdin() if name == "-" else None
+        data = self.read_stdin() if name == "-" else read_input_bytes(name, what) if what else None
         out = read(name, data)
         # a mesh carries the hash of the bytes it was parsed from: the file is
         # not read twice (it may have changed since, or be a pipe)
@@ -140,16 +147,17 @@ class Run:
 
     def load_animation(self, path: str | os.PathLike):
         """Read an animation (``.npz``, or a folder of frame meshes with equal
-        connectivity) under the ``load`` timer and record it as an input (a folder's
-        hash covers its files' names and contents)."""
+        connectivity) under the ``load`` timer and record it as an input with the
+        hash of the bytes parsed (a folder's covers its frame files' names and contents)."""
         from geoproc.animation import load_animation
 
         name = os.fspath(path)
         with self.timer("load"):
             anim = load_animation(name)
-            self.add_input(name)
+            self.add_input(name, digest=anim.sha256)
             if anim.frame_files:  # the frames in the order read, each checkable with sha256sum
-                self.inputs[-1]["frames"] = [{"path": f, "sha256": sha256_file(f)} for f in anim.frame_files]
+                self.inputs[-1]["frames"] = [{"path": f, "sha256": h}
+                                             for f, h in zip(anim.frame_files, anim.frame_sha256, strict=True)]
         return anim
 
     def note_load(self, mesh: Mesh) -> None:

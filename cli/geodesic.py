@@ -149,7 +149,7 @@ def geodesic(
         m = run.load_mesh(mesh, clean=not no_clean)
         srcs = list(source or [])
         if sources_file is not None:  # after the mesh: a second '-' is then the one refused
-            srcs += run.read_input(sources_file, read_sources_file)
+            srcs += run.read_input(sources_file, read_sources_file, "file of source indices")
         if m.log.merged_vertices or m.log.removed_unreferenced:
             run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
         with run.progress(f"geodesic {m_name}", 1.0) as update:

@@ -12,6 +12,7 @@ import numpy as np
 import typer
 
 from geoproc.errors import UsageError
+from geoproc.fileio import read_input_bytes
 from geoproc.mesh import Mesh
 from geoproc.mesh.validate import require_manifold, require_triangle_mesh
 from geoproc.report import json_safe
@@ -128,10 +129,11 @@ def morse_simplify(
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
         require_manifold(m)
+        npy = read_input_bytes(field, "field file (.npy)") if field.lower().endswith(".npy") else None
         with run.timer("field"):
-            f = vertex_field(m, field)
-        if field.lower().endswith(".npy"):
-            run.add_input(field)
+            f = vertex_field(m, field, npy)
+        if npy is not None:
+            run.add_input(field, npy)
         name = field_name(field)
         clobbered = [k for k in (name, f"{name}_original") if k in m.vertex_fields and k != field]
         if clobbered:

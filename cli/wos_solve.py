@@ -112,7 +112,7 @@ def wos_solve(
         g = parse_expression(boundary, "--boundary") if boundary is not None else None
         h = parse_expression(neumann, "--neumann") if neumann is not None else None
         with run.timer("load"):
-            dom = run.read_input(domain, load_domain)
+            dom = run.read_input(domain, load_domain, "domain file")
         if dom.traced:
             run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
                      f"area {dom.area:.6g} px^2")

@@ -9,6 +9,7 @@ per-vertex properties present in every frame become the fields.
 
 from __future__ import annotations
 
+import hashlib
 import io
 import os
 import re
@@ -18,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.errors import InputError
-from geoproc.fileio import file_extension
+from geoproc.fileio import file_extension, read_input_bytes, sha256_bytes
 from geoproc.mesh.read import require_coordinates_in_range
 
 
@@ -33,6 +34,11 @@ class Animation:
     fields : dict of str to (T, n) float64 per-vertex values per frame.
     path : str, the file or folder read.
     frame_files : list of str, for a folder the frame files in the order read (else empty).
+    sha256 : str
+        Hex SHA-256 of the bytes parsed: of the ``.npz`` file; for a folder, of
+        its frame files sorted by name, each as its name, NUL and its hex
+        SHA-256 (empty when not read from disk).
+    frame_sha256 : list of str, for a folder the hex SHA-256 of each frame file, as ``frame_files``.
     """
 
     V: np.ndarray
@@ -40,6 +46,8 @@ class Animation:
     fields: dict[str, np.ndarray] = field(default_factory=dict)
     path: str = ""
     frame_files: list[str] = field(default_factory=list)
+    sha256: str = ""
+    frame_sha256: list[str] = field(default_factory=list)
 
     @property
     def n_frames(self) -> int:
@@ -63,10 +71,9 @@ def load_animation(path: str | os.PathLike) -> Animation:
     name = os.fspath(path)
     if os.path.isdir(name):
         return _load_frame_folder(name)
-    if not os.path.exists(name):
-        raise InputError(name, "no such file")
+    raw = read_input_bytes(name, "animation file")
     try:
-        with np.load(name, allow_pickle=False) as z:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except Exception as exc:  # zip or array format errors
         raise InputError(name, f"not a readable .npz animation ({type(exc).__name__})") from None
@@ -94,7 +101,7 @@ def load_animation(path: str | os.PathLike) -> Animation:
             raise InputError(name, f"'outlier' has shape {v.shape}; expected (frames, n) = {V.shape[:2]}")
         if v.dtype.kind in "fiub" and v.shape == V.shape[:2]:
             fields[k] = np.asarray(v, dtype=np.float64)
-    return Animation(V, F.astype(np.int64), fields, name)
+    return Animation(V, F.astype(np.int64), fields, name, sha256=sha256_bytes(raw))
 
 
 def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
@@ -119,10 +126,11 @@ def _load_frame_folder(name: str) -> Animation:
     files = sorted((f for f in os.listdir(name) if file_extension(f) in MESH_FORMATS), key=natural_key)
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
-    frames, per_frame_fields = [], []
+    frames, per_frame_fields, digests = [], [], []
     F0 = None
     for f in files:
         mesh = load_mesh(os.path.join(name, f), clean=False)
+        digests.append(mesh.log.sha256)
         if F0 is None:
             F0 = mesh.F
         elif mesh.F.shape != F0.shape or (mesh.F != F0).any() or len(mesh.V) != len(frames[0]):
@@ -133,7 +141,11 @@ def _load_frame_folder(name: str) -> Animation:
     common = set.intersection(*(set(d) for d in per_frame_fields))
     fields = {k: np.stack([d[k][:, 0] for d in per_frame_fields]) for k in sorted(common)
               if all(d[k].shape[1] == 1 for d in per_frame_fields)}
-    return Animation(np.stack(frames), F0, fields, name, [os.path.join(name, f) for f in files])
+    folder = hashlib.sha256()
+    for f, digest in sorted(zip(files, digests, strict=True)):
+        folder.update(os.fsencode(f) + b"\0" + digest.encode())
+    return Animation(np.stack(frames), F0, fields, name, [os.path.join(name, f) for f in files],
+                     sha256=folder.hexdigest(), frame_sha256=digests)
 
 
 def animation_to_bytes(anim: Animation) -> bytes:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import unicodedata
@@ -9,6 +10,7 @@ import unicodedata
 import numpy as np
 
 from geoproc.errors import InputError
+from geoproc.fileio import read_input_bytes
 from geoproc.mesh import Mesh
 from geoproc.mesh.validate import require_vertex_field
 
@@ -59,7 +61,7 @@ def field_name(spec: str) -> str:
     return spec
 
 
-def vertex_field(mesh: Mesh, spec: str) -> np.ndarray:
+def vertex_field(mesh: Mesh, spec: str, data: bytes | None = None) -> np.ndarray:
     """Resolve ``spec`` to one finite value per vertex.
 
     Parameters
@@ -70,6 +72,8 @@ def vertex_field(mesh: Mesh, spec: str) -> np.ndarray:
         A per-vertex property of the mesh (e.g. ``distance`` from
         ``geoproc geodesic``), ``x``, ``y`` or ``z``, a ``.npy`` file holding one
         value per vertex, or ``mean-curvature`` / ``gaussian-curvature``.
+    data : bytes, optional
+        The ``.npy`` file's content when the caller has read it (else it is read here).
 
     Returns
     -------
@@ -87,10 +91,10 @@ def vertex_field(mesh: Mesh, spec: str) -> np.ndarray:
     elif spec == "gaussian-curvature":
         values = gaussian_curvature(mesh.V, mesh.F)
     elif spec.lower().endswith(".npy"):
-        if not os.path.exists(spec):
-            raise InputError(spec, "no such file")
+        if data is None:
+            data = read_input_bytes(spec, "field file (.npy)")
         try:
-            values = np.load(spec, allow_pickle=False)
+            values = np.load(io.BytesIO(data), allow_pickle=False)
         except (OSError, ValueError, EOFError) as exc:  # EOFError: an empty file
             raise InputError(spec, f"cannot read field: {exc or type(exc).__name__}") from None
         if values.ndim != 1 and not (values.ndim == 2 and 1 in values.shape):

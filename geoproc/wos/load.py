@@ -10,13 +10,13 @@ from geoproc.wos.mask import load_domain_mask
 
 def load_domain(path: str, data: bytes | None = None) -> Domain:
     """Load ``path``: ``.json`` (or content starting with ``{``) as loops, else a
-    mask image. With ``data`` (the content of ``path``, e.g. ``-`` for standard
-    input) only JSON is read."""
-    from_file = data is None
-    if from_file:
+    mask image. ``data`` is the content of ``path`` when the caller has read it
+    (for ``-``, standard input, where only JSON is read); a mask image is then
+    read from the file again."""
+    if data is None:
         data = read_input_bytes(path, "domain file")
-    if data[:64].lstrip().startswith(b"{") or (from_file and path.lower().endswith(".json")):
+    if data[:64].lstrip().startswith(b"{") or path.lower().endswith(".json"):
         return load_domain_json(path, data)
-    if not from_file:
+    if path == "-":
         raise InputError(path, "not a JSON domain (a mask image must be given as a file)")
     return load_domain_mask(path)

@@ -333,6 +333,27 @@ def test_output_paths_are_refused_before_any_input_is_read(cli, fixture_dir, tmp
     assert sorted(f.name for f in tmp_path.iterdir()) == ["garbage.json", "garbage.ply"]
 
 
+def test_inputs_from_pipes_are_hashed_as_read(fixture_dir, tmp_path):
+    # a pipe (here bash's process substitution) can be read once: the report
+    # hashes the bytes parsed, not a second, empty read
+    import shlex
+    import subprocess
+    import sys
+
+    geo = f"{shlex.quote(sys.executable)} -m geoproc_cli.main"
+    torus, out = shlex.quote(str(fixture_dir / "torus.ply")), shlex.quote(str(tmp_path / "o"))
+    domain = '{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}'
+    for command, content in (
+        (f"{geo} geodesic {torus} --sources-file <(printf '0 5\\n') -o {out}.ply --report -", b"0 5\n"),
+        (f"{geo} wos-solve <(printf '%s' '{domain}') --boundary x --walks 4 --grid 8 -o {out}.exr --report -",
+         domain.encode()),
+    ):
+        p = subprocess.run(["bash", "-c", command], capture_output=True, text=True, timeout=300)
+        assert p.returncode == 0, p.stderr
+        piped = json.loads(p.stdout)["inputs"][-1]
+        assert piped["path"].startswith("/dev/fd/") and piped["sha256"] == hashlib.sha256(content).hexdigest()
+
+
 def test_coordinates_beyond_the_safe_range_are_refused(cli, fixture_dir, tmp_path):
     torus = load_mesh(fixture_dir / "torus.ply")
     for scale, fragment in ((1e80, "overflow products of squared lengths"), (1e-60, "areas underflow")):
