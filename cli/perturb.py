@@ -8,7 +8,7 @@ import numpy as np
 import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
-from geoproc.errors import UsageError
+from geoproc.errors import InputError, UsageError
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import NoiseSpec, noise_scale, outlier_flags, perturb_positions
 from geoproc_cli.common import (
@@ -82,12 +82,16 @@ def perturb(
                 raise UsageError(f"{output}: an animation is written as .npz")
             refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")
             anim = run.load_animation(input)
-            require_triangle_frames(anim.V, anim.F, anim.path)  # normals and the edge-length unit
+            if len(anim.F):  # a moving point cloud has no faces; its frames are checked as clouds below
+                require_triangle_frames(anim.V, anim.F, anim.path)  # normals and the edge-length unit
             _note_fractions_of_none(run, int(anim.V.shape[1]), impulsive, outliers)
             with run.timer("compute"):
                 frames, flags = [], []
                 for t in range(anim.n_frames):
-                    Vt, ot = perturb_positions(anim.V[t], anim.F, spec, rng, input)
+                    try:
+                        Vt, ot = perturb_positions(anim.V[t], anim.F, spec, rng, input)
+                    except InputError as exc:  # say which frame
+                        raise InputError(exc.path, f"frame {t}: {exc.problem}") from None
                     frames.append(Vt)
                     flags.append(ot)
                 fields = dict(anim.fields)

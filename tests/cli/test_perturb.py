@@ -76,6 +76,32 @@ def test_animation_npz(cli, tmp_path):
     assert not np.allclose(a.V[0], V[0]) and not np.allclose(a.V[0] - V[0], a.V[1] - V[1])
 
 
+def test_moving_point_cloud(cli, tmp_path):
+    # a point-cloud animation (no faces) takes noise and outliers; the outlier
+    # flags then score denoise --outliers (the README's moving-cloud example)
+    from geoproc.animation import Animation, animation_to_bytes
+
+    V = denoise_fixtures().animated_cloud(count=600, frames=6)
+    none = np.zeros((0, 3), dtype=np.int64)
+    src, dirty = tmp_path / "moving.npz", tmp_path / "dirty.npz"
+    src.write_bytes(animation_to_bytes(Animation(V, none)))
+    p = cli("perturb", src, "--noise", "0.3", "--direction", "random", "--outliers", "0.2", "--outlier-range",
+            "0.02", "--seed", "4", "-o", dirty, "--report", tmp_path / "r.json")
+    assert p.returncode == 0, p.stderr
+    a = load_animation(dirty)
+    metrics = json.loads((tmp_path / "r.json").read_text())["metrics"]
+    assert a.V.shape == V.shape and len(a.F) == 0 and metrics["faces"] == 0
+    assert metrics["outlier_vertices"] == a.fields["outlier"].sum() == round(0.2 * 600) * 6
+    rep = tmp_path / "d.json"
+    p = cli("denoise", dirty, "--outliers", "-o", tmp_path / "clean.npz", "--report", rep)
+    assert p.returncode == 0, p.stderr
+    assert json.loads(rep.read_text())["metrics"]["true_outliers"] == round(0.2 * 600) * 6, rep.read_text()
+    V[2] = V[2, 0]  # frame 2: every point in one place
+    src.write_bytes(animation_to_bytes(Animation(V, none)))
+    p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "bad.npz")
+    assert p.returncode == 2 and "moving.npz: frame 2: a point cloud needs at least 3 distinct points" in p.stderr
+
+
 def test_bad_options_exit_2_without_output(cli, fixture_dir, tmp_path):
     out = tmp_path / "x.ply"
     for args, needle in ((["--outliers", "1.5"], "fraction"), (["--noise", "1e300"], "beyond the +-1e+50"),
