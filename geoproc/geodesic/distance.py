@@ -10,6 +10,7 @@ import numpy as np
 
 from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.intrinsic import OPERATORS
+from geoproc.geodesic.log_ode import UnweightedVertexError
 from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass
 from geoproc.mesh.topology import face_areas, mean_edge_length, vertex_components
 from geoproc.mesh.validate import mesh_arrays, require_edge_manifold, require_manifold
@@ -242,7 +243,10 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
     timings: dict = {}
     t0 = _now()
-    d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
+    try:
+        d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
+    except UnweightedVertexError as exc:  # numbered in the part connected to a source: say which input vertex
+        raise UnweightedVertexError(int(keep[exc.vertex]), path) from None
     timings.setdefault("solve", _now() - t0 - timings.get("setup", 0.0))
     if method in POISSON_METHODS:
         # the Poisson step fixes one constant, the mean over the sources: with several

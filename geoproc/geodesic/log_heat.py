@@ -99,14 +99,24 @@ class LogHeatSolver:
         self.log_ode = LogODESolver(L, M, t / steps)
         self.boundary = boundary_vertices(F) if boundary == "average" else np.zeros(0, dtype=np.int64)
         self._dirichlet = None
+        self.lone, self.lone_decay = np.zeros(0, dtype=np.int64), np.zeros(0)
         if len(self.boundary):
             inner = np.ones(self.n, dtype=bool)
             inner[self.boundary] = False
-            self.interior = np.flatnonzero(inner)
+            interior = np.flatnonzero(inner)
+            Li = sp.csr_matrix(L)[interior][:, interior]
+            # an interior vertex whose neighbours all lie on the boundary (u = 0
+            # there) only decays: log u gains log(M_i / (M_i - dt L_ii)) per step
+            off = (Li - sp.diags(Li.diagonal())).tocsr()
+            off.eliminate_zeros()
+            lone = np.diff(off.indptr) == 0
+            self.lone = interior[lone]
+            Ml = M[self.lone]
+            with np.errstate(divide="ignore"):
+                self.lone_decay = np.log(Ml) - np.log(Ml - (t / steps) * Li.diagonal()[lone])
+            self.interior = interior[~lone]
             if len(self.interior):
-                Lc = sp.csr_matrix(L)
-                self._dirichlet = LogODESolver(Lc[self.interior][:, self.interior], M[self.interior],
-                                               t / steps)
+                self._dirichlet = LogODESolver(Li[~lone][:, ~lone], M[self.interior], t / steps)
 
     def log_heat(self, sources: np.ndarray) -> np.ndarray:
         """(n,) ``w = log u`` at the final time from ``u0 = 1`` at the sources."""
@@ -123,6 +133,7 @@ class LogHeatSolver:
             for _ in range(self.steps):
                 wi, _ = self._dirichlet.step(wi)
             wd[self.interior] = wi
+        wd[self.lone] = w[self.lone] + self.steps * self.lone_decay
         return np.logaddexp(wn, wd) - np.log(2.0)
 
     def distance_from_log_heat(self, w: np.ndarray, sources: np.ndarray) -> np.ndarray:

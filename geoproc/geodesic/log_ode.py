@@ -43,6 +43,16 @@ def negative_weight_problem(L: sp.spmatrix) -> str | None:
             "use --laplacian intrinsic-delaunay")
 
 
+class UnweightedVertexError(InputError):
+    """A vertex none of whose edges has a nonzero Laplacian weight: the log-ODE
+    step cannot reach it. ``vertex`` is its index in the Laplacian's numbering."""
+
+    def __init__(self, vertex: int, path: str | None = None):
+        self.vertex = vertex
+        super().__init__(path, f"vertex {vertex} has no neighbour with a nonzero Laplacian weight (isolated, "
+                               "or only degenerate triangles around it)")
+
+
 class LogStepSystem:
     """The constant parts of one log-ODE step of size ``dt``.
 
@@ -65,9 +75,7 @@ class LogStepSystem:
         off.eliminate_zeros()
         off.sort_indices()
         if np.any(np.diff(off.indptr) == 0):
-            v = int(np.flatnonzero(np.diff(off.indptr) == 0)[0])
-            raise InputError(None, f"vertex {v} has no neighbour with a nonzero Laplacian weight (isolated, "
-                                   "or only degenerate triangles around it)")
+            raise UnweightedVertexError(int(np.flatnonzero(np.diff(off.indptr) == 0)[0]))
         self.n, self.dt = n, dt
         self.indptr, self.cols = off.indptr, off.indices
         self.rows = np.repeat(np.arange(n), np.diff(off.indptr))

@@ -476,3 +476,60 @@ def test_sources_must_be_integer_indices_and_arrays_are_checked(make_fixtures):
         gd.geodesic_distance(Vn, F, [0])
     with pytest.raises(InputError, match="references vertex -1"):
         gd.geodesic_distance(V, np.r_[F, [[0, 5, -1]]], [0])
+
+
+@pytest.mark.parametrize("corners", [5, 6])
+def test_log_heat_interior_vertex_whose_neighbours_all_lie_on_the_boundary(corners):
+    # a pentagon or hexagon fanned around its centre: in the Dirichlet half
+    # (u = 0 on the boundary) that vertex has no neighbour left, which used to
+    # be refused as an isolated vertex; the reference is backward Euler solved
+    # in u (not in log u) with libigl's cotan Laplacian and Voronoi mass
+    import igl
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    a = 2 * np.pi * np.arange(corners) / corners
+    V = np.vstack([np.column_stack([np.cos(a), np.sin(a), np.zeros(corners)]), [[0.0, 0.0, 0.0]]])
+    c = corners  # the centre's index
+    F = np.array([[k, (k + 1) % c, c] for k in range(c)])
+    t, steps = 0.3, 2
+    L = sp.csc_matrix(igl.cotmatrix(V, F))
+    M = sp.diags(igl.massmatrix(V, F, igl.MASSMATRIX_TYPE_VORONOI).diagonal())
+    A = (M - (t / steps) * L).tocsc()
+    for source in (c, 1):
+        u0 = np.zeros(len(V))
+        u0[source] = 1.0
+        un, ud = u0.copy(), u0.copy()
+        ud[:c] = 0.0
+        for _ in range(steps):
+            un = spla.spsolve(A, M @ un)
+            ud[c] = (M @ ud)[c] / A[c, c]  # interior block: the centre alone
+        solver = gd.LogHeatSolver(V, F, t, steps, laplacian="cotan", operators="extrinsic")
+        w = solver.log_heat(np.array([source]))
+        assert np.allclose(np.exp(w), (un + ud) / 2, rtol=1e-10, atol=0), (source, np.exp(w), (un + ud) / 2)
+        d, _ = solver.solve([source])
+        assert np.isfinite(d).all() and d[source] == 0 and (d >= 0).all()
+
+
+def test_unweighted_vertex_is_named_by_its_input_index_and_file(make_fixtures, monkeypatch):
+    # the methods run on the part of the mesh connected to a source; a vertex
+    # their Laplacian cannot reach is reported in the input's numbering
+    from geoproc.errors import InputError
+    from geoproc.geodesic import distance
+    from geoproc.geodesic.log_ode import LogStepSystem, UnweightedVertexError
+
+    L = np.array([[-1.0, 1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 0.0, 0.0]])
+    with pytest.raises(UnweightedVertexError) as info:
+        LogStepSystem(L, np.ones(3), 0.1)
+    assert info.value.vertex == 2 and info.value.path is None
+    V, F = make_fixtures.icosphere(1)
+    V2 = np.vstack([V, V + [3.0, 0.0, 0.0]])  # a second sphere: the source's starts at vertex len(V)
+    F2 = np.vstack([F, F + len(V)])
+
+    def unreachable_vertex_5(*args, **kwargs):
+        raise UnweightedVertexError(5)
+
+    monkeypatch.setattr(distance, "_run_method", unreachable_vertex_5)
+    with pytest.raises(InputError) as info:
+        gd.geodesic_distance(V2, F2, [len(V) + 1], "log-ode", path="two.ply")
+    assert info.value.line().startswith(f"two.ply: vertex {len(V) + 5} has no neighbour")
