@@ -307,10 +307,16 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: Path 
 
 
 def _require_output_folders(names: list[str]) -> None:
-    """Refuse an output whose folder does not exist."""
+    """Refuse an output that names a folder, or whose folder does not exist
+    (for a symbolic link, the folder of its target, which is what is written)."""
     for name in names:
-        folder = os.path.dirname(os.path.abspath(name))
-        if name != "-" and not os.path.isdir(folder):
+        if name == "-":
+            continue
+        real = os.path.realpath(name)
+        if name.endswith(("/", os.sep)) or os.path.isdir(real):
+            raise UsageError(f"{name}: cannot write: is a folder; give a file name")
+        folder = os.path.dirname(real) if os.path.islink(name) else os.path.dirname(os.path.abspath(name))
+        if not os.path.isdir(folder):
             raise UsageError(f"{name}: output folder '{folder}' does not exist")
 
 

@@ -321,6 +321,14 @@ def test_output_paths_are_refused_before_any_input_is_read(cli, fixture_dir, tmp
     for args in commands:
         p = cli(*args)
         assert p.returncode == 2 and "output folder" in p.stderr and "missing" not in p.stderr, (args, p.stderr)
+    (tmp_path / "folder.ply").mkdir()
+    (tmp_path / "dangling.ply").symlink_to(nodir / "target.ply")
+    for output, message in (("folder.ply", "is a folder"), ("new.ply/", "is a folder"),
+                            ("dangling.ply", f"output folder '{nodir}' does not exist")):
+        p = cli("denoise", missing, "-o", f"{tmp_path}/{output}")
+        assert p.returncode == 2 and message in p.stderr and "missing" not in p.stderr, (output, p.stderr)
+    (tmp_path / "folder.ply").rmdir()
+    (tmp_path / "dangling.ply").unlink()
     for args in (["denoise", garbage, "-o", garbage], ["perturb", garbage, "--seed", "1", "-o", garbage],
                  ["geodesic", garbage, "-s", "0", "-o", garbage],
                  ["denoise", fixture_dir / "torus.ply", "--reference", garbage, "-o", garbage],
