@@ -266,8 +266,8 @@ def denoise_animation(
 
         fixed = np.zeros(V.shape[1], dtype=bool)
         fixed[boundary_vertices(F)] = True
-    if coherence == "heights":
-        out, info = coherent_heights(static, F, smoothing, fixed=fixed)
+    if coherence == "heights":  # vertex normals need the faces turned consistently
+        out, info = coherent_heights(static, conn.F if conn is not None else F, smoothing, fixed=fixed)
     else:
         out, info = coherent_normal_fit(static, F, fixed=fixed)
     if progress is not None:
