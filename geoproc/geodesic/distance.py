@@ -255,6 +255,10 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         stats["negative_distance_vertices"] = int((d2 < 0).sum())
         d2 = np.maximum(d2, 0.0)
         d2[s2] = 0.0
+        if len(np.unique(s2)) < len(d2) and not (d2 > 0).any():
+            # many steps to a long time leave the heat uniform to rounding: no direction is left
+            raise UsageError(f"the heat at t = {t:.3g} ({t / h**2:.3g} h^2) in {steps} step(s) is uniform in double "
+                             "precision, so every distance came out 0; use a shorter time or fewer --steps")
     d = np.full(n, np.inf)
     d[keep] = d2
     return GeodesicResult(d, t, h, timings, stats)
