@@ -103,9 +103,10 @@ def morse_simplify(
               "output": output, "critical": str(critical) if critical else None,
               "diagram": str(diagram) if diagram else None, "exact_windows": exact_windows,
               "barycentric": barycentric, "clean": not no_clean}
+    npy_path = field if field.lower().endswith(".npy") else None  # a field read from a file
     with command_run("morse-simplify", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, critical, diagram],
-                     inputs=[mesh, field if field.lower().endswith(".npy") else None]) as run:
+                     inputs=[mesh, npy_path]) as run:
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
         from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field
@@ -129,7 +130,7 @@ def morse_simplify(
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
         require_manifold(m)
-        npy = read_input_bytes(field, "field file (.npy)") if field.lower().endswith(".npy") else None
+        npy = read_input_bytes(npy_path, "field file (.npy)") if npy_path else None
         with run.timer("field"):
             f = vertex_field(m, field, npy)
         if npy is not None:

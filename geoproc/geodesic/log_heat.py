@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoproc.geodesic.heat_operators import heat_operators
-from geoproc.geodesic.log_ode import LogODESolver
+from geoproc.geodesic.log_ode import LogODESolver, off_diagonal_weights
 from geoproc.geodesic.operators import flat_within_rounding
 from geoproc.mesh.topology import boundary_vertices
 
@@ -107,9 +107,7 @@ class LogHeatSolver:
             Li = sp.csr_matrix(L)[interior][:, interior]
             # an interior vertex whose neighbours all lie on the boundary (u = 0
             # there) only decays: log u gains log(M_i / (M_i - dt L_ii)) per step
-            off = (Li - sp.diags(Li.diagonal())).tocsr()
-            off.eliminate_zeros()
-            lone = np.diff(off.indptr) == 0
+            lone = np.diff(off_diagonal_weights(Li).indptr) == 0
             self.lone = interior[lone]
             Ml = M[self.lone]
             with np.errstate(divide="ignore"):

@@ -43,6 +43,15 @@ def negative_weight_problem(L: sp.spmatrix) -> str | None:
             "use --laplacian intrinsic-delaunay")
 
 
+def off_diagonal_weights(L: sp.spmatrix) -> sp.csr_matrix:
+    """(n, n) the off-diagonal entries of L with the zero ones removed: a row
+    left empty is a vertex no edge with a nonzero weight reaches."""
+    L = sp.csr_matrix(L)
+    off = (L - sp.diags(L.diagonal())).tocsr()
+    off.eliminate_zeros()
+    return off
+
+
 class UnweightedVertexError(InputError):
     """A vertex none of whose edges has a nonzero Laplacian weight: the log-ODE
     step cannot reach it. ``vertex`` is its index in the Laplacian's numbering."""
@@ -71,8 +80,7 @@ class LogStepSystem:
         L = sp.csr_matrix(L)
         n = L.shape[0]
         diag = L.diagonal()
-        off = (L - sp.diags(diag)).tocsr()
-        off.eliminate_zeros()
+        off = off_diagonal_weights(L)
         off.sort_indices()
         if np.any(np.diff(off.indptr) == 0):
             raise UnweightedVertexError(int(np.flatnonzero(np.diff(off.indptr) == 0)[0]))
