@@ -1,8 +1,9 @@
 """Read OBJ, PLY (ASCII and binary), OFF and STL files into a :class:`Mesh`.
 
-PLY goes through plyfile so that every named vertex and face property comes back
-exactly (positions and fields as float64); OBJ and ASCII OFF are parsed here,
-vectorized; STL goes through trimesh with ``process=False``. Polygons with
+PLY keeps every named vertex and face property (positions and fields as
+float64): the usual layout (faces as index lists of one length) is read
+vectorized by :mod:`geoproc.mesh.ply_uniform`, anything else by plyfile. OBJ
+and ASCII OFF are parsed here, vectorized; STL goes through trimesh with ``process=False``. Polygons with
 more than three corners are triangulated as fans and counted in
 ``mesh.log.triangulated_polygons``. After reading, the mesh is
 validated (see :func:`validate_arrays`) and, unless ``clean=False``, cleaned by
@@ -22,6 +23,7 @@ from geoproc.errors import InputError
 from geoproc.fileio import file_extension, read_input_bytes, require_input_file, sha256_bytes
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
+from geoproc.mesh.ply_uniform import read_uniform_ply
 from geoproc.mesh.validate import require_indices_below
 
 MESH_FORMATS = ("obj", "ply", "off", "stl")
@@ -199,20 +201,12 @@ def _fans(idx: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, int]:
 
 
 def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
-    from plyfile import PlyData
-
-    try:
-        with warnings.catch_warnings():  # plyfile warns (multi-line) about empty list rows
-            warnings.simplefilter("ignore")
-            ply = PlyData.read(io.BytesIO(data))
-    except UnicodeDecodeError:
-        raise InputError(path, "unparseable PLY: the header is not ASCII text") from None
-    except Exception as exc:  # plyfile raises several types for malformed data
-        raise InputError(path, f"unparseable PLY: {_one_line(exc)}") from exc
-    names = [e.name for e in ply.elements]
-    if "vertex" not in names:
+    elements = read_uniform_ply(data)
+    if elements is None:  # outside the vectorized layout: plyfile reads it, or names the problem
+        elements = _plyfile_elements(data, path)
+    if "vertex" not in elements:
         raise InputError(path, "PLY has no 'vertex' element")
-    vert = ply["vertex"].data
+    vert = elements["vertex"]
     for axis in "xyz":
         if axis not in vert.dtype.names:
             raise InputError(path, f"PLY vertex element has no '{axis}' property")
@@ -228,35 +222,67 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
     F = np.zeros((0, 3), dtype=np.int64)
     ffields: dict[str, np.ndarray] = {}
     polys = 0
-    if "face" in names and len(ply["face"].data):
-        fdata = ply["face"].data
+    if "face" in elements and len(elements["face"]):
+        fdata = elements["face"]
         key = next((k for k in ("vertex_indices", "vertex_index") if k in fdata.dtype.names), None)
         if key is None:
             raise InputError(path, "PLY face element has no 'vertex_indices' list")
-        _require_list_property(fdata, key, "face", path)
-        faces = list(fdata[key])
-        short = [i for i, f in enumerate(faces) if len(f) < 3]
-        if short:
+        flat, counts = _index_lists(fdata, key, path)
+        short = np.flatnonzero(counts < 3)
+        if len(short):
             raise InputError(path, f"face {short[0]} has fewer than 3 corners")
-        _require_integer_indices(faces, path)
-        F, polys = _fan_triangulate(faces)
-        per_face = np.fromiter((len(f) - 2 for f in faces), dtype=np.int64, count=len(faces))
+        _require_integer_indices(flat, counts, path)
+        if (counts == 3).all():
+            F = flat.astype(np.int64).reshape(-1, 3)
+        else:
+            F, polys = _fans(flat.astype(np.int64), counts)
         with np.errstate(invalid="ignore"):
             ffields = {  # a polygon's values go to each triangle of its fan
-                n: np.repeat(np.asarray(fdata[n], dtype=np.float64), per_face)
+                n: np.repeat(np.asarray(fdata[n], dtype=np.float64), counts - 2)
                 for n in fdata.dtype.names
                 if n != key and fdata.dtype[n].shape == () and fdata.dtype[n].kind in "fiub"
             }
-    if "tristrips" in names and len(ply["tristrips"].data):
-        sdata = ply["tristrips"].data
+    if "tristrips" in elements and len(elements["tristrips"]):
+        sdata = elements["tristrips"]
         if "vertex_indices" not in sdata.dtype.names:
             raise InputError(path, "PLY tristrips element has no 'vertex_indices' list")
-        _require_list_property(sdata, "vertex_indices", "tristrips", path)
+        flat, counts = _index_lists(sdata, "vertex_indices", path, "tristrips")
         strips = list(sdata["vertex_indices"])
-        _require_integer_indices(strips, path, "tristrips row")
+        _require_integer_indices(flat, counts, path, "tristrips row")
         F = np.concatenate([F, _strip_triangles(strips)])
         ffields = {}  # per-face properties belong to the face element alone
     return Mesh(V, F, vfields, ffields), polys
+
+
+def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
+    """Every element of a PLY file read by plyfile (lists as object arrays),
+    keyed by name as ``PlyData[name]`` finds them; InputError when plyfile
+    cannot parse the file."""
+    from plyfile import PlyData
+
+    try:
+        with warnings.catch_warnings():  # plyfile warns (multi-line) about empty list rows
+            warnings.simplefilter("ignore")
+            ply = PlyData.read(io.BytesIO(data))
+    except UnicodeDecodeError:
+        raise InputError(path, "unparseable PLY: the header is not ASCII text") from None
+    except Exception as exc:  # plyfile raises several types for malformed data
+        raise InputError(path, f"unparseable PLY: {_one_line(exc)}") from exc
+    return {e.name: e.data for e in ply.elements}
+
+
+def _index_lists(rows: np.ndarray, key: str, path: str, element: str = "face") -> tuple[np.ndarray, np.ndarray]:
+    """The index lists of property ``key`` stored back to back, and their lengths:
+    from a (count, k) sub-array (:func:`geoproc.mesh.ply_uniform.read_uniform_ply`)
+    or plyfile's object array of lists; InputError when ``key`` is no list."""
+    values = rows[key]
+    if values.ndim == 2:
+        return values.reshape(-1), np.full(len(values), values.shape[1], dtype=np.int64)
+    _require_list_property(rows, key, element, path)
+    lists = list(values)
+    counts = np.fromiter((len(f) for f in lists), dtype=np.int64, count=len(lists))
+    flat = np.concatenate([np.asarray(f) for f in lists]) if lists else np.zeros(0, np.int64)
+    return flat, counts
 
 
 def _require_list_property(data: np.ndarray, key: str, element: str, path: str) -> None:
@@ -292,18 +318,18 @@ def _strip_triangles(strips: list) -> np.ndarray:
     return tris[keep]
 
 
-def _require_integer_indices(faces: list, path: str, what: str = "face") -> None:
-    """Raise InputError when a PLY index list stored as floats holds a
-    vertex index that is not an integer (1.5, inf, nan) or beyond 64-bit
-    integers (1e30); ``what`` names the list's element in the message."""
-    if not faces or np.asarray(faces[0]).dtype.kind != "f":
+def _require_integer_indices(flat: np.ndarray, counts: np.ndarray, path: str, what: str = "face") -> None:
+    """Raise InputError when PLY index lists stored as floats (``flat``, the
+    lists back to back, ``counts`` long each) hold a vertex index that is not
+    an integer (1.5, inf, nan) or beyond 64-bit integers (1e30); ``what``
+    names the list's element in the message."""
+    if flat.dtype.kind != "f":
         return
-    flat = np.concatenate(faces)
     with np.errstate(invalid="ignore"):
         bad = ~np.isfinite(flat) | (flat != np.round(flat)) | (np.abs(flat) >= 2.0**62)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
-        face = int(np.searchsorted(np.cumsum([len(f) for f in faces]), first, side="right"))
+        face = int(np.searchsorted(np.cumsum(counts), first, side="right"))
         kind = "a non-integer" if not np.isfinite(flat[first]) or flat[first] != np.round(flat[first]) \
             else "an out-of-range"
         raise InputError(path, f"{what} {face} has {kind} vertex index {flat[first]:g}")

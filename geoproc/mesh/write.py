@@ -7,7 +7,6 @@ exact. A field of shape (n, k) is written as k scalar properties ``name_0`` ...
 
 from __future__ import annotations
 
-import io
 import os
 
 import numpy as np
@@ -70,25 +69,50 @@ def _scalar_columns(fields: dict[str, np.ndarray], n: int) -> list[tuple[str, np
 
 
 def _ply_bytes(mesh: Mesh, binary: bool) -> bytes:
-    from plyfile import PlyData, PlyElement
+    """PLY with positions and fields as ``double`` and faces as ``uchar``-counted
+    ``int`` index lists (the layout plyfile writes for these arrays), built
+    vectorized: one structured array for binary, one formatting pass for ASCII."""
+    n, m = len(mesh.V), len(mesh.F)
+    vcols = [("x", mesh.V[:, 0]), ("y", mesh.V[:, 1]), ("z", mesh.V[:, 2])]
+    vcols += _scalar_columns(mesh.vertex_fields, n)
+    fcols = _scalar_columns(mesh.face_fields, m) if m else []
+    head = ["ply", f"format {'binary_little_endian' if binary else 'ascii'} 1.0", "comment geoproc",
+            f"element vertex {n}"] + [f"property double {name}" for name, _ in vcols]
+    if m:
+        head += [f"element face {m}", "property list uchar int vertex_indices"]
+        head += [f"property double {name}" for name, _ in fcols]
+    header = ("\n".join(head) + "\nend_header\n").encode("ascii")
+    if binary:
+        vdata = np.empty(n, dtype=[(name, "<f8") for name, _ in vcols])
+        for name, values in vcols:
+            vdata[name] = values
+        parts = [header, vdata.tobytes()]
+        if m:
+            fdata = np.empty(m, dtype=[("\nlen", "u1"), ("vertex_indices", "<i4", (3,))]
+                             + [(name, "<f8") for name, _ in fcols])
+            fdata["\nlen"] = 3
+            fdata["vertex_indices"] = mesh.F
+            for name, values in fcols:
+                fdata[name] = values
+            parts.append(fdata.tobytes())
+        return b"".join(parts)
+    text = [_ascii_rows([values for _, values in vcols], "%.18g")]
+    if m:
+        face_cols = [np.full(m, 3)] + [mesh.F[:, j] for j in range(3)]
+        text.append(_ascii_rows(face_cols + [values for _, values in fcols], "%d %d %d %d" + " %.18g" * len(fcols)))
+    return header + "".join(text).encode("ascii")
 
-    n = len(mesh.V)
-    cols = [("x", mesh.V[:, 0]), ("y", mesh.V[:, 1]), ("z", mesh.V[:, 2])]
-    cols += _scalar_columns(mesh.vertex_fields, n)
-    vdata = np.empty(n, dtype=[(name, "f8") for name, _ in cols])
-    for name, values in cols:
-        vdata[name] = values
-    elements = [PlyElement.describe(vdata, "vertex")]
-    if len(mesh.F):
-        fcols = _scalar_columns(mesh.face_fields, len(mesh.F))
-        fdata = np.empty(len(mesh.F), dtype=[("vertex_indices", "i4", (3,))] + [(c, "f8") for c, _ in fcols])
-        fdata["vertex_indices"] = mesh.F
-        for name, values in fcols:
-            fdata[name] = values
-        elements.append(PlyElement.describe(fdata, "face", len_types={"vertex_indices": "u1"}))
-    buf = io.BytesIO()
-    PlyData(elements, text=not binary, byte_order="<", comments=["geoproc"]).write(buf)
-    return buf.getvalue()
+
+def _ascii_rows(columns: list, row_format: str) -> str:
+    """Rows of ``columns`` (equal-length 1-D arrays), each formatted by
+    ``row_format`` (one ``%`` conversion per column, or one shared one that
+    is repeated) and ended by a newline, in one formatting pass."""
+    if not len(columns[0]):
+        return ""
+    if row_format.count("%") == 1:
+        row_format = " ".join([row_format] * len(columns))
+    values = np.column_stack([np.asarray(c, dtype=object) for c in columns]).ravel().tolist()
+    return ((row_format + "\n") * len(columns[0])) % tuple(values)
 
 
 def _fmt_rows(a: np.ndarray, prefix: str, fmt: str) -> str:
