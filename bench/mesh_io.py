@@ -1,23 +1,36 @@
-"""Mesh loading and `info` against trimesh and libigl on the shared meshes.
+"""Mesh loading and `info` against trimesh and libigl on the shared meshes,
+then PLY reading and writing at pipeline size.
 
-Run: ``make bench`` or ``.venv/bin/python bench/mesh_io.py``. Prints a markdown
-table of median wall-clock times (5 runs) and ratios to the fastest peer loader.
-geoproc's load includes validation and the clean-up (merge + unreferenced);
-trimesh is timed with process=True (which merges too), libigl with
-read_triangle_mesh (no clean-up).
+Run: ``make bench`` or ``.venv/bin/python bench/mesh_io.py``. Prints markdown
+tables of median wall-clock times and ratios to the fastest peer.
+
+1. The shared meshes (5 runs each): geoproc's load includes validation and the
+   clean-up (merge + unreferenced); trimesh is timed with process=True (which
+   merges too), libigl with read_triangle_mesh (no clean-up).
+2. PLY, the format subcommands hand to each other: armadillo.obj upsampled by
+   libigl (``igl.upsample``, 4 and 16 times the faces), written with a
+   per-vertex field as geoproc writes it (binary and ASCII), then read back
+   (3 runs each). geoproc's load (validation, clean-up, fields) against
+   trimesh (process=False), libigl and plyfile (the element parse alone: the
+   reader geoproc used before its vectorized path); writing against trimesh's
+   export and plyfile's writer.
 """
 
 from __future__ import annotations
 
+import io
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import igl
+import numpy as np
 import trimesh
+from plyfile import PlyData, PlyElement
 
-from geoproc.mesh import load_mesh, mesh_info
+from geoproc.mesh import Mesh, load_mesh, mesh_info, mesh_to_bytes
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 
@@ -29,6 +42,52 @@ def median_time(fn, repeat: int = 5) -> float:
         fn()
         times.append(time.perf_counter() - t)
     return statistics.median(times)
+
+
+def plyfile_bytes(mesh: Mesh, binary: bool) -> bytes:
+    """The same file written by plyfile's writer (doubles, uchar/int face lists)."""
+    names = ["x", "y", "z", *mesh.vertex_fields]
+    vdata = np.empty(len(mesh.V), dtype=[(n, "f8") for n in names])
+    for j, n in enumerate("xyz"):
+        vdata[n] = mesh.V[:, j]
+    for n, values in mesh.vertex_fields.items():
+        vdata[n] = values
+    fdata = np.empty(len(mesh.F), dtype=[("vertex_indices", "i4", (3,))])
+    fdata["vertex_indices"] = mesh.F
+    elements = [PlyElement.describe(vdata, "vertex"),
+                PlyElement.describe(fdata, "face", len_types={"vertex_indices": "u1"})]
+    buf = io.BytesIO()
+    PlyData(elements, text=not binary, byte_order="<").write(buf)
+    return buf.getvalue()
+
+
+def ply_table() -> None:
+    base = load_mesh(SHARED / "armadillo.obj")
+    V, F = base.V, base.F
+    print("\n| PLY | faces | MB | geoproc load s | trimesh s | libigl s | plyfile parse s | load ratio "
+          "(geoproc / fastest peer) | geoproc write s | trimesh write s | plyfile write s |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for level in (1, 2):
+            V, F = igl.upsample(V, F)
+            mesh = Mesh(V, F, {"distance": np.linalg.norm(V - V.mean(axis=0), axis=1)}, {})
+            for binary in (True, False):
+                path = Path(tmp) / f"arma{level}{'b' if binary else 'a'}.ply"
+                data = mesh_to_bytes(mesh, "ply", binary=binary)
+                path.write_bytes(data)
+                repeat = 3 if binary else 1
+                ours = median_time(lambda p=path: load_mesh(p), repeat)
+                tm = median_time(lambda p=path: trimesh.load(p, process=False, force="mesh"), repeat)
+                il = median_time(lambda p=path: igl.read_triangle_mesh(str(p)), repeat)
+                pf = median_time(lambda d=data: PlyData.read(io.BytesIO(d)), 1)
+                w = median_time(lambda m=mesh, b=binary: mesh_to_bytes(m, "ply", binary=b), repeat)
+                tm_mesh = trimesh.Trimesh(V, F, process=False)
+                encoding = "binary" if binary else "ascii"
+                tw = median_time(lambda t=tm_mesh, e=encoding: t.export(file_type="ply", encoding=e), repeat)
+                pw = median_time(lambda m=mesh, b=binary: plyfile_bytes(m, b), 1)
+                print(f"| armadillo x{4 ** level} {'binary' if binary else 'ASCII'} | {len(F)} | "
+                      f"{len(data) / 1e6:.1f} | {ours:.2f} | {tm:.2f} | {il:.2f} | {pf:.2f} | "
+                      f"{ours / min(tm, il):.2f} | {w:.2f} | {tw:.2f} | {pw:.2f} |", flush=True)
 
 
 def main() -> int:
@@ -52,6 +111,7 @@ def main() -> int:
 
         tt = median_time(trimesh_topology)
         print(f"| {path.name} | {ours:.4f} | {tm:.4f} | {il:.4f} | {ours / min(tm, il):.2f} | {info:.4f} | {tt:.4f} |")
+    ply_table()
     return 0
 
 
