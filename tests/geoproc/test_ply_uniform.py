@@ -183,3 +183,27 @@ def test_writer_gives_the_bytes_plyfile_writes(binary):
     assert mesh_to_bytes(mesh, "ply", binary=binary) == _plyfile_written(mesh, binary)
     cloud = Mesh(V[1:], np.zeros((0, 3), dtype=np.int64), {}, {})
     assert mesh_to_bytes(cloud, "ply", binary=binary) == _plyfile_written(cloud, binary)
+
+
+@pytest.mark.parametrize("writer", ["meshlab binary", "meshlab ascii", "libigl", "trimesh binary", "trimesh ascii"])
+def test_peer_written_files_take_the_vectorized_path(tmp_path, make_fixtures, writer):
+    import igl
+    import pymeshlab
+    import trimesh
+
+    V, F = make_fixtures.icosphere(2)
+    path = tmp_path / "peer.ply"
+    if writer.startswith("meshlab"):
+        ms = pymeshlab.MeshSet()
+        ms.add_mesh(pymeshlab.Mesh(V, F))
+        ms.save_current_mesh(str(path), binary=writer.endswith("binary"))
+    elif writer == "libigl":
+        igl.write_triangle_mesh(str(path), V, F)
+    else:
+        trimesh.Trimesh(V, F, process=False).export(path, encoding=writer.split()[1])
+    data = path.read_bytes()
+    fast = read_uniform_ply(data)
+    assert fast is not None
+    _same_elements(fast, _plyfile_read(data))
+    mesh = read_mesh_bytes(data, "ply", str(path), clean=False)
+    assert np.array_equal(mesh.F, F) and np.allclose(mesh.V, V, atol=1e-6)
