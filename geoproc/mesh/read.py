@@ -214,8 +214,8 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
             raise InputError(path, f"PLY vertex property '{axis}' is not a number (a list?)")
     with np.errstate(invalid="ignore"):  # a signalling NaN stored as float32 widens quietly (refused below)
         V = np.column_stack([np.asarray(vert[a], dtype=np.float64) for a in "xyz"])
-        vfields = {
-            n: np.asarray(vert[n], dtype=np.float64)
+        vfields = {  # copies: the vectorized reader's rows are read-only views of the file's bytes
+            n: np.array(vert[n], dtype=np.float64)
             for n in vert.dtype.names
             if n not in ("x", "y", "z") and vert.dtype[n].shape == () and vert.dtype[n].kind in "fiub"
         }

@@ -207,3 +207,13 @@ def test_peer_written_files_take_the_vectorized_path(tmp_path, make_fixtures, wr
     _same_elements(fast, _plyfile_read(data))
     mesh = read_mesh_bytes(data, "ply", str(path), clean=False)
     assert np.array_equal(mesh.F, F) and np.allclose(mesh.V, V, atol=1e-6)
+
+
+def test_fields_read_without_clean_up_are_writable_arrays(tmp_path, make_fixtures):
+    V, F = make_fixtures.icosphere(1)
+    path = tmp_path / "f.ply"
+    path.write_bytes(mesh_to_bytes(Mesh(V, F, {"d": np.arange(len(V), dtype=float)}, {"q": np.ones(len(F))}), "ply"))
+    mesh = read_mesh_bytes(path.read_bytes(), "ply", str(path), clean=False)
+    for values in (mesh.V, mesh.F, mesh.vertex_fields["d"], mesh.face_fields["q"]):
+        assert values.flags.writeable and values.flags.c_contiguous
+    mesh.vertex_fields["d"][0] = -1.0
