@@ -3,8 +3,8 @@ whose index lists all have the same length.
 
 plyfile reads a binary element that holds a list property row by row in
 Python (about 10 s per million triangles); meshes written by geoproc, MeshLab,
-trimesh, Open3D or libigl all store their faces as lists of one length, which
-one ``numpy`` view of the bytes reads at once. :func:`read_uniform_ply`
+trimesh or libigl store their faces as lists of one length, which one
+``numpy`` view of the bytes reads at once. :func:`read_uniform_ply`
 returns None for anything outside that layout (other list properties,
 lists of mixed lengths, a file of another size than its header says, an
 ASCII value that its declared type cannot hold), and the caller then reads
@@ -118,7 +118,11 @@ def _binary_element(data: bytes, offset: int, e: PlyElementHeader, order: str):
         count_type = np.dtype(order + e.list_types[0])
         if offset + before + count_type.itemsize > len(data):
             return None
-        k = int(np.frombuffer(data, count_type, 1, offset + before)[0])
+        k = float(np.frombuffer(data, count_type, 1, offset + before)[0])
+        item = np.dtype(e.list_types[1]).itemsize
+        if not (0 <= k <= len(data) / item and k == int(k)):  # no row of that length fits the file
+            return None
+        k = int(k)
     dtype = _row_dtype(e, order, k)
     size = dtype.itemsize * e.count
     if offset + size > len(data):

@@ -3,8 +3,9 @@
 PLY keeps every named vertex and face property (positions and fields as
 float64): the usual layout (faces as index lists of one length) is read
 vectorized by :mod:`geoproc.mesh.ply_uniform`, anything else by plyfile. OBJ
-and ASCII OFF are parsed here, vectorized; STL goes through trimesh with ``process=False``. Polygons with
-more than three corners are triangulated as fans and counted in
+and ASCII OFF are parsed here, vectorized; STL goes through trimesh with
+``process=False``. Polygons with more than three corners are triangulated as
+fans and counted in
 ``mesh.log.triangulated_polygons``. After reading, the mesh is
 validated (see :func:`validate_arrays`) and, unless ``clean=False``, cleaned by
 :func:`geoproc.mesh.clean.clean_mesh`.

@@ -217,3 +217,17 @@ def test_fields_read_without_clean_up_are_writable_arrays(tmp_path, make_fixture
     for values in (mesh.V, mesh.F, mesh.vertex_fields["d"], mesh.face_fields["q"]):
         assert values.flags.writeable and values.flags.c_contiguous
     mesh.vertex_fields["d"][0] = -1.0
+
+
+@pytest.mark.parametrize("count", [-1, 200, 2**31 - 1])
+def test_a_first_face_count_that_cannot_fit_goes_to_plyfile(count):
+    vert = np.zeros(3, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    rows = np.zeros(1, dtype=[("vertex_indices", "i4", (3,))])
+    data = _plyfile_bytes([PlyElement.describe(vert, "vertex"),
+                           PlyElement.describe(rows, "face", len_types={"vertex_indices": "i4"})], "binary", "<")
+    head = data.index(b"end_header\n") + len(b"end_header\n") + 3 * 12
+    bad = data[:head] + np.array([count], "<i4").tobytes() + data[head + 4:]
+    assert read_uniform_ply(bad) is None  # plyfile reads it (a count of -1 takes what is left)
+    if count > 0:
+        with pytest.raises(InputError, match="unparseable PLY: element 'face': row 0"):
+            read_mesh_bytes(bad, "ply", "c.ply")
