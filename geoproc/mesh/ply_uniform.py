@@ -127,12 +127,8 @@ def _binary_element(data: bytes, offset: int, e: PlyElementHeader, order: str):
     size = dtype.itemsize * e.count
     if offset + size > len(data):
         return None
-    rows = np.frombuffer(data, dtype, e.count, offset)
-    if e.list_types is not None:
-        if e.count and not (rows["\nlen"] == k).all():
-            return None
-        rows = rows[[n for n in dtype.names if n != "\nlen"]]
-    return rows, offset + size
+    rows = _without_counts(np.frombuffer(data, dtype, e.count, offset), e, k)
+    return None if rows is None else (rows, offset + size)
 
 
 def _ascii_element(lines: list, start: int, e: PlyElementHeader):
@@ -171,11 +167,18 @@ def _ascii_element(lines: list, start: int, e: PlyElementHeader):
                 return None
             rows[field] = values.reshape(rows[field].shape)
             col += span
-    if e.list_types is not None:
-        if e.count and not (rows["\nlen"] == k).all():
-            return None
-        rows = rows[[n for n in dtype.names if n != "\nlen"]]
-    return rows, stop
+    rows = _without_counts(rows, e, k)
+    return None if rows is None else (rows, stop)
+
+
+def _without_counts(rows: np.ndarray, e: PlyElementHeader, k: int) -> np.ndarray | None:
+    """``rows`` of ``e`` without the list's count field, or None when a row's
+    count is not ``k`` (lists of mixed lengths)."""
+    if e.list_types is None:
+        return rows
+    if e.count and not (rows["\nlen"] == k).all():
+        return None
+    return rows[[n for n in rows.dtype.names if n != "\nlen"]]
 
 
 def _typed(text: np.ndarray, dtype: np.dtype) -> np.ndarray | None:

@@ -248,9 +248,8 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
         if "vertex_indices" not in sdata.dtype.names:
             raise InputError(path, "PLY tristrips element has no 'vertex_indices' list")
         flat, counts = _index_lists(sdata, "vertex_indices", path, "tristrips")
-        strips = list(sdata["vertex_indices"])
         _require_integer_indices(flat, counts, path, "tristrips row")
-        F = np.concatenate([F, _strip_triangles(strips)])
+        F = np.concatenate([F, _strip_triangles(flat, counts)])
         ffields = {}  # per-face properties belong to the face element alone
     return Mesh(V, F, vfields, ffields), polys
 
@@ -294,19 +293,16 @@ def _require_list_property(data: np.ndarray, key: str, element: str, path: str) 
                                "not a list of vertex indices")
 
 
-def _strip_triangles(strips: list) -> np.ndarray:
-    """(m, 3) int64 triangles of PLY triangle strips (each a list of vertex
-    indices, -1 restarting the strip): ``(s_i, s_i+1, s_i+2)``, every other one
-    reversed to keep the strip's orientation; triangles that repeat a vertex
-    (the stitches between strips) are skipped. Vectorized over all strips."""
-    parts = []
-    for strip in strips:
-        raw = np.asarray(strip)
-        # -1 restarts a strip; stored unsigned it reads as the type's largest value
-        restart = (raw == -1) | ((raw == np.iinfo(raw.dtype).max) if raw.dtype.kind == "u" else False)
-        parts.append(np.where(restart, -1, raw.astype(np.int64)))
-        parts.append(np.array([-1], dtype=np.int64))  # strips never join
-    flat = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+def _strip_triangles(raw: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """(m, 3) int64 triangles of PLY triangle strips (their vertex indices
+    ``raw`` back to back, ``counts`` long each; -1 restarts a strip):
+    ``(s_i, s_i+1, s_i+2)``, every other one reversed to keep the strip's
+    orientation; triangles that repeat a vertex (the stitches between strips)
+    are skipped. Vectorized over all strips."""
+    # -1 restarts a strip; stored unsigned it reads as the type's largest value
+    restart = (raw == -1) | ((raw == np.iinfo(raw.dtype).max) if raw.dtype.kind == "u" else False)
+    ends = np.cumsum(counts)
+    flat = np.insert(np.where(restart, -1, raw.astype(np.int64)), ends, -1)  # strips never join
     if len(flat) < 3:
         return np.zeros((0, 3), dtype=np.int64)
     cut = flat == -1

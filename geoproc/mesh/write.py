@@ -96,29 +96,23 @@ def _ply_bytes(mesh: Mesh, binary: bool) -> bytes:
                 fdata[name] = values
             parts.append(fdata.tobytes())
         return b"".join(parts)
-    text = [_ascii_rows([values for _, values in vcols], "%.18g")]
-    if m:
-        face_cols = [np.full(m, 3)] + [mesh.F[:, j] for j in range(3)]
-        text.append(_ascii_rows(face_cols + [values for _, values in fcols], "%d %d %d %d" + " %.18g" * len(fcols)))
-    return header + "".join(text).encode("ascii")
+    text = _fmt_rows(np.column_stack([values for _, values in vcols]), "", "%.18g")
+    if m:  # counts and indices stay integers (their digits, as plyfile writes them), fields doubles
+        faces = np.column_stack([np.full(m, 3), mesh.F])
+        if fcols:
+            faces = np.column_stack([faces.astype(object)] + [np.asarray(v, dtype=object) for _, v in fcols])
+        text += _fmt_rows(faces, "", ["%d"] * 4 + ["%.18g"] * len(fcols))
+    return header + text.encode("ascii")
 
 
-def _ascii_rows(columns: list, row_format: str) -> str:
-    """Rows of ``columns`` (equal-length 1-D arrays), each formatted by
-    ``row_format`` (one ``%`` conversion per column, or one shared one that
-    is repeated) and ended by a newline, in one formatting pass."""
-    if not len(columns[0]):
-        return ""
-    if row_format.count("%") == 1:
-        row_format = " ".join([row_format] * len(columns))
-    values = np.column_stack([np.asarray(c, dtype=object) for c in columns]).ravel().tolist()
-    return ((row_format + "\n") * len(columns[0])) % tuple(values)
-
-
-def _fmt_rows(a: np.ndarray, prefix: str, fmt: str) -> str:
+def _fmt_rows(a: np.ndarray, prefix: str, fmt: str | list[str]) -> str:
+    """Rows of the 2-D array ``a``: ``prefix``, the values formatted by ``fmt``
+    (one format for every column, or a list of one per column) and separated
+    by spaces, a newline; in one formatting pass."""
     if len(a) == 0:
         return ""
-    return "\n".join(prefix + " ".join(fmt % x for x in row) for row in a.tolist()) + "\n"
+    row = prefix + " ".join([fmt] * a.shape[1] if isinstance(fmt, str) else fmt) + "\n"
+    return (row * len(a)) % tuple(a.ravel().tolist())
 
 
 def _obj_bytes(mesh: Mesh) -> bytes:
