@@ -28,8 +28,9 @@ def _fitting_step(X, F, normals, valence, fixed, delta):
 
 
 @numba.njit(cache=True)
-def _face_cos(X, D, scale, F, f, n):
-    """Cosine between the normal of face ``f`` at positions ``X + scale * D`` and the unit vector ``n``."""
+def _face_cross(X, D, scale, F, f):
+    """Cross product of two edges of face ``f`` at positions ``X + scale * D``
+    (twice the area times the normal), and its length (at least 1e-300)."""
     a, b, c = F[f, 0], F[f, 1], F[f, 2]
     u0 = X[b, 0] - X[a, 0] + scale * (D[b, 0] - D[a, 0])
     u1 = X[b, 1] - X[a, 1] + scale * (D[b, 1] - D[a, 1])
@@ -40,53 +41,97 @@ def _face_cos(X, D, scale, F, f, n):
     r0 = u1 * w2 - u2 * w1
     r1 = u2 * w0 - u0 * w2
     r2 = u0 * w1 - u1 * w0
-    norm = max(np.sqrt(r0 * r0 + r1 * r1 + r2 * r2), 1e-300)
+    return r0, r1, r2, max(np.sqrt(r0 * r0 + r1 * r1 + r2 * r2), 1e-300)
+
+
+@numba.njit(cache=True)
+def _cos(r0, r1, r2, norm, n):
+    """Cosine between the vector (r0, r1, r2) of length ``norm`` and the unit vector ``n``."""
     return (r0 * n[0] + r1 * n[1] + r2 * n[2]) / norm
 
 
 @numba.njit(cache=True)
-def _withhold(X, delta, F, normals, keep, use_keep, margin):
+def _withhold(X, delta, F, normals, keep, use_keep, margin, vf_ptr, vf_idx):
     """In-place core of :func:`withhold_folding_steps`: the same passes, each
-    judging every guarded face with the steps as they stood at its start."""
+    judging the guarded faces with the steps as they stood at its start.
+
+    The first pass judges every guarded face; a later pass only the faces
+    around the vertices the previous pass froze, since no other face's steps
+    changed (``vf_ptr``, ``vf_idx``: the faces around each vertex, CSR).
+    """
     n = X.shape[0]
+    m = F.shape[0]
     moving = np.zeros(n, dtype=np.bool_)
     for v in range(n):
         moving[v] = delta[v, 0] != 0.0 or delta[v, 1] != 0.0 or delta[v, 2] != 0.0
-    guarded = np.empty(F.shape[0], dtype=np.int64)
-    check_keep = np.zeros(F.shape[0], dtype=np.bool_)
-    count = 0
-    for f in range(F.shape[0]):
+    guarded = np.zeros(m, dtype=np.bool_)
+    check_keep = np.zeros(m, dtype=np.bool_)
+    for f in range(m):
         if not (moving[F[f, 0]] or moving[F[f, 1]] or moving[F[f, 2]]):
             continue
-        if not _face_cos(X, delta, 0.0, F, f, normals[f]) > margin:
+        r0, r1, r2, norm = _face_cross(X, delta, 0.0, F, f)
+        if not _cos(r0, r1, r2, norm, normals[f]) > margin:
             continue
-        guarded[count] = f
-        check_keep[count] = use_keep and _face_cos(X, delta, 0.0, F, f, keep[f]) > margin
-        count += 1
-    freeze = np.zeros(n, dtype=np.bool_)
-    while True:  # ends: every pass freezes at least one more vertex
-        any_bad = False
+        guarded[f] = True
+        check_keep[f] = use_keep and _cos(r0, r1, r2, norm, keep[f]) > margin
+    todo = np.flatnonzero(guarded)
+    count = todo.shape[0]
+    todo = np.concatenate((todo, np.empty(m - count, dtype=np.int64)))
+    frozen = np.empty(n, dtype=np.int64)
+    bad = np.empty(m, dtype=np.bool_)
+    seen = np.full(m, -1, dtype=np.int64)  # the pass that last queued each face
+    sweep = 0
+    while count:  # ends: every pass freezes at least one more moving vertex
         for i in range(count):
-            f = guarded[i]
-            bad = not _face_cos(X, delta, 1.0, F, f, normals[f]) > margin
-            if not bad and check_keep[i]:
-                bad = not _face_cos(X, delta, 1.0, F, f, keep[f]) > margin
-            if bad:
-                any_bad = True
+            f = todo[i]
+            r0, r1, r2, norm = _face_cross(X, delta, 1.0, F, f)
+            b = not _cos(r0, r1, r2, norm, normals[f]) > margin
+            if not b and check_keep[f]:
+                b = not _cos(r0, r1, r2, norm, keep[f]) > margin
+            bad[i] = b
+        n_frozen = 0
+        for i in range(count):
+            f = todo[i]
+            if bad[i]:
                 for k in range(3):
-                    freeze[F[f, k]] = True
-        if not any_bad:
-            return
-        for v in range(n):
-            if freeze[v]:
-                delta[v, 0] = 0.0
-                delta[v, 1] = 0.0
-                delta[v, 2] = 0.0
-                freeze[v] = False
+                    v = F[f, k]
+                    if moving[v]:
+                        moving[v] = False
+                        frozen[n_frozen] = v
+                        n_frozen += 1
+        sweep += 1
+        count = 0
+        for i in range(n_frozen):
+            v = frozen[i]
+            delta[v, 0] = 0.0
+            delta[v, 1] = 0.0
+            delta[v, 2] = 0.0
+            for p in range(vf_ptr[v], vf_ptr[v + 1]):
+                f = vf_idx[p]
+                if guarded[f] and seen[f] != sweep:
+                    seen[f] = sweep
+                    todo[count] = f
+                    count += 1
 
 
-def _raw_normals(X: np.ndarray, F: np.ndarray) -> np.ndarray:
-    return np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
+@numba.njit(cache=True)
+def _fill_vertex_faces(F, indptr, out):
+    pos = indptr[:-1].copy()
+    for f in range(F.shape[0]):
+        for k in range(3):
+            v = F[f, k]
+            out[pos[v]] = f
+            pos[v] += 1
+
+
+def vertex_face_csr(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The faces around every vertex: CSR (indptr (n + 1,), face ids), in face order."""
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(F.reshape(-1), minlength=n), out=indptr[1:])
+    faces = np.empty(3 * len(F), dtype=np.int64)
+    _fill_vertex_faces(F, indptr, faces)
+    return indptr, faces
 
 
 def update_vertices(
@@ -154,13 +199,14 @@ def update_vertices(
     delta = np.empty_like(X)
     if fidelity:
         A = X.copy() if anchor is None else np.asarray(anchor, dtype=np.float64)
+    vertex_faces = vertex_face_csr(F, n) if prevent_flips and iterations > 0 else None
     for _ in range(iterations):
         _fitting_step(X, F, normals, valence, pinned, delta)
         if fidelity:
             delta += fidelity * (A - X)
             delta[pinned] = 0.0
         if prevent_flips:
-            delta = withhold_folding_steps(X, delta, F, normals, keep_orientation, margin)
+            delta = withhold_folding_steps(X, delta, F, normals, keep_orientation, margin, vertex_faces)
         X += delta
     return X
 
@@ -172,6 +218,7 @@ def withhold_folding_steps(
     normals: np.ndarray,
     keep_orientation: np.ndarray | None = None,
     margin: float = 0.0,
+    vertex_faces: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Zero the steps of the vertices of every face that a step would fold over.
 
@@ -190,6 +237,9 @@ def withhold_folding_steps(
         Unit normals (the input's) that guarded faces must stay within 90 degrees of.
     margin : float
         Cosine the guard keeps (0: 90 degrees).
+    vertex_faces : CSR (indptr, face ids), optional
+        :func:`vertex_face_csr` of F, when the caller has it (a loop of sweeps
+        over one connectivity); built here otherwise.
 
     Returns
     -------
@@ -198,9 +248,38 @@ def withhold_folding_steps(
     """
     use_keep = keep_orientation is not None
     keep = np.ascontiguousarray(keep_orientation if use_keep else normals, dtype=np.float64)
-    _withhold(np.ascontiguousarray(X, dtype=np.float64), delta, np.ascontiguousarray(F, dtype=np.int64),
-              np.ascontiguousarray(normals, dtype=np.float64), keep, use_keep, float(margin))
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    vf_ptr, vf_idx = vertex_face_csr(F, len(X)) if vertex_faces is None else vertex_faces
+    _withhold(np.ascontiguousarray(X, dtype=np.float64), delta, F, np.ascontiguousarray(normals, dtype=np.float64),
+              keep, use_keep, float(margin), vf_ptr, vf_idx)
     return delta
+
+
+@numba.njit(cache=True)
+def _folded(X, F, normals, edge_nb, use_nb, idx, out):
+    """Core of :func:`folded_faces` for the faces ``idx``, into ``out``."""
+    for i in range(idx.shape[0]):
+        f = idx[i]
+        r0, r1, r2, _ = _face_cross(X, X, 0.0, F, f)
+        n = normals[f]
+        folded = r0 * n[0] + r1 * n[1] + r2 * n[2] < 0.0
+        if use_nb and not folded:
+            g0 = g1 = g2 = 0.0  # area-weighted sums over the edge neighbours: geometry
+            t0 = t1 = t2 = 0.0  # and target
+            for k in range(3):
+                j = edge_nb[f, k]
+                if j < 0:
+                    continue
+                s0, s1, s2, _ = _face_cross(X, X, 0.0, F, j)
+                g0 += s0
+                g1 += s1
+                g2 += s2
+                area2 = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+                t0 += area2 * normals[j, 0]
+                t1 += area2 * normals[j, 1]
+                t2 += area2 * normals[j, 2]
+            folded = r0 * g0 + r1 * g1 + r2 * g2 < 0.0 and n[0] * t0 + n[1] * t1 + n[2] * t2 > 0.0
+        out[i] = folded
 
 
 def folded_faces(
@@ -233,24 +312,12 @@ def folded_faces(
     (k,) bool, or (m,) without ``faces``.
     """
     idx = np.arange(len(F)) if faces is None else np.asarray(faces, dtype=np.int64)
-    if edge_nb is None or faces is None:
-        need = idx
-    else:
-        need = np.union1d(idx, edge_nb[idx].reshape(-1))
-        need = need[need >= 0]
-    R_need = _raw_normals(X, F[need])  # length = twice the area
-    R = R_need if need is idx else R_need[np.searchsorted(need, idx)]
-    folded = np.einsum("ij,ij->i", R, normals[idx]) < 0.0
-    if edge_nb is not None and len(idx):
-        nb = edge_nb[idx]
-        has = (nb >= 0).astype(np.float64)
-        nb = np.maximum(nb, 0)
-        Rn = (R_need[nb] if need is idx else R_need[np.searchsorted(need, nb)]) * has[:, :, None]
-        area2 = np.sqrt(np.einsum("ijk,ijk->ij", Rn, Rn))
-        geometry = Rn.sum(axis=1)  # area-weighted sums over the edge neighbours
-        target = np.einsum("ij,ijk->ik", area2, normals[nb])
-        folded |= (np.einsum("ij,ij->i", R, geometry) < 0.0) & (np.einsum("ij,ij->i", normals[idx], target) > 0.0)
-    return folded
+    out = np.empty(len(idx), dtype=np.bool_)
+    use_nb = edge_nb is not None
+    nb = np.ascontiguousarray(edge_nb if use_nb else np.zeros((0, 3)), dtype=np.int64)
+    _folded(np.ascontiguousarray(X, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64),
+            np.ascontiguousarray(normals, dtype=np.float64), nb, use_nb, idx, out)
+    return out
 
 
 def unfold_faces(
@@ -298,6 +365,7 @@ def unfold_faces(
     n = len(X)
     folded = folded_faces(X, F, normals, edge_nb)
     count = int(folded.sum())
+    vertex_faces = vertex_face_csr(F, n) if count else None
     for _ in range(rounds):
         if count == 0:
             break
@@ -308,7 +376,7 @@ def unfold_faces(
         verts = np.flatnonzero(move)
         delta = np.zeros_like(X)
         delta[verts] = _centroid_umbrella(X, F, verts) - X[verts]
-        delta = withhold_folding_steps(X, delta, F, normals, keep_orientation)
+        delta = withhold_folding_steps(X, delta, F, normals, keep_orientation, vertex_faces=vertex_faces)
         moved = (delta != 0.0).any(axis=1)
         if not moved.any():
             break

@@ -8,7 +8,13 @@ import pytest
 from geoproc.denoise import DenoiseParams, denoise_errors, denoise_mesh
 from geoproc.denoise.face_geometry import face_edge_neighbors, face_normals_and_areas
 from geoproc.denoise.metrics import flipped_faces
-from geoproc.denoise.vertex_update import folded_faces, unfold_faces, update_vertices
+from geoproc.denoise.vertex_update import (
+    folded_faces,
+    unfold_faces,
+    update_vertices,
+    vertex_face_csr,
+    withhold_folding_steps,
+)
 from geoproc.mesh import load_mesh
 from geoproc.perturb import NoiseSpec, perturb_positions
 
@@ -75,3 +81,67 @@ def test_denoise_creates_no_flips_on_a_noisy_organic_mesh(shared_data):
     assert info["folded_faces"] <= 8  # a few may stay held by the guard (5 at the time of writing)
     assert theta_on <= theta_off + 0.05
     assert theta_on == pytest.approx(8.0, abs=0.3)
+
+
+def _face_cross_np(X, F):
+    return np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
+
+
+def _withhold_reference(X, delta, F, target, keep):
+    """The guard's definition, pass by pass over every face (numpy)."""
+    delta = delta.copy()
+    R0 = _face_cross_np(X, F)
+    moving = (delta != 0).any(axis=1)
+    guarded = moving[F].any(axis=1) & (np.einsum("ij,ij->i", R0, target) > 0)
+    check_keep = guarded & (np.einsum("ij,ij->i", R0, keep) > 0)
+    while True:
+        R1 = _face_cross_np(X + delta, F)
+        against_keep = check_keep & (np.einsum("ij,ij->i", R1, keep) <= 0)
+        bad = guarded & ((np.einsum("ij,ij->i", R1, target) <= 0) | against_keep)
+        if not bad.any():
+            return delta
+        delta[F[bad].reshape(-1)] = 0.0
+
+
+def test_withheld_steps_match_the_guards_definition(make_fixtures):
+    V, F = make_fixtures.icosphere(3)
+    rng = np.random.default_rng(4)
+    X = V + 0.02 * rng.standard_normal(V.shape)
+    target, _ = face_normals_and_areas(V, F)
+    keep, _ = face_normals_and_areas(X, F)
+    for scale in (0.03, 0.05, 0.08):  # steps of a fifth to half the edge length
+        delta = scale * rng.standard_normal(V.shape)
+        delta[rng.random(len(V)) < 0.2] = 0.0
+        expect = _withhold_reference(X, delta, F, target, keep)
+        got = withhold_folding_steps(X, delta.copy(), F, target, keep)
+        assert np.array_equal(got, expect)
+        frozen = (expect == 0).all(axis=1) & (delta != 0).any(axis=1)
+        assert 0 < frozen.sum() < (delta != 0).any(axis=1).sum()  # the guard withholds some steps, not all
+
+
+def test_folded_faces_matches_its_definition(make_fixtures):
+    V, F = make_fixtures.icosphere(3)
+    rng = np.random.default_rng(5)
+    X = V + 0.05 * rng.standard_normal(V.shape)
+    target, _ = face_normals_and_areas(V, F)
+    edge_nb = face_edge_neighbors(F)
+    R = _face_cross_np(X, F)
+    against = np.einsum("ij,ij->i", R, target) < 0
+    nb = edge_nb  # a closed mesh: every face has three edge neighbours
+    geometry = R[nb].sum(axis=1)
+    area2 = np.linalg.norm(R[nb], axis=2)
+    mean_target = np.einsum("ij,ijk->ik", area2, target[nb])
+    expect = against | ((np.einsum("ij,ij->i", R, geometry) < 0) & (np.einsum("ij,ij->i", target, mean_target) > 0))
+    assert against.any() and (expect & ~against).any()
+    assert np.array_equal(folded_faces(X, F, target), against)
+    assert np.array_equal(folded_faces(X, F, target, edge_nb), expect)
+    some = np.flatnonzero(expect)[:5]
+    assert np.array_equal(folded_faces(X, F, target, edge_nb, some), expect[some])
+
+
+def test_vertex_face_csr_lists_the_faces_around_each_vertex(make_fixtures):
+    V, F = make_fixtures.torus(nu=8, nv=6)
+    indptr, faces = vertex_face_csr(F, len(V) + 1)  # one isolated vertex at the end
+    assert indptr[-1] == 3 * len(F) and indptr[-1] == indptr[-2]
+    for v in range(len(V)):
+        assert list(faces[indptr[v]:indptr[v + 1]]) == [f for f in range(len(F)) if v in F[f]]
