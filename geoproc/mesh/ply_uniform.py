@@ -131,44 +131,122 @@ def _binary_element(data: bytes, offset: int, e: PlyElementHeader, order: str):
     return None if rows is None else (rows, offset + size)
 
 
-def _ascii_element(lines: list, start: int, e: PlyElementHeader):
-    """(rows, next line) of element ``e`` from the body's lines, or None when
-    its lists differ in length, a row is not on one line of its own, a value
-    is no number of its type (plyfile parses ``int`` values as integers), or
-    the lines run out."""
-    stop = start + e.count
-    if stop > len(lines):
+def _ascii_lines(body: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+    """(start, end) byte offsets of the body's lines, split at ``\n`` (the
+    newline that ends the last row makes no line of its own), or None when
+    the body is not plain ASCII text: a byte above 127, or a control
+    character other than tab, line feed, vertical tab, form feed and
+    carriage return (which separate values)."""
+    arr = np.frombuffer(body, dtype=np.uint8)
+    if arr.size and (arr.max() > 126 or ((arr < 32) & ((arr < 9) | (arr > 13))).any()):
         return None
-    rows_text = [line.split() for line in lines[start:stop]]
+    newlines = np.flatnonzero(arr == 10)
+    start = np.concatenate(([0], newlines + 1))
+    end = np.concatenate((newlines, [len(arr)]))
+    if start[-1] == len(arr):
+        start, end = start[:-1], end[:-1]
+    return start, end
+
+
+_DIGITS = np.zeros(256, dtype=bool)
+_DIGITS[list(b"0123456789+-")] = True
+_FLOAT_CHARS = _DIGITS.copy()
+_FLOAT_CHARS[list(b".eEnNaAiIfFtTyY")] = True  # exponents, nan, inf, infinity
+_SPACE = np.zeros(256, dtype=bool)
+_SPACE[[9, 10, 11, 12, 13, 32]] = True
+
+
+def _ascii_element(body: bytes, lines: tuple[np.ndarray, np.ndarray], start: int, e: PlyElementHeader):
+    """(rows, next line) of element ``e`` from line ``start`` of the body, or
+    None when its lists differ in length, a row is not on one line of its
+    own, a value is no number of its type (plyfile parses ``int`` values as
+    integers: only digits and a sign), or the lines run out.
+
+    The element's lines are parsed as one block: the tokens per line are
+    counted from the byte classes, and the numbers are read at once."""
+    line_start, line_end = lines
+    stop = start + e.count
+    if stop > len(line_start):
+        return None
     k = 0
     if e.list_types is not None and e.count:
         before = next(i for i, (n, _) in enumerate(e.scalars) if n is None)
+        first = body[line_start[start]:line_end[start]].split()
         try:
-            k = int(rows_text[0][before]) if len(rows_text[0]) > before else -1
+            k = int(first[before]) if len(first) > before else -1
         except ValueError:
             return None
         if k < 0:
             return None
     width = len(e.scalars) + (k if e.list_types is not None else 0)
-    if any(len(r) != width for r in rows_text):
-        return None
-    table = np.array(rows_text, dtype=object).reshape(e.count, width)
     dtype = _row_dtype(e, "=", k)
+    if not e.count:
+        return _without_counts(np.empty(0, dtype=dtype), e, k), stop
+    lo, hi = int(line_start[start]), int(line_end[stop - 1])
+    block = np.frombuffer(body, dtype=np.uint8, count=hi - lo, offset=lo)
+    space = _SPACE[block]
+    begins = np.flatnonzero(~space & np.concatenate(([True], space[:-1])))
+    if len(begins) != e.count * width:
+        return None
+    per_line = np.diff(np.searchsorted(begins, np.append(line_start[start:stop] - lo, hi - lo)))
+    if (per_line != width).any():  # every row on one line of its own
+        return None
+    columns = [(span, np.dtype(code)) for _, span, code in _column_types(e, k)]
+    integer = np.concatenate([np.full(span, t.kind != "f") for span, t in columns])
+    if not _tokens_fit(block, space, begins, integer, width):
+        return None
+    # integers only: read as int64 (several times faster than floats; a value
+    # beyond int64 saturates, which the range check of its type refuses)
+    as_type = np.int64 if integer.all() else np.float64
+    try:
+        values = np.fromstring(body[lo:hi], dtype=as_type, sep=" ")
+    except (ValueError, DeprecationWarning):  # a token that is not a number
+        return None
+    if values.size != e.count * width:
+        return None
+    table = values.reshape(e.count, width)
     rows = np.empty(e.count, dtype=dtype)
     col = 0
-    for name, code in e.scalars:
-        if name is None:
-            parts = [("\nlen", e.list_types[0], 1), (e.list_name, e.list_types[1], k)]
-        else:
-            parts = [(name, code, 1)]
-        for field, type_code, span in parts:
-            values = _typed(table[:, col:col + span], np.dtype(type_code))
-            if values is None:
-                return None
-            rows[field] = values.reshape(rows[field].shape)
-            col += span
+    for field, span, code in _column_types(e, k):
+        typed = _typed(table[:, col:col + span], np.dtype(code))
+        if typed is None:
+            return None
+        rows[field] = typed.reshape(rows[field].shape)
+        col += span
     rows = _without_counts(rows, e, k)
     return None if rows is None else (rows, stop)
+
+
+def _column_types(e: PlyElementHeader, k: int) -> list[tuple[str, int, str]]:
+    """(field, columns, type code) of each property of ``e`` in file order,
+    with the list as its count and its ``k`` items."""
+    out = []
+    for name, code in e.scalars:
+        if name is None:
+            out += [("\nlen", 1, e.list_types[0]), (e.list_name, k, e.list_types[1])]
+        else:
+            out.append((name, 1, code))
+    return out
+
+
+def _tokens_fit(block: np.ndarray, space: np.ndarray, begins: np.ndarray, integer: np.ndarray,
+                width: int) -> bool:
+    """Whether every token of the block is made of the characters of its
+    column's type: digits and a sign for integer columns (``integer``, one
+    flag per column), those plus ``.``, exponents and the letters of nan and
+    inf for float columns."""
+    if not (_FLOAT_CHARS[block] | space).all():
+        return False
+    if not integer.any():
+        return True
+    if integer.all():
+        return bool((_DIGITS[block] | space).all())
+    ends = np.flatnonzero(~space & np.concatenate((space[1:], [True]))) + 1
+    mine = np.tile(integer, len(begins) // width)
+    bounds = np.column_stack((begins[mine], ends[mine])).reshape(-1)
+    other = np.append(~_DIGITS[block], False)  # one more byte: the last token may end the block
+    bad = np.logical_or.reduceat(other, bounds)[::2]  # over [begin, end) of each integer token
+    return not bad.any()
 
 
 def _without_counts(rows: np.ndarray, e: PlyElementHeader, k: int) -> np.ndarray | None:
@@ -181,18 +259,15 @@ def _without_counts(rows: np.ndarray, e: PlyElementHeader, k: int) -> np.ndarray
     return rows[[n for n in rows.dtype.names if n != "\nlen"]]
 
 
-def _typed(text: np.ndarray, dtype: np.dtype) -> np.ndarray | None:
-    """Object array of number strings as ``dtype``, parsed as plyfile parses
-    them (integers for integer types), or None where one does not parse or
-    does not fit."""
-    try:
-        if dtype.kind == "f":
-            return text.astype(np.float64).astype(dtype)
-        values = text.astype(np.int64)
-    except (ValueError, OverflowError):
-        return None
+def _typed(values: np.ndarray, dtype: np.dtype) -> np.ndarray | None:
+    """int64 or float64 values read from text as ``dtype``, or None where an
+    integer type cannot hold one exactly (beyond its range, or a float64
+    reading beyond 2**53, where it may have rounded)."""
+    if dtype.kind == "f":
+        return values.astype(dtype)
     info = np.iinfo(dtype)
-    if values.size and (values.min() < info.min or values.max() > info.max):
+    low, high = (max(info.min, -2**53), min(info.max, 2**53)) if values.dtype.kind == "f" else (info.min, info.max)
+    if values.size and (values.min() < low or values.max() > high):
         return None
     return values.astype(dtype)
 
@@ -218,19 +293,17 @@ def read_uniform_ply(data: bytes) -> dict[str, np.ndarray] | None:
     fmt, elements, offset = parsed
     out: dict[str, np.ndarray] = {}
     if fmt == "ascii":
-        try:
-            lines = data[offset:].decode("ascii").split("\n")
-        except UnicodeDecodeError:
+        body = data[offset:]
+        lines = _ascii_lines(body)
+        if lines is None:
             return None
-        if lines and lines[-1] == "":
-            lines.pop()  # the newline that ends the last row
         pos = 0
         for e in elements:
-            got = _ascii_element(lines, pos, e)
+            got = _ascii_element(body, lines, pos, e)
             if got is None:
                 return None
             out[e.name], pos = got
-        return out if pos == len(lines) else None
+        return out if pos == len(lines[0]) else None
     order = "<" if fmt == "binary_little_endian" else ">"
     for e in elements:
         got = _binary_element(data, offset, e, order)

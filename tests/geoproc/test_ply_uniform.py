@@ -231,3 +231,41 @@ def test_a_first_face_count_that_cannot_fit_goes_to_plyfile(count):
     if count > 0:
         with pytest.raises(InputError, match="unparseable PLY: element 'face': row 0"):
             read_mesh_bytes(bad, "ply", "c.ply")
+
+
+_ASCII_HEAD = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty double y\n"
+               b"property uchar red\nproperty float z\nelement face 1\n"
+               b"property list uchar int vertex_indices\nend_header\n")
+_ASCII_BODY = b"0 0 7 0\n1 0 8 0\n0 1 9 0\n3 0 1 2\n"
+
+
+@pytest.mark.parametrize("body", [
+    _ASCII_BODY.replace(b" ", b"\t"),
+    b"  0  0 7 0  \n1 0   8 0\n0 1 9 0\n 3 0 1 2 \n",
+    _ASCII_BODY.replace(b"\n", b"\r\n"),
+    _ASCII_BODY.replace(b"0 0 7 0", b"0\x0b0 7 0"),
+    _ASCII_BODY[:-1],  # no newline after the last row
+    b"nan -inf 7 1e3\n.5 5. 8 +2\nInfinity -0 9 1E-3\n3 +0 1 2\n",
+], ids=["tabs", "spaces", "crlf", "vertical tab", "no final newline", "number spellings"])
+def test_ascii_separators_and_number_spellings_read_as_plyfile_reads_them(body):
+    data = _ASCII_HEAD + body
+    _same_elements(read_uniform_ply(data), _plyfile_read(data))
+
+
+@pytest.mark.parametrize("old,new", [
+    (b"0 0 7 0", b"0 0 7.0 0"),  # an integer column holding 7.0
+    (b"0 0 7 0", b"0 0 1e1 0"),
+    (b"3 0 1 2", b"3 0 1_0 2"),  # Python's int() reads 1_0, plyfile does not
+    (b"0 0 7 0", b"0x1p3 0 7 0"),  # C's strtod reads hexadecimal floats, plyfile does not
+    (b"0 0 7 0", b"nan(1) 0 7 0"),
+    (b"0 0 7 0", b"infin 0 7 0"),
+    (b"0 0 7 0", b"--1 0 7 0"),
+    (b"0 0 7 0", b"0 0 256 0"),  # beyond uchar
+    (b"3 0 1 2", b"3 0 1 99999999999999999999"),  # beyond int64, where the integer reading saturates
+    (b"0 0 7 0", b"0\x1c0 7 0"),  # a control character that Python's split treats as a space
+    (b"0 0 7 0", b"0 0 7 0\xc2\xa0"),  # not ASCII
+    (b"3 0 1 2\n", b"3 0 1 2\n\n"),  # a blank line after the last row
+])
+def test_ascii_values_outside_the_plain_spellings_go_to_plyfile(old, new):
+    assert read_uniform_ply(_ASCII_HEAD + _ASCII_BODY) is not None
+    assert read_uniform_ply(_ASCII_HEAD + _ASCII_BODY.replace(old, new)) is None
