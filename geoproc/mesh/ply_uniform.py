@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geoproc.mesh.text_numbers import FLOAT_CHARS, INTEGER_CHARS, parse_plain, token_begins, tokens_per_line
+
 # PLY type names (both spellings) -> numpy type codes, without byte order
 PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -148,14 +150,6 @@ def _ascii_lines(body: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     return start, end
 
 
-_DIGITS = np.zeros(256, dtype=bool)
-_DIGITS[list(b"0123456789+-")] = True
-_FLOAT_CHARS = _DIGITS.copy()
-_FLOAT_CHARS[list(b".eEnNaAiIfFtTyY")] = True  # exponents, nan, inf, infinity
-_SPACE = np.zeros(256, dtype=bool)
-_SPACE[[9, 10, 11, 12, 13, 32]] = True
-
-
 def _ascii_element(body: bytes, lines: tuple[np.ndarray, np.ndarray], start: int, e: PlyElementHeader):
     """(rows, next line) of element ``e`` from line ``start`` of the body, or
     None when its lists differ in length, a row is not on one line of its
@@ -184,25 +178,18 @@ def _ascii_element(body: bytes, lines: tuple[np.ndarray, np.ndarray], start: int
         return _without_counts(np.empty(0, dtype=dtype), e, k), stop
     lo, hi = int(line_start[start]), int(line_end[stop - 1])
     block = np.frombuffer(body, dtype=np.uint8, count=hi - lo, offset=lo)
-    space = _SPACE[block]
-    begins = np.flatnonzero(~space & np.concatenate(([True], space[:-1])))
+    space, begins = token_begins(block)
     if len(begins) != e.count * width:
         return None
-    per_line = np.diff(np.searchsorted(begins, np.append(line_start[start:stop] - lo, hi - lo)))
-    if (per_line != width).any():  # every row on one line of its own
-        return None
+    if (tokens_per_line(begins, line_start[start:stop] - lo, hi - lo) != width).any():
+        return None  # a row not on one line of its own
     columns = [(span, np.dtype(code)) for _, span, code in _column_types(e, k)]
     integer = np.concatenate([np.full(span, t.kind != "f") for span, t in columns])
     if not _tokens_fit(block, space, begins, integer, width):
         return None
-    # integers only: read as int64 (several times faster than floats; a value
-    # beyond int64 saturates, which the range check of its type refuses)
-    as_type = np.int64 if integer.all() else np.float64
-    try:
-        values = np.fromstring(body[lo:hi], dtype=as_type, sep=" ")
-    except (ValueError, DeprecationWarning):  # a token that is not a number
-        return None
-    if values.size != e.count * width:
+    # integers only (the faces) read as int64: several times faster than floats
+    values = parse_plain(body[lo:hi], e.count * width, bool(integer.all()))
+    if values is None:
         return None
     table = values.reshape(e.count, width)
     rows = np.empty(e.count, dtype=dtype)
@@ -235,16 +222,16 @@ def _tokens_fit(block: np.ndarray, space: np.ndarray, begins: np.ndarray, intege
     column's type: digits and a sign for integer columns (``integer``, one
     flag per column), those plus ``.``, exponents and the letters of nan and
     inf for float columns."""
-    if not (_FLOAT_CHARS[block] | space).all():
+    if not (FLOAT_CHARS[block] | space).all():
         return False
     if not integer.any():
         return True
     if integer.all():
-        return bool((_DIGITS[block] | space).all())
+        return bool((INTEGER_CHARS[block] | space).all())
     ends = np.flatnonzero(~space & np.concatenate((space[1:], [True]))) + 1
     mine = np.tile(integer, len(begins) // width)
     bounds = np.column_stack((begins[mine], ends[mine])).reshape(-1)
-    other = np.append(~_DIGITS[block], False)  # one more byte: the last token may end the block
+    other = np.append(~INTEGER_CHARS[block], False)  # one more byte: the last token may end the block
     bad = np.logical_or.reduceat(other, bounds)[::2]  # over [begin, end) of each integer token
     return not bad.any()
 

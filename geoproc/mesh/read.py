@@ -25,6 +25,7 @@ from geoproc.fileio import file_extension, read_input_bytes, require_input_file,
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
 from geoproc.mesh.ply_uniform import read_uniform_ply
+from geoproc.mesh.text_numbers import numbers_on_lines, uniform_rows
 from geoproc.mesh.validate import require_indices_below
 
 MESH_FORMATS = ("obj", "ply", "off", "stl")
@@ -370,16 +371,21 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
     if b"/" in text:
         text = re.sub(rb"/[^\s]*", b"", text)
         flines = text.split(b"\n")
-    counts = np.fromiter((len(ln.split()) for ln in flines), dtype=np.int64, count=len(flines))
+    got = numbers_on_lines(flines, integer=True)
+    if got is not None:
+        idx, counts = got
+    else:  # a corner spelled otherwise: line by line, for the error
+        counts = np.fromiter((len(ln.split()) for ln in flines), dtype=np.int64, count=len(flines))
     short = np.flatnonzero(counts < 3)
     if len(short):
         raise InputError(path, f"face {int(short[0])} has fewer than 3 corners")
-    try:
-        idx = np.array(text.split(), dtype=np.int64)
-    except ValueError:
-        raise InputError(path, "unparseable OBJ: a face corner is not an integer vertex index") from None
-    except OverflowError:
-        raise InputError(path, "face index out of range (beyond 64-bit integers)") from None
+    if got is None:
+        try:
+            idx = np.array(text.split(), dtype=np.int64)
+        except ValueError:
+            raise InputError(path, "unparseable OBJ: a face corner is not an integer vertex index") from None
+        except OverflowError:
+            raise InputError(path, "face index out of range (beyond 64-bit integers)") from None
     line_of = np.repeat(np.arange(len(flines)), counts)
     relative = idx < 0
     idx = np.where(relative, np.asarray(seen)[line_of] + idx, idx - 1)
@@ -407,12 +413,9 @@ def _leading_numbers(lines: list, k: int, path: str, problem) -> np.ndarray:
     ``problem(i, text)`` words the InputError for line i that does not start
     with k numbers.
     """
-    counts = np.fromiter((len(ln.split()) for ln in lines), dtype=np.int64, count=len(lines))
-    if len(lines) and (counts == counts[0]).all() and counts[0] >= k:  # the common case
-        try:
-            return np.array(b" ".join(lines).split(), dtype=np.float64).reshape(len(lines), -1)[:, :k].copy()
-        except ValueError:
-            pass
+    rows = uniform_rows(lines, integer=False)
+    if rows is not None and rows.shape[1] >= k:  # the common case
+        return rows[:, :k].copy()
     X = np.empty((len(lines), k), dtype=np.float64)
     for i, line in enumerate(lines):
         try:
@@ -540,13 +543,8 @@ def _off_vertices(lines: list, path: str, homogeneous: bool = False) -> np.ndarr
 def _off_triangles(lines: list) -> np.ndarray | None:
     """(m, 3) int64 when every OFF face line is ``3 a b c`` (plus the same
     number of colour values); None otherwise (the caller checks line by line)."""
-    if not lines or len({len(ln.split()) for ln in lines}) != 1:
-        return None
-    try:
-        T = np.array(b" ".join(lines).split(), dtype=np.int64).reshape(len(lines), -1)
-    except (ValueError, OverflowError):
-        return None
-    if T.shape[1] < 4 or not (T[:, 0] == 3).all():
+    T = uniform_rows(lines, integer=True)
+    if T is None or T.shape[1] < 4 or not (T[:, 0] == 3).all():
         return None
     return T[:, 1:4].copy()
 
