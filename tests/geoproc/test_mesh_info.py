@@ -147,6 +147,44 @@ def test_vertex_fans_and_components_of_disjoint_parts(make_fixtures):
     assert (vertex_fans(F, n) == 1).all()
 
 
+def _fans_by_search(F, n):
+    """Fans per vertex by graph search: a vertex's corners are linked when
+    they lie on one undirected edge."""
+    out = np.zeros(n, dtype=int)
+    for v in range(n):
+        corners = [(f, k) for f in range(len(F)) for k in range(3) if F[f, k] == v]
+        keys = []
+        for f, k in corners:
+            nxt, prv = F[f, (k + 1) % 3], F[f, (k + 2) % 3]
+            keys.append({nxt, prv})
+        seen = set()
+        for i in range(len(corners)):
+            if i in seen:
+                continue
+            out[v] += 1
+            stack = [i]
+            seen.add(i)
+            while stack:
+                j = stack.pop()
+                for q in range(len(corners)):
+                    if q not in seen and keys[j] & keys[q]:
+                        seen.add(q)
+                        stack.append(q)
+    return out
+
+
+def test_vertex_fans_match_a_graph_search_on_random_soups(make_fixtures):
+    rng = np.random.default_rng(3)
+    for _ in range(150):  # repeated indices, non-manifold edges and vertices, unused vertices
+        n = int(rng.integers(3, 10))
+        F = rng.integers(0, n, (int(rng.integers(1, 16)), 3))
+        assert np.array_equal(vertex_fans(F, n + 1), _fans_by_search(F, n + 1))
+    V, F = make_fixtures.icosphere(1)  # two spheres sharing one vertex: a bowtie
+    two = np.concatenate([F, np.where(F == 0, 0, F + len(V))])
+    fans = vertex_fans(two, 2 * len(V))
+    assert fans[0] == 2 and fans[len(V)] == 0 and (np.delete(fans, [0, len(V)]) == 1).all()
+
+
 def test_face_list_renumbering_recovers_a_permutation(make_fixtures):
     from geoproc.mesh.topology import face_list_renumbering
 
