@@ -39,16 +39,47 @@ def merge_coincident_vertices(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray,
 
 
 def position_groups(V: np.ndarray) -> np.ndarray:
-    """(n,) label per vertex; equal labels exactly when positions are equal."""
+    """(n,) label per vertex; equal labels exactly when positions are equal.
+
+    The rows are sorted by a 64-bit hash of their coordinates (-0.0 read as
+    0.0, which compares equal to it), so equal positions end up side by side;
+    should two different positions share a hash, a lexicographic sort of the
+    coordinates decides instead.
+    """
     if len(V) == 0:
         return np.zeros(0, dtype=np.int64)
-    order = np.lexsort((V[:, 2], V[:, 1], V[:, 0]))
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    h = row_hashes(V)
+    order = np.argsort(h, kind="stable")
     Vs = V[order]
     new = np.ones(len(V), dtype=bool)
     new[1:] = (Vs[1:] != Vs[:-1]).any(axis=1)
+    hs = h[order]
+    if (new[1:] & (hs[1:] == hs[:-1])).any():  # two positions share a hash
+        order = np.lexsort((V[:, 2], V[:, 1], V[:, 0]))
+        Vs = V[order]
+        new[1:] = (Vs[1:] != Vs[:-1]).any(axis=1)
     group = np.empty(len(V), dtype=np.int64)
     group[order] = np.cumsum(new) - 1
     return group
+
+
+def _mix64(z: np.ndarray) -> np.ndarray:
+    """The splitmix64 finalizer: every input bit reaches every output bit."""
+    z = z ^ (z >> np.uint64(30))
+    z *= np.uint64(0xBF58476D1CE4E5B9)
+    z ^= z >> np.uint64(27)
+    z *= np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+def row_hashes(V: np.ndarray) -> np.ndarray:
+    """(n,) uint64 hash of each row of an (n, 3) float64 array, equal for
+    equal rows (-0.0 hashes as 0.0)."""
+    bits = (V + 0.0).view(np.uint64)  # + 0.0 turns -0.0 into 0.0
+    h = _mix64(bits[:, 0])
+    h = _mix64(h ^ bits[:, 1])
+    return _mix64(h ^ bits[:, 2])
 
 
 def remove_unreferenced_vertices(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

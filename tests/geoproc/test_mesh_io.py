@@ -126,6 +126,38 @@ def test_merge_keeps_first_occurrence_and_fields():
     assert keep3.tolist() == [0, 1, 2] and len(V3) == 3
 
 
+def _groups_by_dict(V):
+    """Equal labels exactly for equal positions, by a dictionary of tuples (0.0 == -0.0)."""
+    seen = {}
+    return np.array([seen.setdefault(tuple(float(x) for x in row), len(seen)) for row in V])
+
+
+@pytest.mark.parametrize("collide", [False, True])
+def test_position_groups_are_the_equal_positions(monkeypatch, collide):
+    from geoproc.mesh import clean
+
+    if collide:  # every row one hash: the lexicographic sort decides
+        monkeypatch.setattr(clean, "row_hashes", lambda V: np.zeros(len(V), dtype=np.uint64))
+    rng = np.random.default_rng(7)
+    for _ in range(100):
+        n = int(rng.integers(1, 200))
+        V = rng.integers(-2, 3, (n, 3)) * rng.choice([1.0, 0.5, 1e-300])
+        V[rng.random((n, 3)) < 0.1] = -0.0
+        got, want = clean.position_groups(V), _groups_by_dict(V)
+        pairs = set(zip(got.tolist(), want.tolist(), strict=True))  # a one-to-one map between the labels
+        assert len(pairs) == len(set(got.tolist())) == len(set(want.tolist()))
+
+
+def test_row_hashes_separate_grid_positions():
+    from geoproc.mesh.clean import row_hashes
+
+    g = np.arange(-20, 21, dtype=float)
+    V = np.stack(np.meshgrid(g, g, g), axis=-1).reshape(-1, 3)
+    for scale in (1.0, 0.5, 1e-300, 1e300):  # coordinates whose low bits are all zero
+        assert len(np.unique(row_hashes(V * scale))) == len(V)
+    assert row_hashes(np.array([[-0.0, 0.0, -0.0]]))[0] == row_hashes(np.zeros((1, 3)))[0]
+
+
 @pytest.mark.parametrize(
     "name, fragment",
     [
