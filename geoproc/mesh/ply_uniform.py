@@ -188,7 +188,7 @@ def _ascii_element(body: bytes, lines: tuple[np.ndarray, np.ndarray], start: int
     if not _tokens_fit(block, space, begins, integer, width):
         return None
     # integers only (the faces) read as int64: several times faster than floats
-    values = parse_plain(body[lo:hi], e.count * width, bool(integer.all()))
+    values = parse_plain(body[lo:hi], space, begins, bool(integer.all()))
     if values is None:
         return None
     table = values.reshape(e.count, width)

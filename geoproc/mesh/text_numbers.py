@@ -12,6 +12,8 @@ is outside those spellings.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 SPACE = np.zeros(256, dtype=bool)
@@ -45,20 +47,23 @@ def tokens_per_line(begins: np.ndarray, line_starts: np.ndarray, size: int) -> n
     return np.diff(np.searchsorted(begins, np.append(line_starts, size)))
 
 
-def parse_plain(data: bytes, count: int, integer: bool) -> np.ndarray | None:
-    """The ``count`` whitespace-separated numbers of ``data`` as int64
-    (``integer``) or float64, or None when there are not exactly ``count``
-    or one does not parse; an integer beyond int64 (where numpy's reading
-    saturates) also gives None. The characters must have been checked."""
+def parse_plain(data: bytes, space: np.ndarray, begins: np.ndarray, integer: bool) -> np.ndarray | None:
+    """The whitespace-separated numbers of ``data`` as int64 (``integer``) or
+    float64, or None when one does not parse, or an integer token is longer
+    than 18 characters (it might not fit in int64, where numpy's reading
+    saturates). ``space`` and ``begins`` are :func:`token_begins` of ``data``;
+    the characters must have been checked."""
+    if integer and len(begins):
+        ends = np.flatnonzero(~space & np.append(space[1:], True)) + 1
+        if (ends - begins).max() > 18:
+            return None
     try:
-        values = np.fromstring(data, dtype=np.int64 if integer else np.float64, sep=" ")
+        with warnings.catch_warnings():  # numpy before 2.3 warns (and stops) where later ones raise
+            warnings.simplefilter("error", DeprecationWarning)
+            values = np.fromstring(data, dtype=np.int64 if integer else np.float64, sep=" ")
     except (ValueError, DeprecationWarning):  # a token that is not a number
         return None
-    if values.size != count:
-        return None
-    if integer and values.size and (values.max() == np.iinfo(np.int64).max or values.min() == np.iinfo(np.int64).min):
-        return None
-    return values
+    return values if values.size == len(begins) else None
 
 
 def numbers_on_lines(lines: list, integer: bool) -> tuple[np.ndarray, np.ndarray] | None:
@@ -81,10 +86,10 @@ def numbers_on_lines(lines: list, integer: bool) -> tuple[np.ndarray, np.ndarray
     chars = INTEGER_CHARS if integer else FLOAT_CHARS
     if not (chars[block] | SPACE[block]).all():
         return None
-    _, begins = token_begins(block)
+    space, begins = token_begins(block)
     line_starts = np.concatenate(([0], np.flatnonzero(block == 10) + 1)) if lines else np.zeros(0, dtype=np.int64)
     counts = tokens_per_line(begins, line_starts, len(block))
-    values = parse_plain(data, len(begins), integer)
+    values = parse_plain(data, space, begins, integer)
     return None if values is None else (values, counts)
 
 
