@@ -108,6 +108,14 @@ def _find(parent, i):
     return i
 
 
+@numba.njit(cache=True)
+def _union(parent, a, b):
+    ra = _find(parent, a)
+    rb = _find(parent, b)
+    if ra != rb:
+        parent[ra] = rb
+
+
 @numba.njit(cache=True, parallel=True)
 def _fans(F, vc_ptr, vc_corner, out):
     """Fans of every vertex from its corners (CSR ``vc_ptr``, ``vc_corner``), into ``out``."""
@@ -127,13 +135,18 @@ def _fans(F, vc_ptr, vc_corner, out):
             k = c % 3
             other[2 * i] = F[f, (k + 1) % 3]
             other[2 * i + 1] = F[f, (k + 2) % 3]
-        for a in range(2 * d):  # corners on one undirected edge share a fan
-            for b in range(a):
-                if other[a] == other[b]:
-                    ra = _find(parent, a // 2)
-                    rb = _find(parent, b // 2)
-                    if ra != rb:
-                        parent[ra] = rb
+        # corners on one undirected edge share a fan: pairs of equal ends, by
+        # comparing all pairs around a vertex of small valence, else by sorting
+        if d <= 16:
+            for a in range(2 * d):
+                for b in range(a):
+                    if other[a] == other[b]:
+                        _union(parent, a // 2, b // 2)
+        else:
+            order = np.argsort(other, kind="mergesort")
+            for j in range(1, 2 * d):
+                if other[order[j]] == other[order[j - 1]]:
+                    _union(parent, order[j] // 2, order[j - 1] // 2)
         count = 0
         for i in range(d):
             if _find(parent, i) == i:

@@ -175,14 +175,20 @@ def _fans_by_search(F, n):
 
 def test_vertex_fans_match_a_graph_search_on_random_soups(make_fixtures):
     rng = np.random.default_rng(3)
-    for _ in range(150):  # repeated indices, non-manifold edges and vertices, unused vertices
-        n = int(rng.integers(3, 10))
-        F = rng.integers(0, n, (int(rng.integers(1, 16)), 3))
-        assert np.array_equal(vertex_fans(F, n + 1), _fans_by_search(F, n + 1))
+    for faces in (16, 60):  # valences up to 16, and above (the sorted path)
+        for _ in range(75):  # repeated indices, non-manifold edges and vertices, unused vertices
+            n = int(rng.integers(3, 10))
+            F = rng.integers(0, n, (int(rng.integers(1, faces)), 3))
+            assert np.array_equal(vertex_fans(F, n + 1), _fans_by_search(F, n + 1))
     V, F = make_fixtures.icosphere(1)  # two spheres sharing one vertex: a bowtie
     two = np.concatenate([F, np.where(F == 0, 0, F + len(V))])
     fans = vertex_fans(two, 2 * len(V))
     assert fans[0] == 2 and fans[len(V)] == 0 and (np.delete(fans, [0, len(V)]) == 1).all()
+    k = 100_000  # two discs fanned around one shared centre: valence 400,000 (seconds, not hours)
+    ring = np.arange(1, k + 1)
+    disc = np.column_stack([np.zeros(k, dtype=int), ring, np.roll(ring, -1)])
+    fans = vertex_fans(np.concatenate([disc, np.where(disc == 0, 0, disc + k)]), 2 * k + 1)
+    assert fans[0] == 2 and (fans[1:] == 1).all()
 
 
 def test_face_list_renumbering_recovers_a_permutation(make_fixtures):
