@@ -14,6 +14,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from geoproc.union_find import find as _find
+
 
 def halfedges(F: np.ndarray) -> np.ndarray:
     """(3m, 2) array of directed half-edges (tail, head) in face order."""
@@ -98,14 +100,6 @@ def nonmanifold_edges(F: np.ndarray) -> np.ndarray:
     """(k, 2) undirected edges shared by more than two faces."""
     E, _, count = unique_edges(F)
     return E[count > 2]
-
-
-@numba.njit(cache=True)
-def _find(parent, i):
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
 
 
 @numba.njit(cache=True)

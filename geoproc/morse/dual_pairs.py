@@ -22,7 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from geoproc.morse.merge_forest import _find
+from geoproc.union_find import find as _find
 
 
 @numba.njit(cache=True)

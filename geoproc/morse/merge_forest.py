@@ -9,13 +9,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-
-@numba.njit(cache=True, inline="always")
-def _find(uf, x):
-    while uf[x] != x:
-        uf[x] = uf[uf[x]]
-        x = uf[x]
-    return x
+from geoproc.union_find import find as _find
 
 
 @numba.njit(cache=True)
