@@ -110,12 +110,13 @@ def perturb(
             require_triangle_mesh(mesh)  # normals, and the edge-length unit, need a face of some area
         _note_fractions_of_none(run, len(mesh.V), impulsive, outliers)
         with run.timer("compute"):
-            V, flag = perturb_positions(mesh.V, mesh.F, spec, rng, mesh.log.path)
+            scale = noise_scale(mesh.V, mesh.F)
+            V, flag = perturb_positions(mesh.V, mesh.F, spec, rng, mesh.log.path, scale)
         out = mesh.copy()
         out.V = V
         flag = _merged_flags(flag, out.vertex_fields, (len(V),), mesh.log.path or input, outliers > 0)
         run.metrics.update({"vertices": len(V), "faces": len(mesh.F),
-                            "noise_scale": noise_scale(mesh.V, mesh.F),
+                            "noise_scale": scale,
                             "rms_displacement": _rms(V - mesh.V),
                             "outlier_vertices": int(flag.sum())})
         run.write_mesh(output, out)

@@ -95,6 +95,7 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
 
 def perturb_positions(
     V: np.ndarray, F: np.ndarray, spec: NoiseSpec, rng: np.random.Generator, path: str | None = None,
+    scale: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Add noise to one set of positions.
 
@@ -106,6 +107,9 @@ def perturb_positions(
         the same output).
     path : str, optional
         File name for error messages.
+    scale : float, optional
+        :func:`noise_scale` of V and F (length units), when the caller has it;
+        computed here otherwise.
 
     Returns
     -------
@@ -124,7 +128,7 @@ def perturb_positions(
     out = np.array(V, dtype=np.float64, copy=True)
     outlier = np.zeros(n)
     with np.errstate(over="ignore", invalid="ignore"):  # too large a noise is refused below
-        _add_noise(out, outlier, V, F, spec, rng)
+        _add_noise(out, outlier, V, F, spec, rng, scale)
     big = float(np.abs(out).max()) if out.size else 0.0
     if not big <= MAX_COORDINATE:
         far = f"as far as {big:.3g}" if np.isfinite(big) else "to non-finite positions"
@@ -136,11 +140,11 @@ def perturb_positions(
 
 
 def _add_noise(out: np.ndarray, outlier: np.ndarray, V: np.ndarray, F: np.ndarray, spec: NoiseSpec,
-               rng: np.random.Generator) -> None:
+               rng: np.random.Generator, scale: float | None = None) -> None:
     """Add ``spec``'s displacements to ``out`` (n, 3) in place and set ``outlier`` (n,)."""
     n = len(V)
     if spec.sigma > 0:
-        scale = noise_scale(V, F)
+        scale = noise_scale(V, F) if scale is None else scale
         if spec.direction == "normal":
             D = vertex_normals(V, F) if len(F) else point_cloud_normals(V)
         else:

@@ -49,6 +49,11 @@ def test_same_seed_same_output_other_seed_differs(sphere):
     c = perturb_positions(V, F, spec, np.random.default_rng(10))
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
     assert not np.array_equal(a[0], c[0])
+    given = perturb_positions(V, F, spec, np.random.default_rng(9), scale=noise_scale(V, F))
+    assert np.array_equal(given[0], a[0]) and np.array_equal(given[1], a[1])  # the caller's unit is the same
+    doubled = perturb_positions(V, F, NoiseSpec(sigma=0.3), np.random.default_rng(9), scale=2 * noise_scale(V, F))
+    plain = perturb_positions(V, F, NoiseSpec(sigma=0.3), np.random.default_rng(9))
+    assert np.allclose(doubled[0] - V, 2 * (plain[0] - V))  # and it is the one used
 
 
 def test_impulsive_moves_exactly_the_fraction(sphere):
