@@ -5,6 +5,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from geoproc.mesh.topology import vertex_corners
+
 
 @numba.njit(cache=True)
 def _fitting_step(X, F, normals, valence, fixed, delta):
@@ -127,24 +129,10 @@ def _withhold(X, delta, F, normals, keep, use_keep, margin, vf_ptr, vf_idx):
                     count += 1
 
 
-@numba.njit(cache=True)
-def _fill_vertex_faces(F, indptr, out):
-    pos = indptr[:-1].copy()
-    for f in range(F.shape[0]):
-        for k in range(3):
-            v = F[f, k]
-            out[pos[v]] = f
-            pos[v] += 1
-
-
 def vertex_face_csr(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The faces around every vertex: CSR (indptr (n + 1,), face ids), in face order."""
-    F = np.ascontiguousarray(F, dtype=np.int64)
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(F.reshape(-1), minlength=n), out=indptr[1:])
-    faces = np.empty(3 * len(F), dtype=np.int64)
-    _fill_vertex_faces(F, indptr, faces)
-    return indptr, faces
+    indptr, corners = vertex_corners(F, n)
+    return indptr, corners // 3
 
 
 def update_vertices(

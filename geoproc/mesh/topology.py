@@ -163,13 +163,30 @@ def vertex_fans(F: np.ndarray, n: int) -> np.ndarray:
         0 for unreferenced vertices.
     """
     F = np.ascontiguousarray(F, dtype=np.int64)
-    corners = F.reshape(-1)
-    vc_ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(corners, minlength=n), out=vc_ptr[1:])
-    vc_corner = np.argsort(corners, kind="stable")
+    vc_ptr, vc_corner = vertex_corners(F, n)
     out = np.empty(n, dtype=np.int64)
     _fans(F, vc_ptr, vc_corner, out)
     return out
+
+
+@numba.njit(cache=True)
+def _fill_corners(corners, indptr, out):
+    pos = indptr[:-1].copy()
+    for c in range(corners.shape[0]):
+        v = corners[c]
+        out[pos[v]] = c
+        pos[v] += 1
+
+
+def vertex_corners(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The corners at every vertex: CSR (indptr (n + 1,), corner ids ``3 f + k``
+    in increasing order); ``corners // 3`` are the faces around each vertex."""
+    corners = np.ascontiguousarray(F, dtype=np.int64).reshape(-1)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(corners, minlength=n), out=indptr[1:])
+    out = np.empty(len(corners), dtype=np.int64)
+    _fill_corners(corners, indptr, out)
+    return indptr, out
 
 
 def nonmanifold_vertices(F: np.ndarray, n: int) -> np.ndarray:
