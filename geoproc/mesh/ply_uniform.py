@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geoproc.mesh.text_numbers import FLOAT_CHARS, INTEGER_CHARS, parse_plain, token_begins, tokens_per_line
+from geoproc.mesh.text_numbers import INTEGER_CHARS, parse_plain, plainly_spelled, token_begins, tokens_per_line
 
 # PLY type names (both spellings) -> numpy type codes, without byte order
 PLY_TYPES = {
@@ -183,8 +183,8 @@ def _ascii_element(body: bytes, lines: tuple[np.ndarray, np.ndarray], start: int
         return None
     if (tokens_per_line(begins, line_start[start:stop] - lo, hi - lo) != width).any():
         return None  # a row not on one line of its own
-    columns = [(span, np.dtype(code)) for _, span, code in _column_types(e, k)]
-    integer = np.concatenate([np.full(span, t.kind != "f") for span, t in columns])
+    columns = _column_types(e, k)
+    integer = np.concatenate([np.full(span, np.dtype(code).kind != "f") for _, span, code in columns])
     if not _tokens_fit(block, space, begins, integer, width):
         return None
     # integers only (the faces) read as int64: several times faster than floats
@@ -194,7 +194,7 @@ def _ascii_element(body: bytes, lines: tuple[np.ndarray, np.ndarray], start: int
     table = values.reshape(e.count, width)
     rows = np.empty(e.count, dtype=dtype)
     col = 0
-    for field, span, code in _column_types(e, k):
+    for field, span, code in columns:
         typed = _typed(table[:, col:col + span], np.dtype(code))
         if typed is None:
             return None
@@ -222,12 +222,12 @@ def _tokens_fit(block: np.ndarray, space: np.ndarray, begins: np.ndarray, intege
     column's type: digits and a sign for integer columns (``integer``, one
     flag per column), those plus ``.``, exponents and the letters of nan and
     inf for float columns."""
-    if not (FLOAT_CHARS[block] | space).all():
+    if not plainly_spelled(block, space, integer=False):
         return False
     if not integer.any():
         return True
     if integer.all():
-        return bool((INTEGER_CHARS[block] | space).all())
+        return plainly_spelled(block, space, integer=True)
     ends = np.flatnonzero(~space & np.concatenate((space[1:], [True]))) + 1
     mine = np.tile(integer, len(begins) // width)
     bounds = np.column_stack((begins[mine], ends[mine])).reshape(-1)

@@ -47,6 +47,13 @@ def tokens_per_line(begins: np.ndarray, line_starts: np.ndarray, size: int) -> n
     return np.diff(np.searchsorted(begins, np.append(line_starts, size)))
 
 
+def plainly_spelled(block: np.ndarray, space: np.ndarray, integer: bool) -> bool:
+    """Whether every non-space byte of the block belongs to a plain integer
+    (``integer``: digits and a sign) or float (also a point, exponents, the
+    letters of nan and inf) spelling; ``space`` is :func:`token_begins`' mask."""
+    return bool(((INTEGER_CHARS if integer else FLOAT_CHARS)[block] | space).all())
+
+
 def parse_plain(data: bytes, space: np.ndarray, begins: np.ndarray, integer: bool) -> np.ndarray | None:
     """The whitespace-separated numbers of ``data`` as int64 (``integer``) or
     float64, or None when one does not parse, or an integer token is longer
@@ -83,10 +90,9 @@ def numbers_on_lines(lines: list, integer: bool) -> tuple[np.ndarray, np.ndarray
     """
     data = b"\n".join(lines)
     block = np.frombuffer(data, dtype=np.uint8)
-    chars = INTEGER_CHARS if integer else FLOAT_CHARS
-    if not (chars[block] | SPACE[block]).all():
-        return None
     space, begins = token_begins(block)
+    if not plainly_spelled(block, space, integer):
+        return None
     line_starts = np.concatenate(([0], np.flatnonzero(block == 10) + 1)) if lines else np.zeros(0, dtype=np.int64)
     counts = tokens_per_line(begins, line_starts, len(block))
     values = parse_plain(data, space, begins, integer)
