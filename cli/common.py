@@ -27,7 +27,7 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from pathlib import Path
 from typing import Annotated, TypeVar
 
@@ -40,7 +40,7 @@ from geoproc.errors import GeoprocError, InputError, UsageError
 from geoproc.fileio import read_input_bytes, sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
-from geoproc.report import build_report, evaluate_checks, parse_check
+from geoproc.report import build_report, evaluate_checks, parse_check, require_known_metrics
 from geoproc.report.report import report_json
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
@@ -76,6 +76,18 @@ def _fail(message: str, code: int) -> typer.Exit:
     line = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in message)
     stderr.print(f"error: {line}", markup=False)
     return typer.Exit(code)
+
+
+LOAD_METRICS = ("input_vertices", "input_faces", "triangulated_polygons", "merged_vertices",
+                "removed_unreferenced_vertices")
+"""The metrics of every run that loads a mesh: what was stored in the file and
+what loading changed (:meth:`Run.note_load`)."""
+
+
+def metrics_epilog(names: Sequence[str]) -> str:
+    """The closing paragraph of a subcommand's ``--help``: the metric names ``--check`` accepts."""
+    return ("Metrics for --check and the report (some only with the options that produce them): "
+            + ", ".join(sorted(names)) + ".")
 
 
 class Run:
@@ -161,17 +173,11 @@ class Run:
         return anim
 
     def note_load(self, mesh: Mesh) -> None:
-        """Put the read/clean-up log into the metrics and tell the user on stderr."""
+        """Put the read/clean-up log into the metrics (:data:`LOAD_METRICS`) and tell the user on stderr."""
         log = mesh.log
-        self.metrics.update(
-            {
-                "input_vertices": log.stored_vertices,
-                "input_faces": log.stored_faces,
-                "triangulated_polygons": log.triangulated_polygons,
-                "merged_vertices": log.merged_vertices,
-                "removed_unreferenced_vertices": log.removed_unreferenced,
-            }
-        )
+        counts = (log.stored_vertices, log.stored_faces, log.triangulated_polygons, log.merged_vertices,
+                  log.removed_unreferenced)
+        self.metrics.update(zip(LOAD_METRICS, counts, strict=True))
         notes = []
         if log.triangulated_polygons:
             notes.append(f"triangulated {log.triangulated_polygons} polygons")
@@ -367,6 +373,7 @@ def command_run(
     debug: bool = False,
     outputs: Sequence[str | os.PathLike | None] = (),
     inputs: Sequence[str | os.PathLike | None] = (),
+    metrics: Collection[str] | None = None,
 ) -> Iterator[Run]:
     """Run a subcommand body under the command-line contract (see module doc).
 
@@ -374,7 +381,10 @@ def command_run(
     and ``inputs`` (the input paths) are checked before the body runs: every
     output folder exists, no two outputs share a path, and no output is an
     input. A mistyped output path then fails at once, not after the work;
-    the outputs are checked again when they are written.
+    the outputs are checked again when they are written. ``metrics`` (every
+    metric name the command can report) lets a ``--check`` on any other name
+    fail at once as well; whether this run reports a known name (some need an
+    option, such as a reference) is judged after the body.
 
     Exit codes: 0 success, 1 a --check failed, 2 bad input or usage, 3 an
     internal error (a bug; --debug shows the traceback).
@@ -382,6 +392,8 @@ def command_run(
     run = Run(command, dict(params), quiet)
     try:
         parsed = [parse_check(c) for c in (checks or [])]
+        if metrics is not None:
+            require_known_metrics(parsed, metrics, command)
         _require_finite_options(params)
         if report is not None:
             require_extension(report, ".json", "--report", stdout_ok=True)

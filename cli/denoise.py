@@ -16,15 +16,37 @@ from geoproc.mesh import Mesh, load_mesh
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import outlier_flags
 from geoproc_cli.common import (
+    LOAD_METRICS,
     CheckOpt,
     DebugOpt,
     NoCleanOpt,
     QuietOpt,
     ReportOpt,
     command_run,
+    metrics_epilog,
     options_given,
     refuse_options,
 )
+
+METRICS = LOAD_METRICS + (
+    # meshes: sizes, the noise and shape estimates, the parameters used, the repairs
+    "vertices", "faces", "feature_faces", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
+    "dihedral_tail_ratio", "reoriented_faces", "guidance_mix", "outer_iterations", "normal_iterations",
+    "vertex_iterations", "fidelity", "sigma_r", "sigma_s", "sigma_s_length", "unfold_rounds", "folded_faces",
+    "crease_bisected_faces", "input_side_faces", "rpca_sparse_faces",
+    # feature detection
+    "feature_method", "feature_angle_deg", "feature_lambda", "feature_tau", "feature_vertices",
+    "feature_admm_iterations",
+    # --reference
+    "mean_normal_angle_deg", "max_normal_angle_deg", "flipped_faces", "hausdorff", "vertex_rmse",
+    "input_mean_normal_angle_deg", "input_flipped_faces", "new_flipped_faces",
+    # --outliers (clouds and moving clouds); precision, recall and f1 need an 'outlier' property
+    "points", "detected_outliers", "threshold", "true_outliers", "precision", "recall", "f1",
+    "mean_refinement_shift", "motion_basis",
+    # --dynamic
+    "frames", "coherence", "rpca_iterations", "rpca_converged", "low_rank", "turn_limited_vertices",
+)
+"""Every metric ``denoise`` can report (which ones a run reports depends on its mode and options)."""
 
 
 def denoise(
@@ -127,7 +149,7 @@ def denoise(
               "coherence": coherence_used,
               "clean": not no_clean}
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output], inputs=[input, reference]) as run:
+                     outputs=[output], inputs=[input, reference], metrics=METRICS) as run:
         if method not in METHODS:
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:
@@ -362,4 +384,4 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
 
 def register(app: typer.Typer) -> None:
     """Add ``denoise`` to the application."""
-    app.command("denoise")(denoise)
+    app.command("denoise", epilog=metrics_epilog(METRICS))(denoise)

@@ -11,14 +11,24 @@ from rich.table import Table
 from geoproc.mesh import mesh_info
 from geoproc.report import json_safe
 from geoproc_cli.common import (
+    LOAD_METRICS,
     CheckOpt,
     DebugOpt,
     NoCleanOpt,
     QuietOpt,
     ReportOpt,
     command_run,
+    metrics_epilog,
     stdout,
 )
+
+METRICS = LOAD_METRICS + (
+    "vertices", "faces", "point_cloud", "duplicate_vertices", "bbox_diagonal", "edges", "components",
+    "boundary_edges", "boundary_loops", "euler_characteristic", "genus", "closed", "edge_manifold",
+    "vertex_manifold", "orientable", "consistently_oriented", "nonmanifold_edges", "nonmanifold_vertices",
+    "degenerate_faces", "unreferenced_vertices", "mean_edge_length",
+)
+"""Every metric ``info`` reports (the scalar entries of :func:`geoproc.mesh.mesh_info`)."""
 
 
 def info(
@@ -43,7 +53,7 @@ def info(
     """
     params = {"mesh": mesh, "clean": not no_clean}
     with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     inputs=[mesh]) as run:
+                     inputs=[mesh], metrics=METRICS) as run:
         m = run.load_mesh(mesh, clean=not no_clean)
         with run.timer("compute"):
             summary = mesh_info(m)
@@ -76,4 +86,4 @@ def _table(name: str, s: dict) -> Table:
 
 def register(app: typer.Typer) -> None:
     """Add ``info`` to the application."""
-    app.command("info")(info)
+    app.command("info", epilog=metrics_epilog(METRICS))(info)

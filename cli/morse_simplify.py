@@ -17,15 +17,24 @@ from geoproc.mesh import Mesh
 from geoproc.mesh.validate import require_manifold, require_triangle_mesh
 from geoproc.report import json_safe
 from geoproc_cli.common import (
+    LOAD_METRICS,
     CheckOpt,
     DebugOpt,
     NoCleanOpt,
     QuietOpt,
     ReportOpt,
     command_run,
+    metrics_epilog,
     refuse_options,
     require_extension,
 )
+
+METRICS = LOAD_METRICS + (
+    "vertices", "faces", "minima_before", "saddles_before", "maxima_before", "minima_after", "saddles_after",
+    "maxima_after", "euler_characteristic", "betti_0", "betti_1", "betti_2", "pairs_removed", "pairs_kept",
+    "max_abs_change", "threshold", "vertices_beyond_half_threshold", "subdivision_vertices",
+)
+"""Every metric ``morse-simplify`` can report (``subdivision_vertices`` with --barycentric)."""
 
 
 def morse_simplify(
@@ -106,7 +115,7 @@ def morse_simplify(
     npy_path = field if field.lower().endswith(".npy") else None  # a field read from a file
     with command_run("morse-simplify", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, critical, diagram],
-                     inputs=[mesh, npy_path]) as run:
+                     inputs=[mesh, npy_path], metrics=METRICS) as run:
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
         from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field
@@ -228,4 +237,4 @@ def morse_simplify(
 
 def register(app: typer.Typer) -> None:
     """Add ``morse-simplify`` to the application."""
-    app.command("morse-simplify")(morse_simplify)
+    app.command("morse-simplify", epilog=metrics_epilog(METRICS))(morse_simplify)

@@ -12,14 +12,21 @@ from geoproc.errors import InputError, UsageError
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import NoiseSpec, noise_scale, outlier_flags, perturb_positions
 from geoproc_cli.common import (
+    LOAD_METRICS,
     CheckOpt,
     DebugOpt,
     NoCleanOpt,
     QuietOpt,
     ReportOpt,
     command_run,
+    metrics_epilog,
     refuse_options,
 )
+
+METRICS = LOAD_METRICS + (
+    "vertices", "faces", "frames", "noise_scale", "rms_displacement", "outlier_vertices",
+)
+"""Every metric ``perturb`` can report (``frames`` for animations)."""
 
 
 def perturb(
@@ -60,7 +67,7 @@ def perturb(
     params = {"input": input, "noise": noise, "direction": direction, "impulsive": impulsive,
               "outliers": outliers, "outlier_range": outlier_range, "seed": seed, "clean": not no_clean}
     with command_run("perturb", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output], inputs=[input]) as run:
+                     outputs=[output], inputs=[input], metrics=METRICS) as run:
         if noise < 0:
             raise UsageError(f"--noise {noise}: must be >= 0")
         if direction not in ("normal", "random"):
@@ -142,7 +149,7 @@ def _merged_flags(new: np.ndarray, fields: dict, shape: tuple, path: str, added:
 
 def register(app: typer.Typer) -> None:
     """Add ``perturb`` to the application."""
-    app.command("perturb")(perturb)
+    app.command("perturb", epilog=metrics_epilog(METRICS))(perturb)
 
 
 def _note_fractions_of_none(run, n: int, impulsive: float, outliers: float) -> None:

@@ -16,9 +16,21 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    metrics_epilog,
     refuse_options,
     require_extension,
 )
+
+METRICS = (
+    "segments", "loops", "neumann_segments", "domain_area", "grid_width", "grid_height", "grid_points_inside",
+    "pixel_size", "walks", "kernels_used", "fit_points", "fit_walks", "fit_seconds", "fit_steps",
+    "refine_seconds", "refine_steps", "refine_iterations", "residual_seconds", "residual_steps", "total_walks",
+    "total_steps", "steps_per_second", "residual_steps_per_second", "mean_steps_per_walk",
+    "mean_standard_error",
+    # --exact
+    "rmse", "max_abs_error", "bias", "error_points",
+)
+"""Every metric ``wos-solve`` can report (which ones a run reports depends on its method and options)."""
 
 
 class Method(StrEnum):
@@ -95,7 +107,7 @@ def wos_solve(
               "fit_walks": fit_walks if fitted else None, "fit_points": fit_points if fitted else None,
               "ridge": ridge if fitted else None, "seed": seed, "exact": exact}
     with command_run("wos-solve", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output, image, error_image], inputs=[domain]) as run:
+                     outputs=[output, image, error_image], inputs=[domain], metrics=METRICS) as run:
         from geoproc.wos import load_domain, parse_expression, solve_laplace
         from geoproc.wos.images import exr_bytes, png_bytes
 
@@ -144,4 +156,4 @@ def wos_solve(
 
 def register(app: typer.Typer) -> None:
     """Add ``wos-solve`` to the application."""
-    app.command("wos-solve")(wos_solve)
+    app.command("wos-solve", epilog=metrics_epilog(METRICS))(wos_solve)

@@ -1,6 +1,6 @@
 """Metric reports (``--report``) and metric gates (``--check``)."""
 
-from geoproc.report.checks import Check, evaluate_checks, parse_check
+from geoproc.report.checks import Check, evaluate_checks, parse_check, require_known_metrics
 from geoproc.report.report import build_report, json_safe, report_schema, validate_report
 
 __all__ = [
@@ -10,5 +10,6 @@ __all__ = [
     "json_safe",
     "parse_check",
     "report_schema",
+    "require_known_metrics",
     "validate_report",
 ]

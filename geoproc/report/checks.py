@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 import operator
 import re
+from collections.abc import Collection
 from dataclasses import dataclass
 
 from geoproc.errors import UsageError
@@ -42,6 +44,33 @@ def parse_check(text: str) -> Check:
     return Check(name, op, float(raw), text.strip())
 
 
+def require_known_metrics(checks: list[Check], names: Collection[str], command: str) -> None:
+    """Refuse a check on a metric that ``command`` never reports, before any work is done.
+
+    Parameters
+    ----------
+    checks : list of Check
+    names : collection of str
+        Every metric name the command can report (which of them a run reports
+        depends on its options: :func:`evaluate_checks` judges that afterwards).
+    command : str
+        The subcommand, for the message.
+
+    Raises
+    ------
+    UsageError
+        Naming the first unknown metric, the closest known name when one is
+        close, and the command's metric names.
+    """
+    for c in checks:
+        if c.metric in names:
+            continue
+        close = difflib.get_close_matches(c.metric, list(names), n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        raise UsageError(f"--check '{c.text}': {command} reports no metric '{c.metric}'{hint}; "
+                         f"its metrics: {', '.join(sorted(names))}")
+
+
 def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     """Compare every check with ``metrics``.
 
@@ -58,14 +87,17 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     Raises
     ------
     UsageError
-        A check names a metric the command does not report (listing the names),
+        A check names a metric this run did not report (listing the names it did;
+        a name the command never reports is refused before the run, by
+        :func:`require_known_metrics`),
         or a metric that is text. A metric that is None, NaN or infinite (not
         measured; null in the report) fails its check.
     """
     unknown = [c.metric for c in checks if c.metric not in metrics]
     if unknown:
         names = ", ".join(sorted(k for k, v in metrics.items() if not isinstance(v, str)))
-        raise UsageError(f"--check: unknown metric '{unknown[0]}'; this run reports: {names}")
+        raise UsageError(f"--check: unknown metric '{unknown[0]}': not reported by this run (the command's "
+                         f"other options may report it); this run reports: {names}")
     text = [c for c in checks if isinstance(metrics[c.metric], str)]
     if text:
         raise UsageError(f"--check '{text[0].text}': metric '{text[0].metric}' is not a number "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import importlib
 import json
 import os
 import stat
@@ -15,7 +16,7 @@ from typer.testing import CliRunner
 from geoproc.errors import InputError
 from geoproc.mesh import Mesh, load_mesh, read_mesh_bytes
 from geoproc.report import validate_report
-from geoproc_cli.common import CheckOpt, ReportOpt, command_run
+from geoproc_cli.common import CheckOpt, ReportOpt, command_run, metrics_epilog
 from geoproc_cli.main import app
 
 BAD_INPUTS = [
@@ -91,10 +92,36 @@ def test_checks_gate_the_exit_code(cli, fixture_dir, tmp_path):
 def test_unknown_metric_and_malformed_check_are_usage_errors(cli, fixture_dir, tmp_path):
     report = tmp_path / "r.json"
     p = cli("info", fixture_dir / "torus.ply", "--check", "nonsense<1", "--report", report)
-    assert p.returncode == 2 and "unknown metric 'nonsense'" in p.stderr
+    assert p.returncode == 2 and "info reports no metric 'nonsense'" in p.stderr
     assert not report.exists()
+    # a metric only another option reports (rmse needs --reference): judged after the run, nothing written
+    out = tmp_path / "g.ply"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--check", "rmse<1", "--report", report)
+    assert p.returncode == 2 and "unknown metric 'rmse': not reported by this run" in p.stderr, p.stderr
+    assert "mean_distance" in p.stderr and not out.exists() and not report.exists()
     p = cli("info", fixture_dir / "torus.ply", "--check", "genus=1")
     assert p.returncode == 2 and "--check 'genus=1'" in p.stderr
+
+
+@pytest.mark.parametrize(("command", "args", "typo", "closest"), [
+    ("info", [], "genuss==1", "genus"),
+    ("geodesic", ["-s", "0", "-o", "o.ply"], "rmsee<=0.1", "rmse"),
+    ("denoise", ["-o", "o.ply"], "mean_normal_angle<=2", "mean_normal_angle_deg"),
+    ("perturb", ["--seed", "1", "-o", "o.ply"], "rms_displacemnt<1", "rms_displacement"),
+    ("morse-simplify", ["-f", "z", "-p", "0.1", "-o", "o.ply"], "minima==1", "minima_after"),
+    ("wos-solve", ["--boundary", "x", "-o", "u.exr"], "rmse_<0.1", "rmse"),
+])
+def test_a_metric_the_command_never_reports_is_refused_before_the_input_is_read(cli, tmp_path, command, args,
+                                                                                  typo, closest):
+    # the input does not exist: the check is judged first, so a batch job fails at once, not after the work
+    missing = tmp_path / ("missing.json" if command == "wos-solve" else "missing.ply")
+    p = cli(command, missing, *args, "--check", typo, "--report", tmp_path / "r.json", cwd=tmp_path)
+    name = typo.split("<")[0].split("=")[0]
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.startswith(f"error: --check '{typo}': {command} reports no metric '{name}' "
+                               f"(did you mean '{closest}'?); its metrics: "), p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "missing" not in p.stderr
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_report_and_critical_need_json_names(cli, fixture_dir, tmp_path):
@@ -151,6 +178,9 @@ def test_every_option_of_every_command_has_help():
                 assert param.help and len(param.help) > 10, f"{name} {param.opts}"
         result = CliRunner().invoke(app, [name, "--help"])
         assert result.exit_code == 0, name
+        # the closing paragraph lists the metric names --check accepts
+        module = importlib.import_module(f"geoproc_cli.{name.replace('-', '_')}")
+        assert command.epilog == metrics_epilog(module.METRICS), name
 
 
 # ---- the harness itself, on a small command that writes a mesh -------------
@@ -295,7 +325,7 @@ def test_stdout_failures_same_paths_and_early_stdout_leave_nothing(fixture_dir, 
           "--report", tmp_path / "s.json"], "two outputs"),
         (["wos-solve", domain, "--boundary", "x", "-o", tmp_path / "u.exr", "--report", domain], "is also an input"),
         (["perturb", fixture_dir / "points.ply", "--seed", "1", "-o", tmp_path / "p.obj"], "written as .ply only"),
-        (["info", mesh, "--json", "--check", "nosuch<=1"], "unknown metric"),
+        (["info", mesh, "--json", "--check", "nosuch<=1"], "reports no metric 'nosuch'"),
     ):
         p = subprocess.run(base + args, capture_output=True, text=True)
         assert p.returncode == 2 and p.stdout == "" and message in p.stderr, (args, p.stderr)

@@ -80,6 +80,19 @@ def test_unknown_metric_is_a_usage_error_listing_names():
         evaluate_checks([parse_check("nope<1")], {"rmse": 0.1})
 
 
+def test_known_metrics_pass_and_a_typo_names_the_closest():
+    from geoproc.report import require_known_metrics
+
+    names = ("rmse", "mae", "vertices")
+    require_known_metrics([parse_check("rmse<=1"), parse_check("vertices>0")], names, "geodesic")
+    with pytest.raises(UsageError, match=r"^--check 'rmsee<=1': geodesic reports no metric 'rmsee' "
+                                         r"\(did you mean 'rmse'\?\); its metrics: mae, rmse, vertices$"):
+        require_known_metrics([parse_check("rmse<=1"), parse_check("rmsee<=1")], names, "geodesic")
+    with pytest.raises(UsageError) as exc:
+        require_known_metrics([parse_check("genus==0")], names, "geodesic")
+    assert "did you mean" not in str(exc.value)
+
+
 def test_check_failures_show_every_digit_and_name_nulls():
     from geoproc.report import evaluate_checks, parse_check
 

@@ -1,0 +1,66 @@
+"""Every metric the library hands a subcommand is among the names the
+subcommand declares (its ``METRICS``), on the paths the command-line tests do
+not all take: every denoise method and feature rule, both dynamic
+coherences, every geodesic method and every wos-solve method."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from geoproc.denoise import denoise_mesh
+from geoproc.denoise.dynamic import denoise_animation
+from geoproc.denoise.mesh_denoise import DenoiseParams
+from geoproc.denoise.metrics import reference_metrics
+from geoproc.denoise.outliers import detection_scores
+from geoproc.geodesic.compare import compare_to_reference
+from geoproc.geodesic.distance import METHODS as GEODESIC_METHODS
+from geoproc.geodesic.distance import geodesic_distance
+from geoproc.wos.domain import build_domain
+from geoproc.wos.expression import parse_expression
+from geoproc.wos.solve import METHODS as WOS_METHODS
+from geoproc.wos.solve import solve_laplace
+from geoproc_cli import denoise, geodesic, wos_solve
+from tests.conftest import load_fixture_module
+
+
+def _scalars(d: dict) -> set[str]:
+    return {k for k, v in d.items() if np.isscalar(v) or v is None}
+
+
+@pytest.mark.parametrize("method", ["bilateral", "guided", "rpca"])
+@pytest.mark.parametrize("features", ["dihedral", "l1"])
+def test_denoise_mesh_metrics_are_declared(method, features):
+    Vn, F, V = load_fixture_module("denoise_fixtures").noisy_cube(n=4, sigma=0.3, seed=0)
+    res = denoise_mesh(Vn, F, method, DenoiseParams(features=features))
+    names = _scalars(res.info) | set(reference_metrics(res.V, Vn, F, V)) | set(detection_scores(
+        np.array([True, False]), np.array([True, True])))
+    assert names - set(denoise.METRICS) == set()
+
+
+@pytest.mark.parametrize("coherence", ["heights", "normals"])
+def test_denoise_dynamic_metrics_are_declared(coherence):
+    Vn, F, _ = load_fixture_module("denoise_fixtures").noisy_cube(n=3, sigma=0.3, seed=0)
+    frames = np.stack([Vn * (1 + 0.01 * t) for t in range(3)])
+    _, info = denoise_animation(frames, F, coherence=coherence)
+    assert _scalars(info) - set(denoise.METRICS) == set()
+
+
+@pytest.mark.parametrize("method", GEODESIC_METHODS)
+def test_geodesic_metrics_are_declared(method):
+    if method == "log-splitting" and importlib.util.find_spec("cvxpy") is None:
+        pytest.skip("log-splitting needs cvxpy (the test extra)")
+    V, F = load_fixture_module().icosphere(1)
+    res = geodesic_distance(V, F, [0], method, steps=1)
+    names = _scalars(res.stats) | set(compare_to_reference(res.distance, res.distance))
+    assert names - set(geodesic.METRICS) == set()
+
+
+@pytest.mark.parametrize("method", WOS_METHODS)
+def test_wos_metrics_are_declared(method):
+    square = build_domain([[[0, 0], [1, 0], [1, 1], [0, 1]]])
+    res = solve_laplace(square, parse_expression("x"), method=method, walks=2, grid=6, kernels=4, fit_walks=2,
+                        npass_steps=2, npass_batch=2, npass_walks=2, exact=True)
+    assert set(res.metrics) - set(wos_solve.METRICS) == set()
