@@ -27,7 +27,7 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Callable, Collection, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, TypeVar
 
@@ -374,6 +374,7 @@ def command_run(
     outputs: Sequence[str | os.PathLike | None] = (),
     inputs: Sequence[str | os.PathLike | None] = (),
     metrics: Collection[str] | None = None,
+    needs: Mapping[str, Collection[str]] | None = None,
 ) -> Iterator[Run]:
     """Run a subcommand body under the command-line contract (see module doc).
 
@@ -383,8 +384,9 @@ def command_run(
     input. A mistyped output path then fails at once, not after the work;
     the outputs are checked again when they are written. ``metrics`` (every
     metric name the command can report) lets a ``--check`` on any other name
-    fail at once as well; whether this run reports a known name (some need an
-    option, such as a reference) is judged after the body.
+    fail at once as well, and so does ``needs`` (for each option not given,
+    such as ``--reference``, the metrics only it reports); whether this run
+    reports the rest is judged after the body.
 
     Exit codes: 0 success, 1 a --check failed, 2 bad input or usage, 3 an
     internal error (a bug; --debug shows the traceback).
@@ -393,7 +395,7 @@ def command_run(
     try:
         parsed = [parse_check(c) for c in (checks or [])]
         if metrics is not None:
-            require_known_metrics(parsed, metrics, command)
+            require_known_metrics(parsed, metrics, command, needs)
         _require_finite_options(params)
         if report is not None:
             require_extension(report, ".json", "--report", stdout_ok=True)

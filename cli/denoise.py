@@ -28,7 +28,13 @@ from geoproc_cli.common import (
     refuse_options,
 )
 
-METRICS = LOAD_METRICS + (
+REFERENCE_METRICS = (
+    "mean_normal_angle_deg", "max_normal_angle_deg", "flipped_faces", "hausdorff", "vertex_rmse",
+    "input_mean_normal_angle_deg", "input_flipped_faces", "new_flipped_faces",
+)
+"""The errors against the clean mesh or animation, reported only with ``--reference``."""
+
+METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     # meshes: sizes, the noise and shape estimates, the parameters used, the repairs
     "vertices", "faces", "feature_faces", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
     "dihedral_tail_ratio", "reoriented_faces", "guidance_mix", "outer_iterations", "normal_iterations",
@@ -37,9 +43,6 @@ METRICS = LOAD_METRICS + (
     # feature detection
     "feature_method", "feature_angle_deg", "feature_lambda", "feature_tau", "feature_vertices",
     "feature_admm_iterations",
-    # --reference
-    "mean_normal_angle_deg", "max_normal_angle_deg", "flipped_faces", "hausdorff", "vertex_rmse",
-    "input_mean_normal_angle_deg", "input_flipped_faces", "new_flipped_faces",
     # --outliers (clouds and moving clouds); precision, recall and f1 need an 'outlier' property
     "points", "detected_outliers", "threshold", "true_outliers", "precision", "recall", "f1",
     "mean_refinement_shift", "motion_basis",
@@ -149,7 +152,8 @@ def denoise(
               "coherence": coherence_used,
               "clean": not no_clean}
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output], inputs=[input, reference], metrics=METRICS) as run:
+                     outputs=[output], inputs=[input, reference], metrics=METRICS,
+                     needs={"--reference": REFERENCE_METRICS} if reference is None and not outliers else None) as run:
         if method not in METHODS:
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:

@@ -30,14 +30,15 @@ from geoproc_cli.common import (
 Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
 
 
-METRICS = LOAD_METRICS + (
+REFERENCE_METRICS = ("compared_vertices", "nonfinite_vertices", "pearson_r", "rmse", "mae", "mean_relative_error",
+                     "max_relative_error")
+"""The comparison with exact geodesics, reported only with ``--reference``."""
+
+METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "method", "vertices", "faces", "sources", "mean_edge_length", "t", "t_over_h2", "steps",
     "reachable_vertices", "unreachable_vertices", "nonfinite_distance_vertices", "max_distance", "mean_distance",
     "negative_distance_vertices", "operators", "zero_heat_vertices", "negative_heat_vertices",
     "solver_inaccurate_steps", "iterations", "min_log_heat", "log_heat_below_double", "nonfinite_log_heat",
-    # --reference (exact geodesics)
-    "compared_vertices", "nonfinite_vertices", "pearson_r", "rmse", "mae", "mean_relative_error",
-    "max_relative_error",
 )
 """Every metric ``geodesic`` can report (which ones a run reports depends on its method and options)."""
 
@@ -148,7 +149,8 @@ def geodesic(
         "field_name": field_name, "render": render, "clean": not no_clean,
     }
     with command_run("geodesic", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output, render], inputs=[mesh, sources_file], metrics=METRICS) as run:
+                     outputs=[output, render], inputs=[mesh, sources_file], metrics=METRICS,
+                     needs={"--reference": REFERENCE_METRICS} if reference is None else None) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
         if output != "-" and not output.lower().endswith(".ply"):

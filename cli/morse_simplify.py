@@ -115,7 +115,8 @@ def morse_simplify(
     npy_path = field if field.lower().endswith(".npy") else None  # a field read from a file
     with command_run("morse-simplify", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, critical, diagram],
-                     inputs=[mesh, npy_path], metrics=METRICS) as run:
+                     inputs=[mesh, npy_path], metrics=METRICS,
+                     needs=None if barycentric else {"--barycentric": ("subdivision_vertices",)}) as run:
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
         from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field

@@ -21,14 +21,15 @@ from geoproc_cli.common import (
     require_extension,
 )
 
-METRICS = (
+EXACT_METRICS = ("rmse", "max_abs_error", "bias", "error_points")
+"""The errors against the boundary function as the exact solution, reported only with ``--exact``."""
+
+METRICS = EXACT_METRICS + (
     "segments", "loops", "neumann_segments", "domain_area", "grid_width", "grid_height", "grid_points_inside",
     "pixel_size", "walks", "kernels_used", "fit_points", "fit_walks", "fit_seconds", "fit_steps",
     "refine_seconds", "refine_steps", "refine_iterations", "residual_seconds", "residual_steps", "total_walks",
     "total_steps", "steps_per_second", "residual_steps_per_second", "mean_steps_per_walk",
     "mean_standard_error",
-    # --exact
-    "rmse", "max_abs_error", "bias", "error_points",
 )
 """Every metric ``wos-solve`` can report (which ones a run reports depends on its method and options)."""
 
@@ -107,7 +108,8 @@ def wos_solve(
               "fit_walks": fit_walks if fitted else None, "fit_points": fit_points if fitted else None,
               "ridge": ridge if fitted else None, "seed": seed, "exact": exact}
     with command_run("wos-solve", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output, image, error_image], inputs=[domain], metrics=METRICS) as run:
+                     outputs=[output, image, error_image], inputs=[domain], metrics=METRICS,
+                     needs=None if exact else {"--exact": EXACT_METRICS}) as run:
         from geoproc.wos import load_domain, parse_expression, solve_laplace
         from geoproc.wos.images import exr_bytes, png_bytes
 

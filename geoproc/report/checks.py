@@ -6,7 +6,7 @@ import difflib
 import math
 import operator
 import re
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 from geoproc.errors import UsageError
@@ -44,25 +44,32 @@ def parse_check(text: str) -> Check:
     return Check(name, op, float(raw), text.strip())
 
 
-def require_known_metrics(checks: list[Check], names: Collection[str], command: str) -> None:
-    """Refuse a check on a metric that ``command`` never reports, before any work is done.
+def require_known_metrics(checks: list[Check], names: Collection[str], command: str,
+                          needs: Mapping[str, Collection[str]] | None = None) -> None:
+    """Refuse a check on a metric that ``command`` never reports, or will not
+    report without an option that was not given, before any work is done.
 
     Parameters
     ----------
     checks : list of Check
     names : collection of str
         Every metric name the command can report (which of them a run reports
-        depends on its options: :func:`evaluate_checks` judges that afterwards).
+        depends on its options: :func:`evaluate_checks` judges what is left afterwards).
     command : str
         The subcommand, for the message.
+    needs : mapping of str to collection of str, optional
+        For each option not given (e.g. ``"--reference"``), the metrics only it reports.
 
     Raises
     ------
     UsageError
         Naming the first unknown metric, the closest known name when one is
-        close, and the command's metric names.
+        close, and the command's metric names; or the option a metric needs.
     """
     for c in checks:
+        option = next((o for o, gated in (needs or {}).items() if c.metric in gated), None)
+        if option is not None:
+            raise UsageError(f"--check '{c.text}': {command} reports '{c.metric}' only with {option}")
         if c.metric in names:
             continue
         close = difflib.get_close_matches(c.metric, list(names), n=1)

@@ -94,10 +94,13 @@ def test_unknown_metric_and_malformed_check_are_usage_errors(cli, fixture_dir, t
     p = cli("info", fixture_dir / "torus.ply", "--check", "nonsense<1", "--report", report)
     assert p.returncode == 2 and "info reports no metric 'nonsense'" in p.stderr
     assert not report.exists()
-    # a metric only another option reports (rmse needs --reference): judged after the run, nothing written
+    # a metric only an option not given reports: refused before the run as well
     out = tmp_path / "g.ply"
-    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--check", "rmse<1", "--report", report)
-    assert p.returncode == 2 and "unknown metric 'rmse': not reported by this run" in p.stderr, p.stderr
+    p = cli("geodesic", tmp_path / "missing.ply", "-s", "0", "-o", out, "--check", "rmse<1")
+    assert p.returncode == 2 and p.stderr == "error: --check 'rmse<1': geodesic reports 'rmse' only with --reference\n"
+    # one that depends on the method (iterations: log-ode only) is judged after the run, and nothing is written
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--check", "iterations<9", "--report", report)
+    assert p.returncode == 2 and "unknown metric 'iterations': not reported by this run" in p.stderr, p.stderr
     assert "mean_distance" in p.stderr and not out.exists() and not report.exists()
     p = cli("info", fixture_dir / "torus.ply", "--check", "genus=1")
     assert p.returncode == 2 and "--check 'genus=1'" in p.stderr
@@ -121,6 +124,21 @@ def test_a_metric_the_command_never_reports_is_refused_before_the_input_is_read(
     assert p.stderr.startswith(f"error: --check '{typo}': {command} reports no metric '{name}' "
                                f"(did you mean '{closest}'?); its metrics: "), p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and "missing" not in p.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("command", "args", "check", "option"), [
+    ("denoise", ["-o", "o.ply"], "new_flipped_faces==0", "--reference"),
+    ("wos-solve", ["--boundary", "x", "-o", "u.exr"], "rmse<0.1", "--exact"),
+    ("morse-simplify", ["-f", "z", "-p", "0.1", "-o", "o.ply"], "subdivision_vertices>0", "--barycentric"),
+])
+def test_a_metric_that_needs_an_option_not_given_is_refused_before_the_input_is_read(cli, tmp_path, command, args,
+                                                                                      check, option):
+    missing = tmp_path / ("missing.json" if command == "wos-solve" else "missing.ply")
+    p = cli(command, missing, *args, "--check", check, cwd=tmp_path)
+    name = check.split("<")[0].split("=")[0].split(">")[0]
+    assert p.returncode == 2
+    assert p.stderr == f"error: --check '{check}': {command} reports '{name}' only with {option}\n"
     assert list(tmp_path.iterdir()) == []
 
 

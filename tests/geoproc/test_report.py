@@ -91,6 +91,10 @@ def test_known_metrics_pass_and_a_typo_names_the_closest():
     with pytest.raises(UsageError) as exc:
         require_known_metrics([parse_check("genus==0")], names, "geodesic")
     assert "did you mean" not in str(exc.value)
+    needs = {"--reference": ("rmse", "mae")}
+    require_known_metrics([parse_check("vertices>0")], names, "geodesic", needs)
+    with pytest.raises(UsageError, match=r"^--check 'mae<1': geodesic reports 'mae' only with --reference$"):
+        require_known_metrics([parse_check("vertices>0"), parse_check("mae<1")], names, "geodesic", needs)
 
 
 def test_check_failures_show_every_digit_and_name_nulls():
