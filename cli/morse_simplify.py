@@ -29,10 +29,13 @@ from geoproc_cli.common import (
     require_extension,
 )
 
-METRICS = LOAD_METRICS + (
+BARYCENTRIC_METRICS = ("subdivision_vertices",)
+"""Reported only with ``--barycentric``."""
+
+METRICS = LOAD_METRICS + BARYCENTRIC_METRICS + (
     "vertices", "faces", "minima_before", "saddles_before", "maxima_before", "minima_after", "saddles_after",
     "maxima_after", "euler_characteristic", "betti_0", "betti_1", "betti_2", "pairs_removed", "pairs_kept",
-    "max_abs_change", "threshold", "vertices_beyond_half_threshold", "subdivision_vertices",
+    "max_abs_change", "threshold", "vertices_beyond_half_threshold",
 )
 """Every metric ``morse-simplify`` can report (``subdivision_vertices`` with --barycentric)."""
 
@@ -116,7 +119,7 @@ def morse_simplify(
     with command_run("morse-simplify", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, critical, diagram],
                      inputs=[mesh, npy_path], metrics=METRICS,
-                     needs=None if barycentric else {"--barycentric": ("subdivision_vertices",)}) as run:
+                     needs=None if barycentric else {"--barycentric": BARYCENTRIC_METRICS}) as run:
         # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
         from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field
