@@ -17,7 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geoproc.mesh.text_numbers import INTEGER_CHARS, parse_plain, plainly_spelled, token_begins, tokens_per_line
+from geoproc.mesh.text_numbers import (
+    INTEGER_CHARS,
+    parse_plain,
+    plainly_spelled,
+    token_begins,
+    token_ends,
+    tokens_per_line,
+)
 
 # PLY type names (both spellings) -> numpy type codes, without byte order
 PLY_TYPES = {
@@ -99,15 +106,10 @@ def parse_ply_header(data: bytes) -> tuple[str, list[PlyElementHeader], int] | N
 
 
 def _row_dtype(e: PlyElementHeader, order: str, k: int) -> np.dtype:
-    """Structured dtype of one row of ``e`` with its list ``k`` items long."""
-    fields = []
-    for name, code in e.scalars:
-        if name is None:
-            fields.append(("\nlen", order + e.list_types[0]))
-            fields.append((e.list_name, order + e.list_types[1], (k,)))
-        else:
-            fields.append((name, order + code))
-    return np.dtype(fields)
+    """Structured dtype of one row of ``e`` with its list ``k`` items long
+    (the list a (k,) sub-array after its count field ``"\nlen"``)."""
+    return np.dtype([(field, order + code, (span,)) if field == e.list_name else (field, order + code)
+                     for field, span, code in _column_types(e, k)])
 
 
 def _binary_element(data: bytes, offset: int, e: PlyElementHeader, order: str):
@@ -228,7 +230,7 @@ def _tokens_fit(block: np.ndarray, space: np.ndarray, begins: np.ndarray, intege
         return True
     if integer.all():
         return plainly_spelled(block, space, integer=True)
-    ends = np.flatnonzero(~space & np.concatenate((space[1:], [True]))) + 1
+    ends = token_ends(space)
     mine = np.tile(integer, len(begins) // width)
     bounds = np.column_stack((begins[mine], ends[mine])).reshape(-1)
     other = np.append(~INTEGER_CHARS[block], False)  # one more byte: the last token may end the block

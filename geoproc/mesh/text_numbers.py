@@ -41,6 +41,12 @@ def token_begins(block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return space, begins
 
 
+def token_ends(space: np.ndarray) -> np.ndarray:
+    """(t,) int64 offsets just past the last byte of every token, ``space``
+    being :func:`token_begins`' separator mask of the block."""
+    return np.flatnonzero(~space & np.append(space[1:], True)) + 1
+
+
 def tokens_per_line(begins: np.ndarray, line_starts: np.ndarray, size: int) -> np.ndarray:
     """(l,) int64 tokens on each line, the lines starting at ``line_starts``
     (increasing byte offsets into a block of ``size`` bytes, the first 0)."""
@@ -61,8 +67,7 @@ def parse_plain(data: bytes, space: np.ndarray, begins: np.ndarray, integer: boo
     saturates). ``space`` and ``begins`` are :func:`token_begins` of ``data``;
     the characters must have been checked."""
     if integer and len(begins):
-        ends = np.flatnonzero(~space & np.append(space[1:], True)) + 1
-        if (ends - begins).max() > 18:
+        if (token_ends(space) - begins).max() > 18:
             return None
     try:
         with warnings.catch_warnings():  # numpy before 2.3 warns (and stops) where later ones raise
