@@ -140,7 +140,7 @@ def denoise(
     Examples: geoproc denoise noisy.ply -o clean.ply --reference original.ply --report r.json;
     geoproc denoise cloud.ply --outliers -o inliers.ply
     """
-    from geoproc.denoise.mesh_denoise import DenoiseParams
+    from geoproc.denoise.params import DenoiseParams
 
     coherence_used = coherence if coherence is not None or not dynamic else COHERENCE[0]
     params = {"input": input, "method": method, "reference": reference, "rounds": rounds,
@@ -219,10 +219,6 @@ def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynam
 
 
 def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str]) -> None:
-    from geoproc.denoise.mesh_denoise import denoise_mesh
-    from geoproc.denoise.metrics import reference_metrics
-    from geoproc.denoise.validate import reference_in_input_order
-
     run.one_stdin(input, reference)
     if input != "-" and is_animation_path(input):
         raise UsageError(f"{input}: an animation; --dynamic denoises it, --outliers finds its outlying points")
@@ -231,6 +227,11 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     if mesh.is_point_cloud:
         raise InputError(path, "is a point cloud (no faces); use --outliers for point clouds")
     require_triangle_mesh(mesh)  # the edge check is denoise_mesh's own, its error named below
+    # the filters (scipy, the compiled kernels) load once the input is read
+    from geoproc.denoise.mesh_denoise import denoise_mesh
+    from geoproc.denoise.metrics import reference_metrics
+    from geoproc.denoise.validate import reference_in_input_order
+
     ref_V = None
     if reference is not None:
         ref = run.read_input(reference, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
@@ -289,11 +290,11 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
 
 
 def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> None:
-    from geoproc.denoise.outliers import detection_scores, rpca_outliers
-
     if k < 4:
         raise UsageError(f"--k {k}: must be at least 4")
     cloud = run.load_mesh(input, clean=not no_clean)
+    from geoproc.denoise.outliers import detection_scores, rpca_outliers
+
     path = cloud.log.path or None
     with run.timer("outliers"):
         res = rpca_outliers(cloud.V, k=k, threshold=threshold, path=path)
@@ -321,11 +322,11 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
 
 
 def _animation_outliers(run, input, output, threshold_set, threshold, refined) -> None:
-    from geoproc.denoise.outliers import detection_scores, rpca_animation_outliers
-
     if not output.lower().endswith(".npz"):
         raise UsageError(f"{output}: an animation is written as .npz")
     anim = run.load_animation(input)
+    from geoproc.denoise.outliers import detection_scores, rpca_animation_outliers
+
     with run.timer("outliers"):
         res = rpca_animation_outliers(anim.V, threshold if threshold_set else None, path=anim.path)
     run.metrics.update({"frames": anim.n_frames, "points": int(anim.V.shape[1]),
@@ -343,10 +344,6 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
 
 
 def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
-    from geoproc.denoise.dynamic import denoise_animation
-    from geoproc.denoise.metrics import reference_metrics
-    from geoproc.denoise.validate import reference_in_input_order, require_denoisable
-
     if input == "-" or not is_animation_path(input):
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
     if not output.lower().endswith(".npz"):
@@ -356,6 +353,10 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
         raise InputError(anim.path, f"has {anim.n_frames} frame{'s' if anim.n_frames != 1 else ''}; --dynamic "
                          "needs at least 3 (save a single frame as a mesh file and denoise it without --dynamic)")
     require_triangle_frames(anim.V, anim.F, anim.path)
+    from geoproc.denoise.dynamic import denoise_animation
+    from geoproc.denoise.metrics import reference_metrics
+    from geoproc.denoise.validate import reference_in_input_order, require_denoisable
+
     require_denoisable(anim.F, anim.path)
     if "outlier" in anim.fields:  # carried to the output: refused as perturb and --outliers refuse it
         outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path)

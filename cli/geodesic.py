@@ -12,7 +12,7 @@ import typer
 
 from geoproc.errors import InputError, UsageError
 from geoproc.fileio import read_input_bytes
-from geoproc.geodesic.distance import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, METHODS
+from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, METHODS
 from geoproc_cli.common import (
     LOAD_METRICS,
     CheckOpt,
@@ -135,9 +135,6 @@ def geodesic(
     unreachable_vertices). Timings: setup (operators, factorizations) and
     solve (the part repeated for each new source set).
     """
-    from geoproc.geodesic.compare import compare_to_reference
-    from geoproc.geodesic.distance import geodesic_distance
-
     m_name = method.value
     params = {
         "mesh": mesh, "output": output, "sources": list(source or []), "sources_file": sources_file,
@@ -168,6 +165,10 @@ def geodesic(
             srcs += run.read_input(sources_file, read_sources_file, "file of source indices")
         if m.log.merged_vertices or m.log.removed_unreferenced:
             run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
+        # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read
+        from geoproc.geodesic.compare import compare_to_reference
+        from geoproc.geodesic.distance import geodesic_distance
+
         with run.progress(f"geodesic {m_name}", 1.0) as update:
             res = geodesic_distance(m.V, m.F, srcs, m_name, time_factor=time_factor, time=time,
                                     steps=steps, laplacian=laplacian.value if laplacian else None,

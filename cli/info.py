@@ -8,7 +8,6 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from geoproc.mesh import mesh_info
 from geoproc.report import json_safe
 from geoproc_cli.common import (
     LOAD_METRICS,
@@ -55,6 +54,8 @@ def info(
     with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
                      inputs=[mesh], metrics=METRICS) as run:
         m = run.load_mesh(mesh, clean=not no_clean)
+        from geoproc.mesh.info import mesh_info  # the topology kernels load once the mesh is read
+
         with run.timer("compute"):
             summary = mesh_info(m)
         summary["load"] = m.log.as_dict()

@@ -120,14 +120,6 @@ def morse_simplify(
                      outputs=[output, critical, diagram],
                      inputs=[mesh, npy_path], metrics=METRICS,
                      needs=None if barycentric else {"--barycentric": BARYCENTRIC_METRICS}) as run:
-        # numba-compiled modules load here, not at import, so `geoproc --help` stays fast
-        from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
-        from geoproc.morse import morse_simplify as morse_simplify_field
-        from geoproc.morse.barycentric import barycentric_simplify, mesh_cell, subdivision_values
-        from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
-        from geoproc.morse.diagram_plot import persistence_diagram_png
-        from geoproc.morse.fields import field_name, vertex_field
-
         if not np.isfinite(persistence) or persistence < 0:
             raise UsageError(f"--persistence must be a finite number >= 0, got {persistence:g}")
         if barycentric:
@@ -143,6 +135,14 @@ def morse_simplify(
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
         require_manifold(m)
+        # the methods (scipy, the compiled kernels) load once the mesh is read and checked
+        from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
+        from geoproc.morse import morse_simplify as morse_simplify_field
+        from geoproc.morse.barycentric import barycentric_simplify, mesh_cell, subdivision_values
+        from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
+        from geoproc.morse.diagram_plot import persistence_diagram_png
+        from geoproc.morse.fields import field_name, vertex_field
+
         npy = read_input_bytes(npy_path, "field file (.npy)") if npy_path else None
         with run.timer("field"):
             f = vertex_field(m, field, npy)

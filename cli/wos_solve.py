@@ -110,9 +110,6 @@ def wos_solve(
     with command_run("wos-solve", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, image, error_image], inputs=[domain], metrics=METRICS,
                      needs=None if exact else {"--exact": EXACT_METRICS}) as run:
-        from geoproc.wos import load_domain, parse_expression, solve_laplace
-        from geoproc.wos.images import exr_bytes, png_bytes
-
         require_extension(output, ".exr", "-o")
         if method == Method.naive:
             refuse_options(ctx, ("kernels", "fit_walks", "fit_points", "ridge"),
@@ -123,6 +120,10 @@ def wos_solve(
             require_extension(error_image, ".png", "--error-image")
             if not exact:
                 raise UsageError("--error-image needs --exact (the error is against the exact solution)")
+        # the expressions and the solver are compiled (numba): loaded once the options are checked
+        from geoproc.wos import load_domain, parse_expression, solve_laplace
+        from geoproc.wos.images import exr_bytes, png_bytes
+
         g = parse_expression(boundary, "--boundary") if boundary is not None else None
         h = parse_expression(neumann, "--neumann") if neumann is not None else None
         with run.timer("load"):

@@ -10,20 +10,19 @@ compile or load the numba kernels until a function is needed.
 
 from __future__ import annotations
 
-import importlib
-
 # the function ``rpca`` shares its name with its module: bound here, it is not
 # replaced by the submodule when another module imports geoproc.denoise.rpca
 # (numpy only, so importing the package stays light)
 from geoproc.denoise.rpca import RPCAResult as RPCAResult
 from geoproc.denoise.rpca import rpca as rpca
+from geoproc.lazy import lazy_attributes
 
 METHODS = ("bilateral", "guided", "rpca")
 DEFAULT_METHOD = "guided"
 COHERENCE = ("heights", "normals")  # what --dynamic makes coherent over time; the first is the default
 
 _NAMES = {
-    "DenoiseParams": "mesh_denoise",
+    "DenoiseParams": "params",
     "DenoiseResult": "mesh_denoise",
     "denoise_mesh": "mesh_denoise",
     "FaceConnectivity": "connectivity",
@@ -43,7 +42,4 @@ _NAMES = {
 __all__ = ["COHERENCE", "DEFAULT_METHOD", "METHODS", "RPCAResult", "rpca", *_NAMES]
 
 
-def __getattr__(name: str):
-    if name in _NAMES:
-        return getattr(importlib.import_module(f"geoproc.denoise.{_NAMES[name]}"), name)
-    raise AttributeError(f"module 'geoproc.denoise' has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, _NAMES)

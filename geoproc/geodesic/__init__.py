@@ -10,10 +10,10 @@ imported lazily so that importing the package stays cheap.
 
 from __future__ import annotations
 
-import importlib
+from geoproc.lazy import lazy_attributes
 
 _NAMES = {
-    "METHODS": "distance",
+    "METHODS": "names",
     "GeodesicResult": "distance",
     "geodesic_distance": "distance",
     "compare_to_reference": "compare",
@@ -41,7 +41,4 @@ _NAMES = {
 __all__ = sorted(_NAMES)
 
 
-def __getattr__(name: str):
-    if name in _NAMES:
-        return getattr(importlib.import_module(f"geoproc.geodesic.{_NAMES[name]}"), name)
-    raise AttributeError(f"module 'geoproc.geodesic' has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, _NAMES)

@@ -9,27 +9,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.errors import InputError, UsageError
-from geoproc.geodesic.intrinsic import OPERATORS
 from geoproc.geodesic.log_ode import UnweightedVertexError
-from geoproc.geodesic.operators import LAPLACIANS, laplacian_and_mass
+from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, LAPLACIANS, METHODS, OPERATORS, SOLVERS
+from geoproc.geodesic.operators import laplacian_and_mass
 from geoproc.mesh.topology import face_areas, mean_edge_length, vertex_components
 from geoproc.mesh.validate import mesh_arrays, require_edge_manifold, require_manifold
 
-METHODS = ("exact", "heat", "varadhan", "log-splitting", "log-ode", "log-heat")
-SOLVERS = ("lu", "newton", "cvxpy")
-
-#: Laplacian each method uses unless told otherwise.
-DEFAULT_LAPLACIAN = {
-    "heat": "cotan",
-    "varadhan": "cotan",
-    "log-splitting": "cotan",
-    "log-ode": "intrinsic-delaunay",
-    "log-heat": "intrinsic-delaunay",
-}
-#: Where heat and log-heat take gradient, divergence and the Poisson Laplacian
-#: unless told otherwise: the paper's extrinsic operators for heat; for
-#: log-heat, intrinsic on meshes with slivers (geoproc.geodesic.intrinsic).
-DEFAULT_OPERATORS = {"heat": "extrinsic", "log-heat": "auto"}
 #: Smallest face angle (radians) below which a mesh is refused, by what the
 #: method would run on the input's own triangles: libigl's exact geodesic
 #: (MMP) ran for minutes on 8x8 grids squashed to angles of 2e-6 to 7e-6 rad

@@ -16,10 +16,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from geoproc.geodesic.names import OPERATORS
 from geoproc.geodesic.operators import intrinsic_delaunay_mesh, stack_gradient_coefficients
 
-OPERATORS = ("auto", "extrinsic", "intrinsic")
-"""Where heat and log-heat take their gradient, divergence and Poisson Laplacian."""
 SLIVER_ANGLE_DEG = 5.0
 """A face with a corner angle below this (degrees) counts as a sliver."""
 SLIVER_SHARE = 0.005

@@ -15,8 +15,6 @@ import scipy.sparse as sp
 from geoproc.mesh.topology import face_areas
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
-LAPLACIANS = ("cotan", "intrinsic-delaunay")
-
 
 def cotan_laplacian(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
     """Cotangent Laplacian (n, n): ``L_ij = (cot a_ij + cot b_ij) / 2``, rows sum to 0.
@@ -148,7 +146,7 @@ def _drop_rounding_negatives(L: sp.csr_matrix) -> sp.csr_matrix:
 
 
 def laplacian_and_mass(V: np.ndarray, F: np.ndarray, kind: str) -> tuple[sp.csr_matrix, np.ndarray]:
-    """``(L, M)`` for ``kind`` in :data:`LAPLACIANS` (see the two builders)."""
+    """``(L, M)`` for ``kind`` in :data:`geoproc.geodesic.names.LAPLACIANS` (see the two builders)."""
     if kind == "cotan":
         return cotan_laplacian(V, F), lumped_mass(V, F)
     if kind == "intrinsic-delaunay":

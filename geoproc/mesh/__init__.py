@@ -1,19 +1,27 @@
 """Shared mesh pieces: the :class:`Mesh` container, readers, writers, clean-up,
-topology queries and input validation used by every subcommand."""
+topology queries and input validation used by every subcommand.
 
-from geoproc.mesh.clean import clean_mesh
-from geoproc.mesh.info import mesh_info
-from geoproc.mesh.mesh import LoadLog, Mesh
-from geoproc.mesh.read import load_mesh, read_mesh_bytes
-from geoproc.mesh.write import mesh_to_bytes, save_mesh
+Names are loaded on first use (PEP 562): reading and writing a mesh needs
+neither scipy nor the compiled topology kernels, so the command line can read
+(or refuse) its input before it loads them.
+"""
 
-__all__ = [
-    "LoadLog",
-    "Mesh",
-    "clean_mesh",
-    "load_mesh",
-    "mesh_info",
-    "mesh_to_bytes",
-    "read_mesh_bytes",
-    "save_mesh",
-]
+from __future__ import annotations
+
+from geoproc.lazy import lazy_attributes
+
+_NAMES = {
+    "LoadLog": "mesh",
+    "Mesh": "mesh",
+    "clean_mesh": "clean",
+    "load_mesh": "read",
+    "mesh_info": "info",
+    "mesh_to_bytes": "write",
+    "read_mesh_bytes": "read",
+    "save_mesh": "write",
+}
+
+__all__ = sorted(_NAMES)
+
+
+__getattr__ = lazy_attributes(__name__, _NAMES)

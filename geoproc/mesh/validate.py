@@ -1,4 +1,8 @@
-"""Checks a method runs before it starts; each raises a one-line InputError."""
+"""Checks a method runs before it starts; each raises a one-line InputError.
+
+The topology queries are imported where they are used: reading a mesh needs
+only the index checks here, and the command line reads (and refuses) files
+before any compiled kernel is needed."""
 
 from __future__ import annotations
 
@@ -6,7 +10,6 @@ import numpy as np
 
 from geoproc.errors import InputError
 from geoproc.mesh.mesh import Mesh
-from geoproc.mesh.topology import face_areas, nonmanifold_edges, nonmanifold_vertices
 
 
 def mesh_arrays(V, F, path: str | None = None, allow_point_cloud: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -69,6 +72,8 @@ def require_indices_below(F: np.ndarray, n: int, path: str | None = None) -> Non
 
 def require_triangle_mesh(mesh: Mesh) -> None:
     """Refuse a point cloud or a mesh whose faces all have zero area."""
+    from geoproc.mesh.topology import face_areas
+
     path = mesh.log.path or None
     if mesh.is_point_cloud:
         raise InputError(path, "is a point cloud (no faces); this method needs a triangle mesh")
@@ -79,6 +84,8 @@ def require_triangle_mesh(mesh: Mesh) -> None:
 def require_triangle_frames(V: np.ndarray, F: np.ndarray, path: str | None) -> None:
     """Refuse an animation (V of shape (frames, n, 3), shared triangles F)
     any of whose frames has no face of nonzero area, naming the first such frame."""
+    from geoproc.mesh.topology import face_areas
+
     if len(F) == 0:
         raise InputError(path, "has no faces; this method needs a triangle mesh")
     for t in range(len(V)):
@@ -90,6 +97,8 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> Non
     """Refuse a face that repeats a vertex (its edges would count twice) or an
     edge shared by more than two faces, naming the first; ``why`` ends the
     message (``"; denoising needs ..."``)."""
+    from geoproc.mesh.topology import nonmanifold_edges
+
     F = np.asarray(F).reshape(-1, 3)
     rep = np.flatnonzero((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2]))
     if len(rep):
@@ -107,6 +116,8 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> Non
 def require_manifold(mesh: Mesh, why: str = "") -> None:
     """Refuse a mesh with a repeated-vertex face or a non-manifold edge or
     vertex, naming the first one."""
+    from geoproc.mesh.topology import nonmanifold_vertices
+
     path = mesh.log.path or None
     require_edge_manifold(mesh.F, path, why)
     bad_v = nonmanifold_vertices(mesh.F, len(mesh.V))

@@ -3,19 +3,20 @@
 The noise scale is relative: ``sigma`` is in units of the mean edge length of a
 mesh, or of the mean nearest-neighbour distance of a point cloud, so one number
 means the same on every model (the protocol of the denoising literature).
+
+libigl, scipy's k-d tree and the topology kernels are imported by the functions
+that use them: the command line checks its options with :class:`NoiseSpec`
+before it loads them.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import igl
 import numpy as np
-from scipy.spatial import cKDTree
 
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh.read import MAX_COORDINATE
-from geoproc.mesh.topology import mean_edge_length
 from geoproc.mesh.validate import mesh_arrays
 
 
@@ -60,6 +61,8 @@ class NoiseSpec:
 def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n, 3) unit area-weighted vertex normals of a triangle mesh (libigl);
     vertices without a usable normal get +z."""
+    import igl
+
     N = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)
     N = np.asarray(N, dtype=np.float64)
     bad = ~np.isfinite(N).all(axis=1) | (np.linalg.norm(N, axis=1) < 0.5)
@@ -71,6 +74,8 @@ def point_cloud_normals(P: np.ndarray, k: int = 16) -> np.ndarray:
     """(n, 3) unit normals of a point cloud: the least-variance direction of each
     point's k nearest distinct neighbours (unoriented; copies of a point share
     its normal)."""
+    from scipy.spatial import cKDTree
+
     U, inverse = np.unique(np.asarray(P, dtype=np.float64), axis=0, return_inverse=True)
     k = min(k, len(U))
     _, idx = cKDTree(U).query(U, k=k)
@@ -83,6 +88,10 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     """Unit of ``sigma``: mean edge length of a mesh, or mean nearest-neighbour
     distance of a point cloud (``F`` with no rows), over its distinct points
     (a point stored twice is not its own neighbour at distance 0)."""
+    from scipy.spatial import cKDTree
+
+    from geoproc.mesh.topology import mean_edge_length
+
     V, F = mesh_arrays(V, F, allow_point_cloud=True)
     if len(F):
         return mean_edge_length(V, F)

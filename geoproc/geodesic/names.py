@@ -1,0 +1,27 @@
+"""The names a caller chooses among: methods, solvers, Laplacians and where the
+operators live, with each method's defaults. No numerical code, so the command
+line can build its options without loading scipy or the compiled kernels."""
+
+from __future__ import annotations
+
+METHODS = ("exact", "heat", "varadhan", "log-splitting", "log-ode", "log-heat")
+"""Geodesic methods of :func:`geoproc.geodesic.distance.geodesic_distance`."""
+SOLVERS = ("lu", "newton", "cvxpy")
+"""Solvers of the log-ODE step (``log-ode`` only)."""
+LAPLACIANS = ("cotan", "intrinsic-delaunay")
+"""Laplacians :func:`geoproc.geodesic.operators.laplacian_and_mass` builds."""
+OPERATORS = ("auto", "extrinsic", "intrinsic")
+"""Where heat and log-heat take their gradient, divergence and Poisson Laplacian."""
+
+#: Laplacian each method uses unless told otherwise.
+DEFAULT_LAPLACIAN = {
+    "heat": "cotan",
+    "varadhan": "cotan",
+    "log-splitting": "cotan",
+    "log-ode": "intrinsic-delaunay",
+    "log-heat": "intrinsic-delaunay",
+}
+#: Where heat and log-heat take gradient, divergence and the Poisson Laplacian
+#: unless told otherwise: the paper's extrinsic operators for heat; for
+#: log-heat, intrinsic on meshes with slivers (geoproc.geodesic.intrinsic).
+DEFAULT_OPERATORS = {"heat": "extrinsic", "log-heat": "auto"}
