@@ -84,10 +84,13 @@ LOAD_METRICS = ("input_vertices", "input_faces", "triangulated_polygons", "merge
 what loading changed (:meth:`Run.note_load`)."""
 
 
-def metrics_epilog(names: Sequence[str]) -> str:
-    """The closing paragraph of a subcommand's ``--help``: the metric names ``--check`` accepts."""
-    return ("Metrics for --check and the report (some only with the options that produce them): "
-            + ", ".join(sorted(names)) + ".")
+def metrics_epilog(names: Sequence[str], text: Sequence[str] = ()) -> str:
+    """The closing paragraph of a subcommand's ``--help``: the metric names
+    ``--check`` accepts, then those of ``names`` that are ``text`` (reported, not checked)."""
+    numbers = sorted(n for n in names if n not in text)
+    out = ("Metrics for --check and the report (some only with the options that produce them): "
+           + ", ".join(numbers) + ".")
+    return out + (" Text in the report: " + ", ".join(sorted(text)) + "." if text else "")
 
 
 class Run:
@@ -375,6 +378,7 @@ def command_run(
     inputs: Sequence[str | os.PathLike | None] = (),
     metrics: Collection[str] | None = None,
     needs: Mapping[str, Collection[str]] | None = None,
+    text_metrics: Collection[str] = (),
 ) -> Iterator[Run]:
     """Run a subcommand body under the command-line contract (see module doc).
 
@@ -385,8 +389,9 @@ def command_run(
     the outputs are checked again when they are written. ``metrics`` (every
     metric name the command can report) lets a ``--check`` on any other name
     fail at once as well, and so does ``needs`` (for each option not given,
-    such as ``--reference``, the metrics only it reports); whether this run
-    reports the rest is judged after the body.
+    such as ``--reference``, the metrics only it reports) and ``text_metrics``
+    (those among ``metrics`` whose values are text); whether this run reports
+    the rest is judged after the body.
 
     Exit codes: 0 success, 1 a --check failed, 2 bad input or usage, 3 an
     internal error (a bug; --debug shows the traceback).
@@ -395,7 +400,7 @@ def command_run(
     try:
         parsed = [parse_check(c) for c in (checks or [])]
         if metrics is not None:
-            require_known_metrics(parsed, metrics, command, needs)
+            require_known_metrics(parsed, metrics, command, needs, text_metrics)
         _require_finite_options(params)
         if report is not None:
             require_extension(report, ".json", "--report", stdout_ok=True)

@@ -50,6 +50,8 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "frames", "coherence", "rpca_iterations", "rpca_converged", "low_rank", "turn_limited_vertices",
 )
 """Every metric ``denoise`` can report (which ones a run reports depends on its mode and options)."""
+TEXT_METRICS = ("feature_method", "coherence")
+"""The metrics among them that are text (names), which ``--check`` cannot compare."""
 
 
 def denoise(
@@ -152,7 +154,7 @@ def denoise(
               "coherence": coherence_used,
               "clean": not no_clean}
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output], inputs=[input, reference], metrics=METRICS,
+                     outputs=[output], inputs=[input, reference], metrics=METRICS, text_metrics=TEXT_METRICS,
                      needs={"--reference": REFERENCE_METRICS} if reference is None and not outliers else None) as run:
         if method not in METHODS:
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
@@ -389,4 +391,4 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
 
 def register(app: typer.Typer) -> None:
     """Add ``denoise`` to the application."""
-    app.command("denoise", epilog=metrics_epilog(METRICS))(denoise)
+    app.command("denoise", epilog=metrics_epilog(METRICS, TEXT_METRICS))(denoise)

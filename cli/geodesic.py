@@ -41,6 +41,8 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "solver_inaccurate_steps", "iterations", "min_log_heat", "log_heat_below_double", "nonfinite_log_heat",
 )
 """Every metric ``geodesic`` can report (which ones a run reports depends on its method and options)."""
+TEXT_METRICS = ("method", "operators")
+"""The metrics among them that are text (names), which ``--check`` cannot compare."""
 
 
 class Laplacian(StrEnum):
@@ -146,7 +148,7 @@ def geodesic(
         "field_name": field_name, "render": render, "clean": not no_clean,
     }
     with command_run("geodesic", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output, render], inputs=[mesh, sources_file], metrics=METRICS,
+                     outputs=[output, render], inputs=[mesh, sources_file], metrics=METRICS, text_metrics=TEXT_METRICS,
                      needs={"--reference": REFERENCE_METRICS} if reference is None else None) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
@@ -239,4 +241,4 @@ def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | Non
 
 def register(app: typer.Typer) -> None:
     """Add ``geodesic`` to the application."""
-    app.command("geodesic", epilog=metrics_epilog(METRICS))(geodesic)
+    app.command("geodesic", epilog=metrics_epilog(METRICS, TEXT_METRICS))(geodesic)

@@ -45,9 +45,11 @@ def parse_check(text: str) -> Check:
 
 
 def require_known_metrics(checks: list[Check], names: Collection[str], command: str,
-                          needs: Mapping[str, Collection[str]] | None = None) -> None:
-    """Refuse a check on a metric that ``command`` never reports, or will not
-    report without an option that was not given, before any work is done.
+                          needs: Mapping[str, Collection[str]] | None = None,
+                          text: Collection[str] = ()) -> None:
+    """Refuse a check on a metric that ``command`` never reports, will not
+    report without an option that was not given, or reports as text, before
+    any work is done.
 
     Parameters
     ----------
@@ -59,14 +61,21 @@ def require_known_metrics(checks: list[Check], names: Collection[str], command: 
         The subcommand, for the message.
     needs : mapping of str to collection of str, optional
         For each option not given (e.g. ``"--reference"``), the metrics only it reports.
+    text : collection of str
+        The metrics among ``names`` whose values are text (a method's name):
+        a check compares numbers, so it cannot hold on them.
 
     Raises
     ------
     UsageError
         Naming the first unknown metric, the closest known name when one is
-        close, and the command's metric names; or the option a metric needs.
+        close, and the command's metric names; the option a metric needs; or
+        a metric that is text.
     """
     for c in checks:
+        if c.metric in text:
+            raise UsageError(f"--check '{c.text}': {command}'s metric '{c.metric}' is text, not a number "
+                             "(--check compares numbers)")
         option = next((o for o, gated in (needs or {}).items() if c.metric in gated), None)
         if option is not None:
             raise UsageError(f"--check '{c.text}': {command} reports '{c.metric}' only with {option}")

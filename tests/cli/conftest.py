@@ -1,7 +1,8 @@
 """Checks every command-line test gets: each report a test leaves in its
 ``tmp_path`` names only metrics its subcommand declares (the ``METRICS`` tuple
 of its ``cli`` module, against which ``--check`` names are judged before a run),
-and none that is declared to need an option the run was not given."""
+none that is declared to need an option the run was not given, and text
+values exactly for the metrics declared as text (``TEXT_METRICS``)."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import pytest
 
 from geoproc_cli import denoise, geodesic, info, morse_simplify, perturb, wos_solve
 
-DECLARED = {"denoise": denoise.METRICS, "geodesic": geodesic.METRICS, "info": info.METRICS,
-            "morse-simplify": morse_simplify.METRICS, "perturb": perturb.METRICS, "wos-solve": wos_solve.METRICS}
+MODULES = {"denoise": denoise, "geodesic": geodesic, "info": info, "morse-simplify": morse_simplify,
+           "perturb": perturb, "wos-solve": wos_solve}
+DECLARED = {command: module.METRICS for command, module in MODULES.items()}
 
 
 # (command, parameter, metrics reported only when the parameter is set): what --check refuses early without it
@@ -22,10 +24,16 @@ GATED = (("denoise", "reference", denoise.REFERENCE_METRICS),
          ("morse-simplify", "barycentric", morse_simplify.BARYCENTRIC_METRICS))
 
 
+def text_metrics(command: str) -> set[str]:
+    """The metrics ``command`` declares as text (its module's ``TEXT_METRICS``; none when absent)."""
+    return set(getattr(MODULES[command], "TEXT_METRICS", ()))
+
+
 def undeclared_metrics(path) -> list[str]:
     """Metric names in the report at ``path`` that its subcommand does not declare,
-    or that it reports without the option they are declared to need (empty for
-    files that are not geoproc reports, or reports of other commands)."""
+    that it reports without the option they are declared to need, or whose
+    value is text where the name is not declared as text or the reverse
+    (empty for files that are not geoproc reports, or reports of other commands)."""
     try:
         rep = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError):
@@ -37,6 +45,8 @@ def undeclared_metrics(path) -> list[str]:
     for command, param, gated in GATED:
         if rep["command"] == command and not rep.get("params", {}).get(param):
             extra |= names & set(gated)
+    text = text_metrics(rep["command"])
+    extra |= {k for k, v in rep["metrics"].items() if isinstance(v, str) != (k in text) and v is not None}
     return sorted(extra)
 
 
@@ -45,4 +55,5 @@ def _reports_name_declared_metrics(tmp_path):
     yield
     for path in sorted(tmp_path.rglob("*.json")):
         extra = undeclared_metrics(path)
-        assert not extra, f"{path.name}: metrics undeclared, or reported without the option they need: {extra}"
+        assert not extra, (f"{path.name}: metrics undeclared, reported without the option they need, "
+                           f"or text where not declared so (or the reverse): {extra}")

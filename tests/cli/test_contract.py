@@ -142,6 +142,21 @@ def test_a_metric_that_needs_an_option_not_given_is_refused_before_the_input_is_
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(("command", "args", "check"), [
+    ("geodesic", ["-s", "0", "-o", "o.ply"], "method==1"),
+    ("geodesic", ["-s", "0", "-o", "o.ply"], "operators>=0"),
+    ("denoise", ["-o", "o.ply"], "feature_method==0"),
+    ("denoise", ["--dynamic", "-o", "o.npz"], "coherence==1"),
+])
+def test_a_metric_that_is_text_is_refused_before_the_input_is_read(cli, tmp_path, command, args, check):
+    p = cli(command, tmp_path / "missing.ply", *args, "--check", check, cwd=tmp_path)
+    name = check.split("<")[0].split("=")[0].split(">")[0]
+    assert p.returncode == 2
+    assert p.stderr == (f"error: --check '{check}': {command}'s metric '{name}' is text, not a number "
+                        "(--check compares numbers)\n")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_report_and_critical_need_json_names(cli, fixture_dir, tmp_path):
     p = cli("info", fixture_dir / "torus.ply", "--report", tmp_path / "r.txt")
     assert p.returncode == 2 and "r.txt: must end in .json (or be -)" in p.stderr
@@ -196,9 +211,13 @@ def test_every_option_of_every_command_has_help():
                 assert param.help and len(param.help) > 10, f"{name} {param.opts}"
         result = CliRunner().invoke(app, [name, "--help"])
         assert result.exit_code == 0, name
-        # the closing paragraph lists the metric names --check accepts
+        # the closing paragraph lists the metric names --check accepts, then the text ones
         module = importlib.import_module(f"geoproc_cli.{name.replace('-', '_')}")
-        assert command.epilog == metrics_epilog(module.METRICS), name
+        text = getattr(module, "TEXT_METRICS", ())
+        assert command.epilog == metrics_epilog(module.METRICS, text), name
+        assert set(text) <= set(module.METRICS), name
+        for metric in module.METRICS:
+            assert (f" {metric}," in command.epilog or f" {metric}." in command.epilog), (name, metric)
 
 
 # ---- the harness itself, on a small command that writes a mesh -------------

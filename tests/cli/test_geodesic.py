@@ -87,8 +87,8 @@ def test_sources_from_stdin_and_all_sources_against_exact(cli, fixture_dir, tmp_
     assert _report(rep)["metrics"]["mean_relative_error"] is None
     p = cli(*args, "--check", "mean_relative_error<=0.1")  # not measured: the gate fails
     assert p.returncode == 1 and "not measured in this run" in p.stderr
-    p = cli(*args, "--check", "method==1")  # a text metric cannot be gated: usage error
-    assert p.returncode == 2 and "metric 'method' is not a number (it is 'heat')" in p.stderr
+    p = cli(*args, "--check", "method==1")  # a text metric cannot be gated: usage error, before the run
+    assert p.returncode == 2 and "geodesic's metric 'method' is text, not a number" in p.stderr
 
 
 def test_render_writes_a_png(cli, fixture_dir, tmp_path):

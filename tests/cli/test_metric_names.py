@@ -30,6 +30,10 @@ def _scalars(d: dict) -> set[str]:
     return {k for k, v in d.items() if np.isscalar(v) or v is None}
 
 
+def _text(d: dict) -> set[str]:
+    return {k for k, v in d.items() if isinstance(v, str)}
+
+
 @pytest.mark.parametrize("method", ["bilateral", "guided", "rpca"])
 @pytest.mark.parametrize("features", ["dihedral", "l1"])
 def test_denoise_mesh_metrics_are_declared(method, features):
@@ -38,6 +42,7 @@ def test_denoise_mesh_metrics_are_declared(method, features):
     names = _scalars(res.info) | set(reference_metrics(res.V, Vn, F, V)) | set(detection_scores(
         np.array([True, False]), np.array([True, True])))
     assert names - set(denoise.METRICS) == set()
+    assert _text(res.info) <= set(denoise.TEXT_METRICS)
 
 
 @pytest.mark.parametrize("coherence", ["heights", "normals"])
@@ -46,6 +51,7 @@ def test_denoise_dynamic_metrics_are_declared(coherence):
     frames = np.stack([Vn * (1 + 0.01 * t) for t in range(3)])
     _, info = denoise_animation(frames, F, coherence=coherence)
     assert _scalars(info) - set(denoise.METRICS) == set()
+    assert _text(info) <= set(denoise.TEXT_METRICS)
 
 
 @pytest.mark.parametrize("method", GEODESIC_METHODS)
@@ -56,6 +62,7 @@ def test_geodesic_metrics_are_declared(method):
     res = geodesic_distance(V, F, [0], method, steps=1)
     names = _scalars(res.stats) | set(compare_to_reference(res.distance, res.distance))
     assert names - set(geodesic.METRICS) == set()
+    assert _text(res.stats) <= set(geodesic.TEXT_METRICS)
 
 
 @pytest.mark.parametrize("method", WOS_METHODS)
@@ -64,3 +71,4 @@ def test_wos_metrics_are_declared(method):
     res = solve_laplace(square, parse_expression("x"), method=method, walks=2, grid=6, kernels=4, fit_walks=2,
                         npass_steps=2, npass_batch=2, npass_walks=2, exact=True)
     assert set(res.metrics) - set(wos_solve.METRICS) == set()
+    assert _text(res.metrics) == set()  # wos-solve declares no text metric

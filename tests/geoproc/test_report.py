@@ -95,6 +95,19 @@ def test_known_metrics_pass_and_a_typo_names_the_closest():
     require_known_metrics([parse_check("vertices>0")], names, "geodesic", needs)
     with pytest.raises(UsageError, match=r"^--check 'mae<1': geodesic reports 'mae' only with --reference$"):
         require_known_metrics([parse_check("vertices>0"), parse_check("mae<1")], names, "geodesic", needs)
+    text = ("method",)
+    require_known_metrics([parse_check("vertices>0")], names + text, "geodesic", text=text)
+    with pytest.raises(UsageError, match=r"^--check 'method==1': geodesic's metric 'method' is text, not a number "
+                                         r"\(--check compares numbers\)$"):
+        require_known_metrics([parse_check("vertices>0"), parse_check("method==1")], names + text, "geodesic",
+                              text=text)
+
+
+def test_a_text_metric_the_command_did_not_declare_is_refused_after_the_run():
+    from geoproc.report import evaluate_checks, parse_check
+
+    with pytest.raises(UsageError, match=r"^--check 'method==1': metric 'method' is not a number \(it is 'heat'\)$"):
+        evaluate_checks([parse_check("method==1")], {"method": "heat"})
 
 
 def test_check_failures_show_every_digit_and_name_nulls():
