@@ -456,7 +456,13 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
     """Parse an ASCII OFF file: any keyword ``[ST][C][N][4][n]OFF`` (texture
     coordinates, normals and colours after the position are ignored; 4OFF
     positions are divided by w; nOFF must be 3-D), or none (a first line of
-    counts); one vertex or face per line; polygons are split into fans.
+    counts); polygons are split into fans.
+
+    Files with one vertex or face per line are read a block of lines at a
+    time. The format itself only asks for the vertex values in order, and
+    for each face's colour to end its line: a file whose values wrap over
+    lines otherwise (and that has no per-vertex colours, whose count a line
+    end would tell) is read as such a stream (:func:`_off_free_form`).
 
     Returns the mesh and the number of faces with more than three corners.
     Raises InputError for binary OFF, a file shorter than its header says, a
@@ -495,12 +501,34 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
         nv, nf = int(counts[0]), int(counts[1])
     except (IndexError, ValueError):
         raise InputError(path, "OFF header lacks the vertex and face counts") from None
-    have = len(lines) - start
-    if nv < 0 or nf < 0 or have < nv + nf:
+    if nv < 0 or nf < 0:
+        raise InputError(path, f"OFF header declares {nv} vertices and {nf} faces")
+    try:
+        return _off_by_lines(lines[start:], nv, nf, path, homogeneous)
+    except InputError:
+        if kind is not None and kind.group(2) is not None:  # colours: their count ends with the line
+            raise
+        per_vertex = 3 + homogeneous  # x y z [w], then the normal and texture coordinates the keyword names
+        if kind is not None:
+            per_vertex += 3 * (kind.group(3) is not None) + 2 * (kind.group(1) is not None)
+        lead = [b" ".join(counts[3:])] if len(counts) > 3 else []  # values after NVERTICES NFACES NEDGES
+        free = _off_free_form(lead + lines[start:], nv, nf, per_vertex, homogeneous)
+        if free is None:
+            raise
+        V, faces = free
+    F, polygons = _fan_triangulate(faces) if faces else (np.zeros((0, 3), dtype=np.int64), 0)
+    return Mesh(V, F), polygons
+
+
+def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -> tuple[Mesh, int]:
+    """The vertices and faces of an OFF file after its header, one per line
+    (``lines`` without blank ones); see :func:`_parse_off`."""
+    have = len(lines)
+    if have < nv + nf:
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
                          f"but only {max(have, 0)} lines follow it (one per vertex, then one per face)")
-    V = _off_vertices(lines[start: start + nv], path, homogeneous)
-    face_lines = lines[start + nv: start + nv + nf]
+    V = _off_vertices(lines[:nv], path, homogeneous)
+    face_lines = lines[nv: nv + nf]
     F = _off_triangles(face_lines)
     if F is not None:
         return Mesh(V, F), 0
@@ -524,6 +552,71 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
         faces.append(face)
     F, polygons = _fan_triangulate(faces) if faces else (np.zeros((0, 3), dtype=np.int64), 0)
     return Mesh(V, F), polygons
+
+
+def _off_free_form(lines: list, nv: int, nf: int, per_vertex: int,
+                   homogeneous: bool) -> tuple[np.ndarray, list] | None:
+    """An OFF body read as the format defines it: ``per_vertex`` values for
+    each of the ``nv`` vertices in order, whatever the line breaks; then per
+    face its corner count and corners, the rest of the line where the
+    corners end being its colour. ``lines`` follow the header (no blank
+    ones). Returns ``((nv, 3) positions, faces as lists of corners)``, or
+    None when the body does not read so (too few values, a value that is
+    not a number, a face of fewer than three corners, w = 0 in 4OFF): the
+    caller then reports what the line-by-line reading found.
+    """
+    need = nv * per_vertex
+    values: list = []
+    row = 0
+    rest: list = []
+    while len(values) < need and row < len(lines):
+        tokens = lines[row].split()
+        want = need - len(values)
+        values += tokens[:want]
+        rest = tokens[want:]
+        row += 1
+    if len(values) < need:
+        return None
+    try:
+        X = np.array([float(t) for t in values], dtype=np.float64).reshape(nv, per_vertex)
+    except ValueError:
+        return None
+    if homogeneous:
+        if (X[:, 3] == 0).any():
+            return None
+        X = X[:, :3] / X[:, 3:4]
+    cur, pos, nxt = rest, 0, row  # the values of the line being read, the next one to read, the next line
+
+    def take(k: int) -> list | None:
+        """The next k values as integers, across lines; None if the body ends first or one is not an integer."""
+        nonlocal cur, pos, nxt
+        out: list = []
+        while len(out) < k:
+            if pos == len(cur):
+                if nxt == len(lines):
+                    return None
+                cur, pos, nxt = lines[nxt].split(), 0, nxt + 1
+                continue
+            n = min(k - len(out), len(cur) - pos)
+            out += cur[pos: pos + n]
+            pos += n
+        try:
+            ints = [int(t) for t in out]
+        except ValueError:
+            return None
+        return ints if all(abs(i) < 2**62 for i in ints) else None
+
+    faces = []
+    for _ in range(nf):
+        count = take(1)
+        if count is None or count[0] < 3:
+            return None
+        face = take(count[0])
+        if face is None:
+            return None
+        faces.append(face)
+        pos = len(cur)  # the rest of the line is the face's colour
+    return X[:, :3].copy(), faces
 
 
 def _off_vertices(lines: list, path: str, homogeneous: bool = False) -> np.ndarray:

@@ -244,6 +244,55 @@ def test_off_mixing_triangles_and_polygons(tmp_path):
     assert np.array_equal(mesh.F, [[0, 1, 2], [0, 1, 2], [0, 2, 4], [0, 4, 3]])
 
 
+def test_off_values_wrapped_over_lines_match_meshlab(tmp_path, sphere):
+    # the format asks only for the vertex values in order: seven to a line here, as MeshLab reads them
+    import pymeshlab
+
+    values = [repr(float(x)) for x in sphere.V.reshape(-1)]
+    body = [" ".join(values[i: i + 7]) for i in range(0, len(values), 7)]
+    faces = [f"3 {a} {b} {c}" for a, b, c in sphere.F]
+    path = tmp_path / "w.off"
+    path.write_text("\n".join(["OFF", f"{len(sphere.V)} {len(sphere.F)} 0", *body, *faces]) + "\n")
+    mesh = load_mesh(path, clean=False)
+    ms = pymeshlab.MeshSet()
+    ms.load_new_mesh(str(path))
+    assert np.array_equal(mesh.V, ms.current_mesh().vertex_matrix())
+    assert np.array_equal(mesh.F, ms.current_mesh().face_matrix())
+    assert np.array_equal(mesh.V, sphere.V) and np.array_equal(mesh.F, sphere.F)
+    # a face's corners may wrap too (MeshLab refuses that); its colour ends its line
+    wrapped = [f"3 {a} {b}\n{c} 255 0 0" for a, b, c in sphere.F]
+    path.write_text("\n".join(["OFF", f"{len(sphere.V)} {len(sphere.F)} 0", *body, *wrapped]) + "\n")
+    mesh = load_mesh(path, clean=False)
+    assert np.array_equal(mesh.V, sphere.V) and np.array_equal(mesh.F, sphere.F)
+
+
+@pytest.mark.parametrize("text, V, F", [
+    # everything on the line of the counts; 4OFF; normals and texture coordinates (8 values a vertex)
+    (b"OFF 3 1 0 0 0 0 1 0 0 0 1 0 3 0 1 2 1 1 1\n", [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]),
+    (b"4OFF\n3 1 0\n0 0 0 1 2 0 0\n2 0 4 0 2\n3 0 1 2\n", [[0, 0, 0], [1, 0, 0], [0, 2, 0]], [[0, 1, 2]]),
+    (b"STNOFF\n3 1 0\n0 0 0 0 0 1 0.5 0.5\n1 0 0 0 0 1 0 0 0 1 0 0 0 1 0 0\n3 0 1 2\n",
+     [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]),
+    (b"OFF\n4 1 0\n0 0 0 1 0\n0 0 1 0 1 1 0\n4 0 1\n3 2 # a comment\n", [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]],
+     [[0, 1, 3], [0, 3, 2]]),
+])
+def test_off_free_form(text, V, F):
+    m = read_mesh_bytes(text, "off", "w.off", clean=False)
+    assert m.V.tolist() == V and m.F.tolist() == F
+
+
+@pytest.mark.parametrize("text, fragment", [
+    # per-vertex colours: 3 or 4 values, which only the line end tells
+    (b"COFF\n3 1 0\n0 0 0 1 1\n1 1 1 0 0 1 0 1 1 1 0 1 0 1 1 1\n3 0 1 2\n", "but only 3 lines follow"),
+    (b"OFF\n3 1 0\n0 0 0 1 0 0 0 1 0\n4 0 1 2\n", "but only 2 lines follow"),  # a face short of corners
+    (b"OFF\n3 1 0\n0 0 0 1 0 0 0 1\n3 0 1 2\n", "but only 2 lines follow"),  # a value short
+    (b"OFF\n3 1 0\n0 0 0 1 0 0 0 1 0 2 0 1\n", "but only 1 lines follow"),  # a face of two corners
+])
+def test_off_free_form_refused(text, fragment):
+    with pytest.raises(InputError) as err:
+        read_mesh_bytes(text, "off", "w.off")
+    assert fragment in err.value.problem, err.value.problem
+
+
 def test_off_colours_and_comments_match_libigl(tmp_path, sphere):
     import igl
 
