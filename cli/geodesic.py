@@ -12,7 +12,7 @@ import typer
 
 from geoproc.errors import InputError, UsageError
 from geoproc.fileio import read_input_bytes
-from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, METHODS
+from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, LAPLACIANS, METHODS, OPERATORS, SOLVERS
 from geoproc_cli.common import (
     LOAD_METRICS,
     CheckOpt,
@@ -45,21 +45,9 @@ TEXT_METRICS = ("method", "operators")
 """The metrics among them that are text (names), which ``--check`` cannot compare."""
 
 
-class Laplacian(StrEnum):
-    cotan = "cotan"
-    intrinsic_delaunay = "intrinsic-delaunay"
-
-
-class Operators(StrEnum):
-    auto = "auto"
-    extrinsic = "extrinsic"
-    intrinsic = "intrinsic"
-
-
-class Solver(StrEnum):
-    lu = "lu"
-    newton = "newton"
-    cvxpy = "cvxpy"
+Laplacian = StrEnum("Laplacian", {name.replace("-", "_"): name for name in LAPLACIANS})
+Operators = StrEnum("Operators", {name: name for name in OPERATORS})
+Solver = StrEnum("Solver", {name: name for name in SOLVERS})
 
 
 class Reference(StrEnum):
