@@ -502,7 +502,8 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
     except (IndexError, ValueError):
         raise InputError(path, "OFF header lacks the vertex and face counts") from None
     if nv < 0 or nf < 0:
-        raise InputError(path, f"OFF header declares {nv} vertices and {nf} faces")
+        raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}: "
+                               "counts cannot be negative")
     try:
         return _off_by_lines(lines[start:], nv, nf, path, homogeneous)
     except InputError:

@@ -286,6 +286,7 @@ def test_off_free_form(text, V, F):
     (b"OFF\n3 1 0\n0 0 0 1 0 0 0 1 0\n4 0 1 2\n", "but only 2 lines follow"),  # a face short of corners
     (b"OFF\n3 1 0\n0 0 0 1 0 0 0 1\n3 0 1 2\n", "but only 2 lines follow"),  # a value short
     (b"OFF\n3 1 0\n0 0 0 1 0 0 0 1 0 2 0 1\n", "but only 1 lines follow"),  # a face of two corners
+    (b"OFF\n-3 1 0\n0 0 0 1 0 0 0 1 0 3 0 1 2\n", "declares -3 vertices and 1 face: counts cannot be negative"),
 ])
 def test_off_free_form_refused(text, fragment):
     with pytest.raises(InputError) as err:
