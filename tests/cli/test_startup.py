@@ -9,6 +9,7 @@ threshold).
 
 from __future__ import annotations
 
+import ast
 import subprocess
 import sys
 
@@ -31,7 +32,7 @@ def heavy_modules_loaded(*args: str) -> tuple[int, list[str], str]:
     code = _PROBE.format(heavy=HEAVY, args=[str(a) for a in args])
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     line = [ln for ln in p.stdout.splitlines() if ln.startswith("LOADED")][-1]
-    return p.returncode, eval(line.removeprefix("LOADED ")), p.stderr
+    return p.returncode, ast.literal_eval(line.removeprefix("LOADED ")), p.stderr
 
 
 def test_importing_the_application_loads_no_heavy_module():
