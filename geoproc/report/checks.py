@@ -69,8 +69,8 @@ def require_known_metrics(checks: list[Check], names: Collection[str], command: 
     ------
     UsageError
         Naming the first unknown metric, the closest known name when one is
-        close, and the command's metric names; the option a metric needs; or
-        a metric that is text.
+        close, and the command's metric names (those that are not text); the
+        option a metric needs; or a metric that is text.
     """
     for c in checks:
         if c.metric in text:
@@ -81,10 +81,11 @@ def require_known_metrics(checks: list[Check], names: Collection[str], command: 
             raise UsageError(f"--check '{c.text}': {command} reports '{c.metric}' only with {option}")
         if c.metric in names:
             continue
-        close = difflib.get_close_matches(c.metric, list(names), n=1)
+        numbers = sorted(n for n in names if n not in text)  # the names a check can hold on
+        close = difflib.get_close_matches(c.metric, numbers, n=1)
         hint = f" (did you mean '{close[0]}'?)" if close else ""
         raise UsageError(f"--check '{c.text}': {command} reports no metric '{c.metric}'{hint}; "
-                         f"its metrics: {', '.join(sorted(names))}")
+                         f"its metrics: {', '.join(numbers)}")
 
 
 def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:

@@ -101,6 +101,8 @@ def test_known_metrics_pass_and_a_typo_names_the_closest():
                                          r"\(--check compares numbers\)$"):
         require_known_metrics([parse_check("vertices>0"), parse_check("method==1")], names + text, "geodesic",
                               text=text)
+    with pytest.raises(UsageError, match=r"its metrics: mae, rmse, vertices$"):  # the text one is not offered
+        require_known_metrics([parse_check("methd<1")], names + text, "geodesic", text=text)
 
 
 def test_a_text_metric_the_command_did_not_declare_is_refused_after_the_run():
