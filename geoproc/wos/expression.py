@@ -5,7 +5,8 @@ against a whitelist (numbers, ``+ - * / **``, unary minus, parentheses, the
 functions in :data:`FUNCTIONS`, the constants ``pi`` and ``e``, the variables
 ``x`` and ``y``) and compiled to a small postfix program. The program is
 evaluated either on numpy arrays (:func:`evaluate`) or, point by point, inside
-numba-compiled walks (:func:`eval_program`). Nothing is ever passed to ``eval``.
+numba-compiled walks (:func:`geoproc.wos.program.eval_program`, a module of its
+own so that parsing needs no numba). Nothing is ever passed to ``eval``.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ import ast
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from geoproc.errors import UsageError
@@ -30,7 +30,7 @@ FUNCTIONS = {
 CONSTANTS = {"pi": math.pi, "e": math.e}
 VARIABLES = {"x": OP_X, "y": OP_Y}
 _BINARY = {ast.Add: OP_ADD, ast.Sub: OP_SUB, ast.Mult: OP_MUL, ast.Div: OP_DIV, ast.Pow: OP_POW}
-_MAX_STACK = 32
+MAX_STACK = 32
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,7 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
     except RecursionError:
         raise too_deep from None
     code_a = np.asarray(code, dtype=np.int64)
-    if _stack_depth(code_a) > _MAX_STACK:
+    if _stack_depth(code_a) > MAX_STACK:
         raise too_deep
     return Expression(text, code_a, np.asarray(consts, dtype=np.float64))
 
@@ -162,71 +162,3 @@ def evaluate(expr: Expression, x: np.ndarray, y: np.ndarray) -> np.ndarray:
                 a = stack.pop()
                 stack.append(binary[op](a, b))
     return np.broadcast_to(stack[-1], x.shape).astype(np.float64)
-
-
-@numba.njit(cache=True, nogil=True)
-def eval_program(code, consts, x, y):
-    """Evaluate a compiled program at one point (numba; used inside walks)."""
-    stack = np.empty(_MAX_STACK)
-    sp = 0
-    for i in range(code.shape[0]):
-        op = code[i]
-        if op == OP_CONST:
-            stack[sp] = consts[i]
-            sp += 1
-        elif op == OP_X:
-            stack[sp] = x
-            sp += 1
-        elif op == OP_Y:
-            stack[sp] = y
-            sp += 1
-        elif op <= OP_POW or op == OP_ATAN2:
-            b = stack[sp - 1]
-            a = stack[sp - 2]
-            sp -= 1
-            if op == OP_ADD:
-                r = a + b
-            elif op == OP_SUB:
-                r = a - b
-            elif op == OP_MUL:
-                r = a * b
-            elif op == OP_DIV:
-                r = a / b if b != 0.0 else (np.nan if a == 0.0 else np.inf * np.sign(a) * np.sign(b))
-            elif op == OP_POW:
-                r = _pow(a, b)
-            else:
-                r = math.atan2(a, b)
-            stack[sp - 1] = r
-        else:
-            a = stack[sp - 1]
-            if op == OP_NEG:
-                r = -a
-            elif op == OP_SIN:
-                r = math.sin(a)
-            elif op == OP_COS:
-                r = math.cos(a)
-            elif op == OP_TAN:
-                r = math.tan(a)
-            elif op == OP_EXP:
-                r = math.exp(a) if a < 709.0 else np.inf
-            elif op == OP_LOG:
-                r = math.log(a) if a > 0.0 else (-np.inf if a == 0.0 else np.nan)
-            elif op == OP_SQRT:
-                r = math.sqrt(a) if a >= 0.0 else np.nan
-            elif op == OP_ABS:
-                r = abs(a)
-            elif op == OP_SINH:
-                r = math.sinh(a) if abs(a) < 709.0 else np.inf * np.sign(a)
-            else:
-                r = math.cosh(a) if abs(a) < 709.0 else np.inf
-            stack[sp - 1] = r
-    return stack[0]
-
-
-@numba.njit(cache=True, nogil=True)
-def _pow(a, b):
-    if a < 0.0 and b != math.floor(b):
-        return np.nan
-    if a == 0.0 and b < 0.0:
-        return np.inf
-    return a**b

@@ -22,8 +22,8 @@ import numpy as np
 from numba import prange
 
 from geoproc.wos.closest import closest_point, distance_lower_bound
-from geoproc.wos.expression import eval_program
 from geoproc.wos.kernels import cv_value
+from geoproc.wos.program import eval_program
 from geoproc.wos.rng import next_uniform, stream_state
 
 TWO_PI = 2.0 * math.pi

@@ -25,8 +25,8 @@ import numpy as np
 from numba import prange
 
 from geoproc.wos.closest import closest_point
-from geoproc.wos.expression import eval_program
 from geoproc.wos.kernels import cv_gradient, cv_value
+from geoproc.wos.program import eval_program
 from geoproc.wos.rng import next_uniform, stream_state
 from geoproc.wos.walk import boundary_value
 

@@ -54,6 +54,8 @@ def test_importing_the_application_loads_no_heavy_module():
     (("morse-simplify", "{fixtures}/empty.obj", "-f", "z", "-p", "0.1", "-o", "{out}.ply"), "has no faces"),
     (("perturb", "{fixtures}/torus.ply", "--noise", "-1", "--seed", "1", "-o", "{out}.ply"), "--noise -1"),
     (("wos-solve", "{missing}", "--boundary", "x", "-o", "{out}.png"), ".exr"),
+    (("wos-solve", "{missing}", "--boundary", "x", "-o", "{out}.exr"), "no such file"),
+    (("wos-solve", "{missing}", "--boundary", "x+", "-o", "{out}.exr"), "not a valid expression"),
     (("info", "{fixtures}/torus.ply", "--check", "genuss==1"), "did you mean 'genus'"),
 ])
 def test_refusals_before_the_work_load_no_heavy_module(args, refusal, fixture_dir, tmp_path):

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from geoproc.errors import UsageError
-from geoproc.wos.expression import eval_program, evaluate, parse_expression
+from geoproc.wos.expression import evaluate, parse_expression
+from geoproc.wos.program import eval_program
 
 CASES = [
     ("x**3 - 3*x*y**2", lambda x, y: x**3 - 3 * x * y**2),

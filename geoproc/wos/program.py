@@ -1,0 +1,99 @@
+"""Point-by-point evaluation of the postfix programs of :mod:`geoproc.wos.expression`,
+compiled with numba for use inside the walks."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from geoproc.wos.expression import (
+    MAX_STACK,
+    OP_ABS,
+    OP_ADD,
+    OP_ATAN2,
+    OP_CONST,
+    OP_COS,
+    OP_DIV,
+    OP_EXP,
+    OP_LOG,
+    OP_MUL,
+    OP_NEG,
+    OP_POW,
+    OP_SIN,
+    OP_SINH,
+    OP_SQRT,
+    OP_SUB,
+    OP_TAN,
+    OP_X,
+    OP_Y,
+)
+
+
+@numba.njit(cache=True, nogil=True)
+def eval_program(code, consts, x, y):
+    """Evaluate a compiled program at one point (numba; used inside walks)."""
+    stack = np.empty(MAX_STACK)
+    sp = 0
+    for i in range(code.shape[0]):
+        op = code[i]
+        if op == OP_CONST:
+            stack[sp] = consts[i]
+            sp += 1
+        elif op == OP_X:
+            stack[sp] = x
+            sp += 1
+        elif op == OP_Y:
+            stack[sp] = y
+            sp += 1
+        elif op <= OP_POW or op == OP_ATAN2:
+            b = stack[sp - 1]
+            a = stack[sp - 2]
+            sp -= 1
+            if op == OP_ADD:
+                r = a + b
+            elif op == OP_SUB:
+                r = a - b
+            elif op == OP_MUL:
+                r = a * b
+            elif op == OP_DIV:
+                r = a / b if b != 0.0 else (np.nan if a == 0.0 else np.inf * np.sign(a) * np.sign(b))
+            elif op == OP_POW:
+                r = _pow(a, b)
+            else:
+                r = math.atan2(a, b)
+            stack[sp - 1] = r
+        else:
+            a = stack[sp - 1]
+            if op == OP_NEG:
+                r = -a
+            elif op == OP_SIN:
+                r = math.sin(a)
+            elif op == OP_COS:
+                r = math.cos(a)
+            elif op == OP_TAN:
+                r = math.tan(a)
+            elif op == OP_EXP:
+                r = math.exp(a) if a < 709.0 else np.inf
+            elif op == OP_LOG:
+                r = math.log(a) if a > 0.0 else (-np.inf if a == 0.0 else np.nan)
+            elif op == OP_SQRT:
+                r = math.sqrt(a) if a >= 0.0 else np.nan
+            elif op == OP_ABS:
+                r = abs(a)
+            elif op == OP_SINH:
+                r = math.sinh(a) if abs(a) < 709.0 else np.inf * np.sign(a)
+            else:
+                r = math.cosh(a) if abs(a) < 709.0 else np.inf
+            stack[sp - 1] = r
+    return stack[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _pow(a, b):
+    if a < 0.0 and b != math.floor(b):
+        return np.nan
+    if a == 0.0 and b < 0.0:
+        return np.inf
+    return a**b
