@@ -24,7 +24,7 @@ from geoproc.errors import InputError
 from geoproc.fileio import file_extension, read_input_bytes, require_input_file, sha256_bytes
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
-from geoproc.mesh.ply_uniform import read_uniform_ply
+from geoproc.mesh.ply_uniform import parse_ply_header, read_uniform_ply
 from geoproc.mesh.text_numbers import numbers_on_lines, uniform_rows
 from geoproc.mesh.validate import require_indices_below
 
@@ -205,6 +205,7 @@ def _fans(idx: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, int]:
 def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
     elements = read_uniform_ply(data)
     if elements is None:  # outside the vectorized layout: plyfile reads it, or names the problem
+        _require_declared_rows_fit(data, path)
         elements = _plyfile_elements(data, path)
     if "vertex" not in elements:
         raise InputError(path, "PLY has no 'vertex' element")
@@ -253,6 +254,43 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
         F = np.concatenate([F, _strip_triangles(flat, counts)])
         ffields = {}  # per-face properties belong to the face element alone
     return Mesh(V, F, vfields, ffields), polys
+
+
+def _require_declared_rows_fit(data: bytes, path: str) -> None:
+    """InputError when the header's row counts cannot fit the bytes after it.
+
+    Each binary row takes at least its scalars and its list's count; each ASCII
+    row at least one line. plyfile allocates every element before reading it,
+    so a corrupt count would otherwise end in a failed allocation of many GiB.
+    Headers :func:`geoproc.mesh.ply_uniform.parse_ply_header` does not read are
+    left to plyfile.
+    """
+    header = parse_ply_header(data)
+    if header is None:
+        return
+    fmt, elements, offset = header
+    body = len(data) - offset
+    if fmt == "ascii":
+        need = sum(e.count for e in elements)
+        have = data.count(b"\n", offset) + (not data.endswith(b"\n"))
+        if need > have:
+            raise InputError(path, f"PLY header declares {_row_counts(elements)}, but only {have} "
+                                   f"line{'s' * (have != 1)} follow{'s' * (have == 1)} it (one per row)")
+        return
+    need = 0
+    for e in elements:
+        row = sum(np.dtype(code).itemsize for name, code in e.scalars if name is not None)
+        row += np.dtype(e.list_types[0]).itemsize if e.list_types is not None else 0
+        need += e.count * row
+    if need > body:
+        raise InputError(path, f"PLY header declares {_row_counts(elements)} (at least {need} bytes), "
+                               f"but only {body} byte{'s' * (body != 1)} follow{'s' * (body == 1)} it")
+
+
+def _row_counts(elements: list) -> str:
+    """``'3 vertex rows and 1 face row'``: the header's counts for a message."""
+    parts = [f"{e.count} {e.name} row{'s' * (e.count != 1)}" for e in elements]
+    return " and ".join(parts) if len(parts) < 3 else ", ".join(parts[:-1]) + " and " + parts[-1]
 
 
 def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:

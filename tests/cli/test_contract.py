@@ -20,7 +20,7 @@ from geoproc_cli.common import CheckOpt, ReportOpt, command_run, metrics_epilog
 from geoproc_cli.main import app
 
 BAD_INPUTS = [
-    ("truncated.ply", "unparseable PLY"),
+    ("truncated.ply", "PLY header declares 42 vertex rows and 80 face rows (at least 1088 bytes)"),
     ("nan.ply", "non-finite coordinates"),
     ("out_of_range.obj", "face index out of range"),
     ("empty.obj", "no faces"),

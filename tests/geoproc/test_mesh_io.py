@@ -161,7 +161,7 @@ def test_row_hashes_separate_grid_positions():
 @pytest.mark.parametrize(
     "name, fragment",
     [
-        ("truncated.ply", "unparseable PLY"),
+        ("truncated.ply", "PLY header declares 42 vertex rows and 80 face rows (at least 1088 bytes)"),
         ("nan.ply", "non-finite coordinates"),
         ("out_of_range.obj", "face index out of range"),
         ("empty.obj", "no faces"),
@@ -186,6 +186,34 @@ def test_missing_and_unknown_files(tmp_path):
     (tmp_path / "g.off").write_text("this is not an OFF file\n")
     with pytest.raises(InputError):
         load_mesh(tmp_path / "g.off")
+
+
+_TRIANGLE_PLY_HEAD = ("ply\nformat {fmt} 1.0\nelement vertex {n}\nproperty float x\nproperty float y\n"
+             "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n")
+
+
+def test_ply_counts_beyond_the_file_are_refused_before_allocating(tmp_path):
+    # plyfile allocates each element before reading it: 4e9 rows would be a 45 GiB array
+    p = tmp_path / "b.ply"
+    p.write_bytes(_TRIANGLE_PLY_HEAD.format(fmt="binary_little_endian", n=4_000_000_000).encode() + bytes(13))
+    with pytest.raises(InputError) as err:
+        load_mesh(p)
+    assert err.value.problem == ("PLY header declares 4000000000 vertex rows and 1 face row "
+                                 "(at least 48000000001 bytes), but only 13 bytes follow it")
+    p = tmp_path / "a.ply"
+    p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n=4_000_000_000) + "0 0 0\n")
+    with pytest.raises(InputError) as err:
+        load_mesh(p)
+    assert err.value.problem == ("PLY header declares 4000000000 vertex rows and 1 face row, "
+                                 "but only 1 line follows it (one per row)")
+
+
+def test_ply_rows_that_fit_the_counts_keep_plyfiles_message(tmp_path):
+    p = tmp_path / "t.ply"
+    p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n=3) + "0 0 0\n1 0 0\n0 a 0\n3 0 1 2\n")
+    with pytest.raises(InputError) as err:
+        load_mesh(p)
+    assert err.value.problem == "unparseable PLY: element 'vertex': row 2: property 'y': malformed input"
 
 
 def test_out_of_range_in_ply_and_off(tmp_path):
