@@ -3,6 +3,7 @@ removal, and animation denoising."""
 
 from __future__ import annotations
 
+import os
 from contextlib import contextmanager
 from typing import Annotated
 
@@ -223,7 +224,9 @@ def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynam
 def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str]) -> None:
     run.one_stdin(input, reference)
     if input != "-" and is_animation_path(input):
-        raise UsageError(f"{input}: an animation; --dynamic denoises it, --outliers finds its outlying points")
+        kind = "a folder" if os.path.isdir(input) else "a .npz file"
+        raise UsageError(f"{input}: {kind} is read as an animation; --dynamic denoises it, --outliers finds "
+                         "its outlying points")
     mesh = run.load_mesh(input, clean=not no_clean)
     path = mesh.log.path or None
     if mesh.is_point_cloud:

@@ -10,6 +10,8 @@ covers ``[col, col+1] x [H-row-1, H-row]``.
 
 from __future__ import annotations
 
+import os
+
 import contourpy
 import numpy as np
 
@@ -23,7 +25,12 @@ def read_mask(path: str) -> np.ndarray:
 
     buf = oiio.ImageBuf(path)
     if buf.has_error:
-        raise InputError(path, f"cannot read image: {buf.geterror().strip().splitlines()[0]}")
+        message = buf.geterror().strip().splitlines()[0].removeprefix("Could not open file: ")
+        if "could not find a format reader" in message:  # its message repeats the path; say what is read
+            ext = os.path.splitext(path)[1]
+            raise InputError(path, f"neither a JSON domain nor an image OpenImageIO can read "
+                                   f"(no reader for {repr(ext) + ' files' if ext else 'a file without extension'})")
+        raise InputError(path, f"cannot read image: {message}")
     pixels = buf.get_pixels(oiio.FLOAT)
     if buf.has_error or pixels is None or pixels.size == 0:
         raise InputError(path, "cannot read image pixels")

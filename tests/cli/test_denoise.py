@@ -139,7 +139,10 @@ def test_dynamic_needs_three_frames(cli, dfx, tmp_path):
     assert _one_line_error(p) and "two.npz: has 2 frames; --dynamic needs at least 3" in p.stderr
     assert not out.exists()
     p = cli("denoise", src, "-o", out)
-    assert _one_line_error(p) and "two.npz: an animation; --dynamic denoises it" in p.stderr
+    assert _one_line_error(p) and "two.npz: a .npz file is read as an animation; --dynamic denoises it" in p.stderr
+    (tmp_path / "frames").mkdir()
+    p = cli("denoise", tmp_path / "frames", "-o", tmp_path / "f.ply")
+    assert _one_line_error(p) and "frames: a folder is read as an animation; --dynamic denoises it" in p.stderr
 
 
 # ---- bad input: one line, exit 2, nothing written --------------------------------------------

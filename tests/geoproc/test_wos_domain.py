@@ -141,3 +141,18 @@ def test_mask_without_foreground(tmp_path):
     wf.write_mask(path, np.zeros((16, 16), bool))
     with pytest.raises(InputError, match="no foreground"):
         load_domain_mask(str(path))
+
+
+def test_files_that_are_neither_json_nor_an_image(tmp_path):
+    from geoproc.wos.load import load_domain
+
+    mesh = tmp_path / "m.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(InputError) as err:
+        load_domain(str(mesh))
+    assert err.value.problem == "neither a JSON domain nor an image OpenImageIO can read (no reader for '.obj' files)"
+    bad = tmp_path / "b.png"
+    bad.write_bytes(b"not a png at all")
+    with pytest.raises(InputError) as err:
+        load_domain(str(bad))
+    assert err.value.problem.startswith("cannot read image: ") and str(bad) not in err.value.problem
