@@ -321,6 +321,8 @@ def _require_output_folders(names: list[str]) -> None:
     for name in names:
         if name == "-":
             continue
+        if not name:  # realpath('') is the working folder: 'is a folder' would puzzle
+            raise UsageError("an output file name is empty")
         real = os.path.realpath(name)
         if name.endswith(("/", os.sep)) or os.path.isdir(real):
             raise UsageError(f"{name}: cannot write: is a folder; give a file name")

@@ -13,7 +13,7 @@ from geoproc.errors import UsageError
 
 _OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "<": operator.lt, ">": operator.gt}
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")  # ASCII, finite
-_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.]*)\s*(<=|>=|==|<|>)\s*(\S+)\s*$")
+_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.]*)\s*(<=|>=|==|<|>)\s*(\S*)\s*$")
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,8 @@ def parse_check(text: str) -> Check:
             "(for example 'rmse<=0.01')"
         )
     name, op, raw = m.groups()
+    if not raw:  # 'x<=' would otherwise read as 'x' < '='
+        raise UsageError(f"--check '{text}': no number after '{op}'")
     if not _NUMBER.fullmatch(raw) or not math.isfinite(float(raw)):
         raise UsageError(f"--check '{text}': '{raw}' is not a finite decimal number")
     return Check(name, op, float(raw), text.strip())

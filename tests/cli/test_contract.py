@@ -106,6 +106,12 @@ def test_unknown_metric_and_malformed_check_are_usage_errors(cli, fixture_dir, t
     assert p.returncode == 2 and "--check 'genus=1'" in p.stderr
 
 
+def test_an_empty_output_name_is_refused_as_such(cli, fixture_dir, tmp_path):
+    # os.path.realpath('') is the working folder: the refusal had read 'is a folder'
+    p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", "")
+    assert p.returncode == 2 and p.stderr == "error: an output file name is empty\n", p.stderr
+
+
 @pytest.mark.parametrize(("command", "args", "typo", "closest"), [
     ("info", [], "genuss==1", "genus"),
     ("geodesic", ["-s", "0", "-o", "o.ply"], "rmsee<=0.1", "rmse"),

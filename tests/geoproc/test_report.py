@@ -75,6 +75,14 @@ def test_malformed_checks_are_usage_errors(text):
         parse_check(text)
 
 
+@pytest.mark.parametrize("op", ["<=", "<", ">=", ">", "=="])
+def test_a_check_without_a_number_names_its_operator(op):
+    # 'x<=' must not read as 'x' < '=' (which blamed '=' for not being a number)
+    with pytest.raises(UsageError) as err:
+        parse_check(f"x{op}")
+    assert str(err.value) == f"--check 'x{op}': no number after '{op}'"
+
+
 def test_unknown_metric_is_a_usage_error_listing_names():
     with pytest.raises(UsageError, match="unknown metric 'nope'.*rmse"):
         evaluate_checks([parse_check("nope<1")], {"rmse": 0.1})
