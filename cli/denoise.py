@@ -168,16 +168,19 @@ def denoise(
         if threshold_set and threshold < 0:
             raise UsageError(f"--threshold {threshold}: must be >= 0")
         threshold = 0.5 if threshold is None else threshold
-        if (sigma_r is not None and sigma_r <= 0) or (sigma_s is not None and sigma_s <= 0):
-            raise UsageError("--sigma-r and --sigma-s must be > 0")
+        for option, value in (("--sigma-r", sigma_r), ("--sigma-s", sigma_s)):
+            if value is not None and value <= 0:
+                raise UsageError(f"{option} {value:g}: must be > 0")
         if sigma_r is not None and not sigma_r > 1e-150:  # the range kernel divides by its square (1e-300)
             raise UsageError(f"--sigma-r {sigma_r:g} is too small: its square underflows")
         if not 0.0 <= fidelity <= 1.0:
             raise UsageError(f"--fidelity {fidelity}: must be within [0, 1]")
         if features not in ("l1", "dihedral"):
             raise UsageError(f"--features {features}: use l1 or dihedral")
-        if feature_tau < 0 or not 0 <= feature_angle <= 180:
-            raise UsageError("--feature-tau must be >= 0 and --feature-angle within [0, 180]")
+        if feature_tau < 0:
+            raise UsageError(f"--feature-tau {feature_tau:g}: must be >= 0")
+        if not 0 <= feature_angle <= 180:
+            raise UsageError(f"--feature-angle {feature_angle:g}: must be within [0, 180] degrees")
         dp = DenoiseParams(outer_iterations=rounds, normal_iterations=normal_iterations,
                            vertex_iterations=vertex_iterations, fidelity=fidelity, sigma_r=sigma_r,
                            sigma_s_scale=sigma_s,

@@ -366,6 +366,18 @@ def test_filter_options_unused_on_a_clean_mesh_are_noted(cli, fixture_dir, tmp_p
     assert p.returncode == 0 and "note: --sigma-s not used: no filter pass ran (--rounds 0)" in p.stderr
 
 
+@pytest.mark.parametrize(("args", "message"), [
+    (["--sigma-r", "0"], "error: --sigma-r 0: must be > 0\n"),
+    (["--sigma-s", "-2"], "error: --sigma-s -2: must be > 0\n"),
+    (["--feature-angle", "400"], "error: --feature-angle 400: must be within [0, 180] degrees\n"),
+    (["--features", "l1", "--feature-tau", "-1"], "error: --feature-tau -1: must be >= 0\n"),
+])
+def test_a_parameter_out_of_range_is_named_alone(cli, fixture_dir, tmp_path, args, message):
+    out = tmp_path / "o.ply"
+    p = cli("denoise", fixture_dir / "torus.ply", *args, "-o", out)
+    assert p.returncode == 2 and p.stderr == message and not out.exists()
+
+
 def test_sigma_r_whose_square_underflows_is_refused(cli, fixture_dir, tmp_path):
     out = tmp_path / "o.ply"
     p = cli("denoise", fixture_dir / "torus.ply", "--sigma-r", "1e-300", "--rounds", "1", "-o", out)
