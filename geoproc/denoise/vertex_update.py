@@ -32,7 +32,8 @@ def _fitting_step(X, F, normals, valence, fixed, delta):
 @numba.njit(cache=True)
 def _face_cross(X, D, scale, F, f):
     """Cross product of two edges of face ``f`` at positions ``X + scale * D``
-    (twice the area times the normal), and its length (at least 1e-300)."""
+    (twice the area times the normal), and its length (at least 1e-300).
+    With ``scale`` 0 (and ``D`` finite) it is the cross product at ``X`` itself."""
     a, b, c = F[f, 0], F[f, 1], F[f, 2]
     u0 = X[b, 0] - X[a, 0] + scale * (D[b, 0] - D[a, 0])
     u1 = X[b, 1] - X[a, 1] + scale * (D[b, 1] - D[a, 1])
@@ -44,19 +45,6 @@ def _face_cross(X, D, scale, F, f):
     r1 = u2 * w0 - u0 * w2
     r2 = u0 * w1 - u1 * w0
     return r0, r1, r2, max(np.sqrt(r0 * r0 + r1 * r1 + r2 * r2), 1e-300)
-
-
-@numba.njit(cache=True)
-def _cross(X, F, f):
-    """Cross product of two edges of face ``f`` (twice the area times the normal)."""
-    a, b, c = F[f, 0], F[f, 1], F[f, 2]
-    u0 = X[b, 0] - X[a, 0]
-    u1 = X[b, 1] - X[a, 1]
-    u2 = X[b, 2] - X[a, 2]
-    w0 = X[c, 0] - X[a, 0]
-    w1 = X[c, 1] - X[a, 1]
-    w2 = X[c, 2] - X[a, 2]
-    return u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
 
 
 @numba.njit(cache=True)
@@ -261,7 +249,7 @@ def _folded(X, F, normals, edge_nb, use_nb, idx, out):
     """Core of :func:`folded_faces` for the faces ``idx``, into ``out``."""
     for i in range(idx.shape[0]):
         f = idx[i]
-        r0, r1, r2 = _cross(X, F, f)
+        r0, r1, r2, _ = _face_cross(X, X, 0.0, F, f)
         n = normals[f]
         folded = r0 * n[0] + r1 * n[1] + r2 * n[2] < 0.0
         if use_nb and not folded:
@@ -271,7 +259,7 @@ def _folded(X, F, normals, edge_nb, use_nb, idx, out):
                 j = edge_nb[f, k]
                 if j < 0:
                     continue
-                s0, s1, s2 = _cross(X, F, j)
+                s0, s1, s2, _ = _face_cross(X, X, 0.0, F, j)
                 g0 += s0
                 g1 += s1
                 g2 += s2
