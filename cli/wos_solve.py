@@ -10,6 +10,7 @@ import numpy as np
 import typer
 
 from geoproc.errors import UsageError
+from geoproc.fileio import require_input_file
 from geoproc_cli.common import (
     CheckOpt,
     DebugOpt,
@@ -124,13 +125,13 @@ def wos_solve(
 
         g = parse_expression(boundary, "--boundary") if boundary is not None else None
         h = parse_expression(neumann, "--neumann") if neumann is not None else None
-        with run.timer("load"):
-            # the domain's bytes are read first (a missing file is refused here); building
-            # the domain and the solver load numba and matplotlib
-            dom = run.read_input(domain, _build_domain, "domain file")
-        from geoproc.wos import solve_laplace
+        if domain != "-":  # a missing domain is refused before numba and matplotlib load
+            require_input_file(domain, "domain file")
+        from geoproc.wos import load_domain, solve_laplace
         from geoproc.wos.images import exr_bytes, png_bytes
 
+        with run.timer("load"):
+            dom = run.read_input(domain, load_domain, "domain file")
         if dom.traced:
             run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
                      f"area {dom.area:.6g} px^2")
@@ -158,13 +159,6 @@ def wos_solve(
                 run.write_bytes(error_image, png_bytes(
                     err, extent, f"{name}: |error|, {method.value}, rmse "
                     f"{res.metrics['rmse']:.3g}", cmap="magma", contours=0, label="|u - exact|"))
-
-
-def _build_domain(path: str, data: bytes | None):
-    """:func:`geoproc.wos.load_domain`, imported when the domain's bytes are in hand."""
-    from geoproc.wos import load_domain
-
-    return load_domain(path, data)
 
 
 def register(app: typer.Typer) -> None:
