@@ -9,7 +9,10 @@ import trimesh
 
 from geoproc.mesh import Mesh, load_mesh, mesh_info
 from geoproc.mesh.topology import (
+    COMPILED_FANS_FROM,
     count_boundary_loops,
+    fans_by_sorting,
+    fans_compiled,
     orientation_status,
     unique_edges,
     vertex_components,
@@ -173,22 +176,38 @@ def _fans_by_search(F, n):
     return out
 
 
-def test_vertex_fans_match_a_graph_search_on_random_soups(make_fixtures):
+@pytest.mark.parametrize("count_fans", [vertex_fans, fans_by_sorting, fans_compiled])
+def test_vertex_fans_match_a_graph_search_on_random_soups(make_fixtures, count_fans):
+    # vertex_fans sorts below COMPILED_FANS_FROM corners and runs the compiled loop above:
+    # both ways are checked here on every case
     rng = np.random.default_rng(3)
-    for faces in (16, 60):  # valences up to 16, and above (the sorted path)
+    for faces in (16, 60):  # valences up to 16, and above (the compiled loop's sorted path)
         for _ in range(75):  # repeated indices, non-manifold edges and vertices, unused vertices
             n = int(rng.integers(3, 10))
             F = rng.integers(0, n, (int(rng.integers(1, faces)), 3))
-            assert np.array_equal(vertex_fans(F, n + 1), _fans_by_search(F, n + 1))
+            assert np.array_equal(count_fans(F, n + 1), _fans_by_search(F, n + 1))
     V, F = make_fixtures.icosphere(1)  # two spheres sharing one vertex: a bowtie
     two = np.concatenate([F, np.where(F == 0, 0, F + len(V))])
-    fans = vertex_fans(two, 2 * len(V))
+    fans = count_fans(two, 2 * len(V))
     assert fans[0] == 2 and fans[len(V)] == 0 and (np.delete(fans, [0, len(V)]) == 1).all()
     k = 100_000  # two discs fanned around one shared centre: valence 400,000 (seconds, not hours)
     ring = np.arange(1, k + 1)
     disc = np.column_stack([np.zeros(k, dtype=int), ring, np.roll(ring, -1)])
-    fans = vertex_fans(np.concatenate([disc, np.where(disc == 0, 0, disc + k)]), 2 * k + 1)
+    fans = count_fans(np.concatenate([disc, np.where(disc == 0, 0, disc + k)]), 2 * k + 1)
     assert fans[0] == 2 and (fans[1:] == 1).all()
+    assert not count_fans(np.zeros((0, 3), dtype=np.int64), 3).any()
+
+
+def test_the_two_fan_counts_agree_on_a_large_mesh(make_fixtures):
+    # above COMPILED_FANS_FROM corners vertex_fans runs the compiled loop; sorting
+    # gives the same counts
+    V, F = make_fixtures.torus(nu=460, nv=440)  # 404,800 faces
+    assert F.size >= COMPILED_FANS_FROM
+    n = len(V)
+    F = np.concatenate([F, np.where(F == 0, 0, F + n)])  # a second copy sharing vertex 0: a bowtie there
+    fans = vertex_fans(F, 2 * n)
+    assert np.array_equal(fans, fans_by_sorting(F, 2 * n))
+    assert fans[0] == 2 and fans[n] == 0 and (np.delete(fans, [0, n]) == 1).all()
 
 
 def test_face_list_renumbering_recovers_a_permutation(make_fixtures):
