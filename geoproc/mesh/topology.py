@@ -101,10 +101,10 @@ def nonmanifold_edges(F: np.ndarray) -> np.ndarray:
 
 
 # Below this many corners (3 per face) the fans are counted by sorting, in numpy
-# and scipy: 0.1 s for 86k faces, less than the first compiled call costs a fresh
-# process (numba's set-up, about 0.7 s on a 2-core machine, which `info` would
-# pay for this alone). Above it the compiled count wins (0.09 s against 0.77 s
-# at 346k faces, 0.22 s against 3.4 s at 1.4M).
+# and scipy: 0.07 s for 86k faces, less than the first compiled call costs a
+# fresh process (numba's set-up, about 0.7 s on a 2-core machine, which `info`
+# would pay for this alone). Above it the compiled count wins (0.03 s against
+# 0.36 s at 346k faces, 0.30 s against 2.1 s at 1.4M).
 COMPILED_FANS_FROM = 1_200_000
 
 
@@ -138,7 +138,7 @@ def fans_by_sorting(F: np.ndarray, n: int) -> np.ndarray:
     order = np.argsort(key)
     same = np.flatnonzero(key[order[1:]] == key[order[:-1]])
     a, b = order[same] % corners, order[same + 1] % corners
-    graph = sp.coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(corners, corners))
+    graph = sp.coo_matrix((np.ones(len(a), dtype=np.int32), (a, b)), shape=(corners, corners))
     count, label = connected_components(graph, directed=False)
     fan_vertex = np.empty(count, dtype=np.int64)
     fan_vertex[label] = v  # every corner of a fan is at the same vertex
