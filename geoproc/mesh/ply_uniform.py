@@ -112,6 +112,12 @@ def _row_dtype(e: PlyElementHeader, order: str, k: int) -> np.dtype:
                      for field, span, code in _column_types(e, k)])
 
 
+def smallest_row_bytes(e: PlyElementHeader) -> int:
+    """Bytes of the shortest binary row of ``e``: its scalars and its list's
+    count, the list empty."""
+    return _row_dtype(e, "<", 0).itemsize
+
+
 def _binary_element(data: bytes, offset: int, e: PlyElementHeader, order: str):
     """(rows, next offset) of element ``e`` at ``offset``, or None when its lists
     differ in length or the data ends early."""

@@ -24,7 +24,7 @@ from geoproc.errors import InputError
 from geoproc.fileio import file_extension, read_input_bytes, require_input_file, sha256_bytes
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
-from geoproc.mesh.ply_uniform import parse_ply_header, read_uniform_ply
+from geoproc.mesh.ply_uniform import parse_ply_header, read_uniform_ply, smallest_row_bytes
 from geoproc.mesh.text_numbers import numbers_on_lines, uniform_rows
 from geoproc.mesh.validate import require_indices_below
 
@@ -277,11 +277,7 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
             raise InputError(path, f"PLY header declares {_row_counts(elements)}, but only {have} "
                                    f"line{'s' * (have != 1)} follow{'s' * (have == 1)} it (one per row)")
         return
-    need = 0
-    for e in elements:
-        row = sum(np.dtype(code).itemsize for name, code in e.scalars if name is not None)
-        row += np.dtype(e.list_types[0]).itemsize if e.list_types is not None else 0
-        need += e.count * row
+    need = sum(e.count * smallest_row_bytes(e) for e in elements)
     if need > body:
         raise InputError(path, f"PLY header declares {_row_counts(elements)} (at least {need} bytes), "
                                f"but only {body} byte{'s' * (body != 1)} follow{'s' * (body == 1)} it")
