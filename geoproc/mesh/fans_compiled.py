@@ -1,5 +1,5 @@
-"""Compiled (numba) loops of :mod:`geoproc.mesh.topology` for large meshes: the
-fans around each vertex, and the corners at each vertex in CSR order."""
+"""Compiled (numba) loops of :mod:`geoproc.mesh.topology`: the fans around each
+vertex (used on large meshes) and the corners at each vertex in CSR order."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Combinatorial queries on triangle meshes: edges, boundaries, components,
-manifoldness and orientability. All are vectorized over numpy/scipy.sparse;
-on large meshes the fans around each vertex and the corners at each vertex are
-counted by the compiled loops of :mod:`geoproc.mesh.fans_compiled` (numba).
+manifoldness and orientability. All are vectorized over numpy/scipy.sparse,
+except the corners at each vertex in CSR order, and the fans around each
+vertex on large meshes: compiled loops of :mod:`geoproc.mesh.fans_compiled` (numba).
 
 Conventions: ``F`` is an (m, 3) int array of vertex indices; ``n`` the number of
 vertices. Half-edge ``3*f + k`` goes from ``F[f, k]`` to ``F[f, (k+1) % 3]``;
