@@ -28,7 +28,6 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
-from pathlib import Path
 from typing import Annotated, TypeVar
 
 import numpy as np
@@ -51,7 +50,7 @@ stderr = Console(stderr=True, highlight=False, soft_wrap=True)
 stdout = Console(highlight=False, soft_wrap=True)
 
 ReportOpt = Annotated[
-    Path | None,
+    str | None,
     typer.Option("--report", help="Write a JSON metric report here (schema: geoproc/report/report.schema.json); "
                  "- writes it to standard output.",
                  metavar="FILE.json", show_default=False),
@@ -254,7 +253,7 @@ class Run:
         """Queue bytes for standard output; written only when the run succeeds."""
         self._outputs.append(("-", data))
 
-    def _commit(self, report: Path | None) -> None:
+    def _commit(self, report: str | None) -> None:
         """Write every queued output and the report, all or none.
 
         The files are staged beside their destinations, standard output gets
@@ -295,7 +294,7 @@ def _write_stdout(data: bytes) -> None:
         raise OSError(errno.EBADF, "standard output is closed", "-") from None
 
 
-def _require_distinct_outputs(names: list[str], inputs: list[str], report: Path | None) -> None:
+def _require_distinct_outputs(names: list[str], inputs: list[str], report: str | None) -> None:
     """Refuse two outputs on one path (standard output included) and an output
     that would overwrite an input."""
     if sum(name == "-" for name in names) > 1:
@@ -352,6 +351,8 @@ def require_extension(path: str | os.PathLike, ext: str, option: str, stdout_ok:
     """UsageError unless the file name ``path`` ends in ``ext`` (e.g. ``".png"``,
     any case); ``-`` (standard output) passes when ``stdout_ok``."""
     name = os.fspath(path)
+    if not name:
+        raise UsageError(f"{option}: the file name is empty")
     if (stdout_ok and name == "-") or name.lower().endswith(ext):
         return
     raise UsageError(f"{option} {name}: must end in {ext}" + (" (or be -)" if stdout_ok else ""))
@@ -372,7 +373,7 @@ def command_run(
     command: str,
     params: dict,
     *,
-    report: Path | None = None,
+    report: str | None = None,
     checks: list[str] | None = None,
     quiet: bool = False,
     debug: bool = False,

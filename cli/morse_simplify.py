@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-from pathlib import Path
 from typing import Annotated
 
 import numpy as np
@@ -61,10 +60,10 @@ def morse_simplify(
         "the input field as NAME_original.", metavar="OUT.ply", show_default=False)],
     relative: Annotated[bool, typer.Option(
         "--relative", help="Read P as a fraction of the field's range (max - min).")] = False,
-    critical: Annotated[Path | None, typer.Option(
+    critical: Annotated[str | None, typer.Option(
         "--critical", help="Write the critical cells before and after, with their pairs, as JSON.",
         metavar="CRIT.json", show_default=False)] = None,
-    diagram: Annotated[Path | None, typer.Option(
+    diagram: Annotated[str | None, typer.Option(
         "--diagram", help="Write the persistence diagrams before and after as a PNG.",
         metavar="PD.png", show_default=False)] = None,
     exact_windows: Annotated[int, typer.Option(

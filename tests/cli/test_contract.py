@@ -110,6 +110,12 @@ def test_an_empty_output_name_is_refused_as_such(cli, fixture_dir, tmp_path):
     # os.path.realpath('') is the working folder: the refusal had read 'is a folder'
     p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", "")
     assert p.returncode == 2 and p.stderr == "error: an output file name is empty\n", p.stderr
+    # --report was a Path option, and Path('') is '.': it had read '--report .: must end in .json'
+    p = cli("info", fixture_dir / "torus.ply", "--report", "")
+    assert p.returncode == 2 and p.stderr == "error: --report: the file name is empty\n", p.stderr
+    out = tmp_path / "m.ply"
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", "x", "-p", "0.1", "-o", out, "--diagram", "")
+    assert p.returncode == 2 and "empty" in p.stderr and not out.exists(), p.stderr
 
 
 @pytest.mark.parametrize(("command", "args", "typo", "closest"), [
