@@ -5,7 +5,7 @@ from __future__ import annotations
 from geoproc.errors import InputError
 from geoproc.fileio import read_input_bytes
 from geoproc.wos.domain import Domain, load_domain_json
-from geoproc.wos.mask import load_domain_mask
+from geoproc.wos.mask import NoImageReader, load_domain_mask
 
 
 def load_domain(path: str, data: bytes | None = None) -> Domain:
@@ -19,4 +19,7 @@ def load_domain(path: str, data: bytes | None = None) -> Domain:
         return load_domain_json(path, data)
     if path == "-":
         raise InputError(path, "not a JSON domain (a mask image must be given as a file)")
-    return load_domain_mask(path)
+    try:
+        return load_domain_mask(path)
+    except NoImageReader as exc:  # neither of the two kinds of domain
+        raise InputError(path, "neither a JSON domain nor an " + exc.problem.removeprefix("not an ")) from None

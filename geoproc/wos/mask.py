@@ -19,6 +19,10 @@ from geoproc.errors import InputError
 from geoproc.wos.domain import Domain, build_domain
 
 
+class NoImageReader(InputError):
+    """The file is in no format OpenImageIO has a reader for."""
+
+
 def read_mask(path: str) -> np.ndarray:
     """Read an image through OpenImageIO; return (H, W) bool foreground."""
     import OpenImageIO as oiio
@@ -28,8 +32,8 @@ def read_mask(path: str) -> np.ndarray:
         message = buf.geterror().strip().splitlines()[0].removeprefix("Could not open file: ")
         if "could not find a format reader" in message:  # its message repeats the path; say what is read
             ext = os.path.splitext(path)[1]
-            raise InputError(path, f"neither a JSON domain nor an image OpenImageIO can read "
-                                   f"(no reader for {repr(ext) + ' files' if ext else 'a file without extension'})")
+            raise NoImageReader(path, f"not an image OpenImageIO can read "
+                                      f"(no reader for {repr(ext) + ' files' if ext else 'a file without extension'})")
         raise InputError(path, f"cannot read image: {message}")
     pixels = buf.get_pixels(oiio.FLOAT)
     if buf.has_error or pixels is None or pixels.size == 0:

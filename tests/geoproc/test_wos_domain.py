@@ -151,6 +151,9 @@ def test_files_that_are_neither_json_nor_an_image(tmp_path):
     with pytest.raises(InputError) as err:
         load_domain(str(mesh))
     assert err.value.problem == "neither a JSON domain nor an image OpenImageIO can read (no reader for '.obj' files)"
+    with pytest.raises(InputError) as err:  # the image reader alone does not speak of JSON domains
+        read_mask(str(mesh))
+    assert err.value.problem == "not an image OpenImageIO can read (no reader for '.obj' files)"
     bad = tmp_path / "b.png"
     bad.write_bytes(b"not a png at all")
     with pytest.raises(InputError) as err:
