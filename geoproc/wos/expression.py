@@ -81,7 +81,11 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
         if isinstance(node, ast.Expression):
             visit(node.body)
         elif isinstance(node, ast.Constant) and type(node.value) in (int, float):
-            emit(OP_CONST, float(node.value))
+            try:
+                emit(OP_CONST, float(node.value))
+            except OverflowError:  # an integer literal past the float range
+                raise UsageError(f"{shown}: a {len(str(node.value))}-digit integer is beyond the "
+                                 f"floating-point range") from None
         elif isinstance(node, ast.Name):
             if node.id in VARIABLES:
                 emit(VARIABLES[node.id])

@@ -43,6 +43,12 @@ def test_disallowed_constructs_are_rejected(text):
         parse_expression(text)
 
 
+def test_an_integer_past_the_float_range_is_a_usage_error():
+    # float() of a 401-digit literal raises OverflowError, which had ended the run with exit 3
+    with pytest.raises(UsageError, match="a 401-digit integer is beyond the floating-point range"):
+        parse_expression("1" + "0" * 400 + " * x")
+
+
 def test_syntax_errors_name_the_character_and_stay_one_short_line():
     with pytest.raises(UsageError, match=r"'x\+\*y': not a valid expression \(invalid syntax at character 3\)"):
         parse_expression("x+*y")

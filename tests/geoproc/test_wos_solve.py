@@ -80,6 +80,12 @@ def test_control_variates_reduce_rmse_on_disk_re_z3():
     assert rmse["npass"] < 0.2 * rmse["naive"], rmse
 
 
+def test_seeds_a_half_range_apart_give_other_streams():
+    # the seed was reduced modulo 2**63, so s and s + 2**63 (both accepted) repeated each other
+    seeds = [0, 1 << 63, 5, (1 << 63) + 5, (1 << 64) - 1]
+    assert len({int(pass_seed(s, 0)) for s in seeds}) == len(seeds)
+
+
 def test_same_seed_same_numbers_any_thread_count():
     pb = WalkProblem(build_domain(wf.glyph("a", 128)["loops"]), RE_Z3, None, 1e-3)
     from geoproc.wos.solve import grid_over
