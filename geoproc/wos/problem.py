@@ -80,6 +80,8 @@ class WalkProblem:
         require_finite_boundary_data(domain, boundary, flux)
         self.domain = domain
         self.eps = float(eps)
+        lo, hi = domain.bbox
+        self.tiny = 1e-12 * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))  # see wost_mixed
         self.A = np.ascontiguousarray(domain.A)
         self.B = np.ascontiguousarray(domain.B)
         self.grid_all = build_segment_grid(self.A, self.B)
@@ -133,7 +135,7 @@ class WalkProblem:
                 return dirichlet(X, index0, int(walks), self.eps, MAX_STEPS, stream_seed,
                                      self.A, self.B, self.grid_all, self.bkind, self.code,
                                      self.consts, self.V, ckind, KP, KQ, W, ARC, BOX)
-            return mixed(X, index0, int(walks), self.eps, MAX_STEPS, stream_seed, self.A,
+            return mixed(X, index0, int(walks), self.eps, self.tiny, MAX_STEPS, stream_seed, self.A,
                               self.B, self.grid_dir, self.nseg, self.U, self.Vs, self.Wn,
                               self.bkind, self.code, self.consts, self.V, self.hkind, self.hcode,
                               self.hconsts, ckind, KP, KQ, W, ARC, BOX)

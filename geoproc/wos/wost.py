@@ -8,10 +8,12 @@ plane when ``x`` lies on the Neumann boundary) and moves to its first hit on
 the Neumann boundary within ``R``, or to the circle of radius ``R``. The flux
 ``h = du/dn`` (outward normal) enters through
 
-    u(x) = E[u(next)] + k * |Gamma_N cap B(x, R)| * G_R(x, z) * h(z),
+    u(x) = E[u(next)] + k * |Gamma_N cap B(x, R)| * G_R(x, z) * h(z) * [x sees z],
 
-``z`` uniform on the Neumann boundary inside the ball, ``G_R(x, z) =
-log(R / |x - z|) / 2 pi`` and ``k = 2`` on the boundary, 1 inside. Walks stop
+``z`` uniform on the Neumann boundary inside the ball (counted only where ``x``
+sees it: the star's boundary is the visible part), ``G_R(x, z) =
+log(R / |x - z|) / 2 pi`` and ``k = 2`` on the boundary, 1 inside. A start
+point on a Neumann segment is first moved just inside the domain. Walks stop
 within ``eps`` of the Dirichlet boundary. With a control variate ``c`` the walk
 solves for the residual: Dirichlet data ``g - c``, Neumann data ``h - dc/dn``.
 """
@@ -83,13 +85,16 @@ def closest_silhouette_d2(px, py, U, V, Wn, limit2):
 
 
 @numba.njit(cache=True, nogil=True)
-def ray_hit(ox, oy, dx, dy, rmax, A, B, nseg, skip):
-    """First hit of the ray ``o + s d`` (``0 < s < rmax``) on segments ``nseg``; (s, seg) or (rmax, -1)."""
+def ray_hit(ox, oy, dx, dy, rmax, A, B, nseg, skip, skip2, tiny):
+    """First hit of the ray ``o + s d`` (``tiny < s < rmax``) on the segments ``nseg``
+    other than ``skip`` and ``skip2``; (s, seg) or (rmax, -1). ``tiny`` (length
+    units, a tiny fraction of the domain's size) ignores the segments that meet
+    the one ``o`` lies on at ``o`` itself."""
     best = rmax
     best_s = -1
     for k in range(nseg.shape[0]):
         i = nseg[k]
-        if i == skip:
+        if i == skip or i == skip2:
             continue
         ex = B[i, 0] - A[i, 0]
         ey = B[i, 1] - A[i, 1]
@@ -100,7 +105,7 @@ def ray_hit(ox, oy, dx, dy, rmax, A, B, nseg, skip):
         wy = A[i, 1] - oy
         s = (wx * ey - wy * ex) / den
         u = (wx * dy - wy * dx) / den
-        if 0.0 <= u <= 1.0 and 1e-12 < s < best:
+        if 0.0 <= u <= 1.0 and tiny < s < best:
             best = s
             best_s = i
     return best, best_s
@@ -126,8 +131,32 @@ def _clip_to_disk(ax, ay, bx, by, cx, cy, R):
 
 
 @numba.njit(cache=True, nogil=True)
-def _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, state):
-    """One-sample estimate of the ball's Neumann integral ``int G_R h``; returns (value, state)."""
+def _sees(px, py, zx, zy, on_seg, nxn, nyn, seg, A, B, nseg, tiny):
+    """Whether the point ``z`` on Neumann segment ``seg`` is visible from ``p``: no
+    other Neumann segment crosses the segment p-z (the Dirichlet boundary is
+    farther than the ball), and, when ``p`` lies on segment ``on_seg`` (inward
+    normal ``(nxn, nyn)``), ``z`` is on the domain's side of it."""
+    if seg == on_seg:
+        return True
+    ex = zx - px
+    ey = zy - py
+    dist = math.sqrt(ex * ex + ey * ey)
+    if dist <= 2.0 * tiny:
+        return True
+    # behind p's own wall is hidden; along it (the next segment of a straight wall) is seen
+    if on_seg >= 0 and ex * nxn + ey * nyn < -tiny:
+        return False
+    _s, hit = ray_hit(px, py, ex / dist, ey / dist, dist - tiny, A, B, nseg, on_seg, seg, tiny)
+    return hit < 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _flux_term(px, py, R, on_seg, nxn, nyn, tiny, A, B, nseg, hkind, hcode, hconsts, ckind, KP, KQ,
+               W, ARC, state):
+    """One-sample estimate of ``int G_R h`` over the Neumann boundary that ``p``
+    sees inside the ball (``on_seg``, ``nxn, nyn`` as in :func:`_sees`): a point
+    drawn uniformly on the Neumann segments inside the ball, scored 0 when hidden;
+    returns (value, state)."""
     total = 0.0
     for k in range(nseg.shape[0]):
         i = nseg[k]
@@ -152,7 +181,7 @@ def _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts, ckind, KP, KQ, W, A
             zx = A[i, 0] + u * (B[i, 0] - A[i, 0])
             zy = A[i, 1] + u * (B[i, 1] - A[i, 1])
             r2 = (zx - px) ** 2 + (zy - py) ** 2
-            if r2 <= 0.0:
+            if r2 <= 0.0 or not _sees(px, py, zx, zy, on_seg, nxn, nyn, i, A, B, nseg, tiny):
                 return 0.0, state
             G = (math.log(R) - 0.5 * math.log(r2)) / TWO_PI
             h = eval_program(hcode, hconsts, zx, zy) if hkind == 0 else 0.0
@@ -168,16 +197,48 @@ def _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts, ckind, KP, KQ, W, A
 
 
 @numba.njit(cache=True, nogil=True)
-def wost_point(x0, y0, state, walks, eps, max_steps, A, B, dgrid, nseg, U, V, Wn,
+def off_neumann_walls(x, y, A, B, nseg, tiny):
+    """``(x, y)`` moved ``1000 tiny`` into the domain when it lies on a Neumann segment
+    (within that distance; along the sum of the inward normals of every such
+    segment, which at a corner points into the domain), else unchanged. A walk
+    started on a wall would shoot half its rays through it; the move changes
+    ``u`` by ``1000 tiny |grad u|``."""
+    close = 1000.0 * tiny
+    mx = 0.0
+    my = 0.0
+    for k in range(nseg.shape[0]):
+        i = nseg[k]
+        ex = B[i, 0] - A[i, 0]
+        ey = B[i, 1] - A[i, 1]
+        ln2 = ex * ex + ey * ey
+        if ln2 <= 0.0:
+            continue
+        t = min(max(((x - A[i, 0]) * ex + (y - A[i, 1]) * ey) / ln2, 0.0), 1.0)
+        qx = A[i, 0] + t * ex - x
+        qy = A[i, 1] + t * ey - y
+        if qx * qx + qy * qy <= close * close:
+            ln = math.sqrt(ln2)
+            mx -= ey / ln  # inward normal: left of the directed segment
+            my += ex / ln
+    m = math.sqrt(mx * mx + my * my)
+    if m == 0.0:
+        return x, y
+    return x + close * mx / m, y + close * my / m
+
+
+@numba.njit(cache=True, nogil=True)
+def wost_point(x0, y0, state, walks, eps, tiny, max_steps, A, B, dgrid, nseg, U, V, Wn,
                bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, BOX):
-    """Walks on stars from one point: (mean score + c(x0), sample variance, steps)."""
+    """Walks on stars from one point: (mean score + c(x0), sample variance, steps).
+    ``tiny`` is a length far below any feature of the domain (1e-12 of its size)."""
     use_flux = hkind == 0 or ckind != 0
+    sx, sy = off_neumann_walls(x0, y0, A, B, nseg, tiny)
     s1 = 0.0
     s2 = 0.0
     nsteps = 0
     for _w in range(walks):
-        px = x0
-        py = y0
+        px = sx
+        py = sy
         on_seg = -1
         nxn = 0.0
         nyn = 0.0
@@ -191,8 +252,8 @@ def wost_point(x0, y0, state, walks, eps, max_steps, A, B, dgrid, nseg, U, V, Wn
             R2 = closest_silhouette_d2(px, py, U, V, Wn, d2)
             R = max(math.sqrt(R2), 1e-3 * eps)
             if use_flux:
-                f, state = _flux_term(px, py, R, A, B, nseg, hkind, hcode, hconsts,
-                                      ckind, KP, KQ, W, ARC, state)
+                f, state = _flux_term(px, py, R, on_seg, nxn, nyn, tiny, A, B, nseg, hkind, hcode,
+                                      hconsts, ckind, KP, KQ, W, ARC, state)
                 score += (2.0 if on_seg >= 0 else 1.0) * f
             state, u = next_uniform(state)
             if on_seg >= 0:
@@ -202,7 +263,7 @@ def wost_point(x0, y0, state, walks, eps, max_steps, A, B, dgrid, nseg, U, V, Wn
                 th = TWO_PI * u
             dx = math.cos(th)
             dy = math.sin(th)
-            s, hit = ray_hit(px, py, dx, dy, R, A, B, nseg, on_seg)
+            s, hit = ray_hit(px, py, dx, dy, R, A, B, nseg, on_seg, -1, tiny)
             px += s * dx
             py += s * dy
             if hit >= 0:
@@ -229,11 +290,13 @@ def wost_point(x0, y0, state, walks, eps, max_steps, A, B, dgrid, nseg, U, V, Wn
 
 
 @numba.njit(cache=True, parallel=True)
-def wost_mixed(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid, nseg, U, V, Wn,
+def wost_mixed(X, index0, walks, eps, tiny, max_steps, stream_seed, A, B, dgrid, nseg, U, V, Wn,
                bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, BOX):
     """Walk on Stars estimates of ``u`` at X (n, 2) for a mixed problem.
 
-    Parameters as :func:`geoproc.wos.walk.wos_dirichlet`, plus ``dgrid`` (the
+    Parameters as :func:`geoproc.wos.walk.wos_dirichlet`, plus ``tiny`` (a length
+    far below any feature of the domain, e.g. 1e-12 of its bounding-box
+    diagonal: ray hits closer than that are ignored), ``dgrid`` (the
     closest-point grid over the Dirichlet segments only), ``nseg`` (Neumann
     segment indices), ``U, V, Wn`` (:func:`silhouette_candidates`) and the flux
     ``hkind`` (0: expression ``hcode, hconsts``; 1: zero flux).
@@ -249,14 +312,14 @@ def wost_mixed(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid, nseg,
     steps = np.zeros(n, dtype=np.int64)
     for k in prange(n):
         mean[k], var[k], steps[k] = wost_point(
-            X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, max_steps, A, B,
+            X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, tiny, max_steps, A, B,
             dgrid, nseg, U, V, Wn, bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ,
             W, ARC, BOX)
     return mean, var, steps
 
 
 @numba.njit(cache=True)
-def wost_mixed_serial(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid, nseg, U, V, Wn,
+def wost_mixed_serial(X, index0, walks, eps, tiny, max_steps, stream_seed, A, B, dgrid, nseg, U, V, Wn,
                       bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ, W, ARC, BOX):
     """:func:`wost_mixed` on one thread (same numbers; for small batches)."""
     n = X.shape[0]
@@ -265,7 +328,7 @@ def wost_mixed_serial(X, index0, walks, eps, max_steps, stream_seed, A, B, dgrid
     steps = np.zeros(n, dtype=np.int64)
     for k in range(n):
         mean[k], var[k], steps[k] = wost_point(
-            X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, max_steps, A, B,
+            X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, tiny, max_steps, A, B,
             dgrid, nseg, U, V, Wn, bkind, code, consts, Vals, hkind, hcode, hconsts, ckind, KP, KQ,
             W, ARC, BOX)
     return mean, var, steps
