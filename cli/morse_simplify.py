@@ -91,8 +91,10 @@ def morse_simplify(
     critical cells are the minima, saddles (a k-fold saddle counts k times) and
     maxima. Their lower-star persistence pairs decide what is noise: every pair
     with persistence < P is cancelled (Bauer, Lange, Wardetzky 2012), every
-    pair with persistence >= P and every essential class stays. The output
-    field g has no ties, its minima and maxima are exactly the kept ones, and
+    pair with persistence >= P and every essential class stays. With P > 0 the
+    output field g has no ties (with P = 0 it is f itself, ties included,
+    which the order above breaks by vertex index), its minima and maxima are
+    exactly the kept ones, and
     |f - g| <= P/2 except where cancelled basins and peaks interact (a
     vertex function with exactly the kept extrema cannot always stay within
     P/2); those vertices are counted in vertices_beyond_half_threshold
