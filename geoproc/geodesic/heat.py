@@ -1,7 +1,8 @@
 """The heat method of Crane, Weischedel and Wardetzky (2013).
 
 Three steps with a time ``t`` (area unit; ``t = h^2`` is the paper's choice):
-one backward-Euler heat step ``(M - t L) u = delta`` from the sources, the unit
+one backward-Euler heat step ``(M - t L) u = delta`` from the sources (1 at each
+source vertex, 0 elsewhere: one unit of heat per source), the unit
 field ``X = -grad u / |grad u|`` per face, and the Poisson solve
 ``L phi = div X``; ``phi`` is shifted so the sources are at 0. On a mesh with
 boundary, ``u`` is the average of the Neumann and Dirichlet (u = 0 on the
@@ -57,9 +58,15 @@ class HeatMethodSolver:
             self._dirichlet = factor_sparse(Ai) if Ai.shape[0] else None
 
     def heat(self, sources: np.ndarray) -> np.ndarray:
-        """(n,) heat ``u`` after one step from a unit impulse ``u0 = 1`` at the sources."""
+        """(n,) heat ``u`` after one step from one unit of heat at each source
+        (the paper's Kronecker delta right-hand side: ``u0 = 1/M_i`` there).
+
+        Equal amounts matter with several sources: the heat of one backward-Euler
+        step decays like ``exp(-d / sqrt(t))``, so a source that emits more (``u0 =
+        1``, heat ``M_i``, its vertex area) pushes the meeting line of the fronts
+        towards the others by ``sqrt(t) log(M_i / M_j)``."""
         b = np.zeros(self.n)
-        b[sources] = self.M[sources]
+        b[sources] = 1.0
         u = self._neumann.solve(b)
         if len(self.boundary):
             ud = np.zeros(self.n)

@@ -93,6 +93,7 @@ class LogHeatSolver:
                  boundary: str = "average", poisson: str = "cotan", operators: str = "auto"):
         ops = heat_operators(V, F, laplacian, operators, poisson)
         L, M = ops.L, ops.M
+        self.M = M
         self.n, self.steps, self.direction = len(V), steps, direction
         self.operators, self.F, self.coef = ops.kind, ops.F, ops.coef
         self.G, self.D, self.poisson = ops.G, ops.D, ops.poisson
@@ -117,9 +118,10 @@ class LogHeatSolver:
                 self._dirichlet = LogODESolver(Li[~lone][:, ~lone], M[self.interior], t / steps)
 
     def log_heat(self, sources: np.ndarray) -> np.ndarray:
-        """(n,) ``w = log u`` at the final time from ``u0 = 1`` at the sources."""
+        """(n,) ``w = log u`` at the final time from one unit of heat at each
+        source (``u0 = 1/M_i`` there; see :meth:`geoproc.geodesic.heat.HeatMethodSolver.heat`)."""
         w = np.full(self.n, -np.inf)
-        w[sources] = 0.0
+        w[sources] = -np.log(self.M[sources])
         wn = w.copy()
         for _ in range(self.steps):
             wn, _ = self.log_ode.step(wn)
