@@ -62,12 +62,16 @@ def plainly_spelled(block: np.ndarray, space: np.ndarray, integer: bool) -> bool
 
 def parse_plain(data: bytes, space: np.ndarray, begins: np.ndarray, integer: bool) -> np.ndarray | None:
     """The whitespace-separated numbers of ``data`` as int64 (``integer``) or
-    float64, or None when one does not parse, or an integer token is longer
+    float64, or None when one does not parse, an integer token is longer
     than 18 characters (it might not fit in int64, where numpy's reading
-    saturates). ``space`` and ``begins`` are :func:`token_begins` of ``data``;
+    saturates) or does not end in a digit. ``space`` and ``begins`` are :func:`token_begins` of ``data``;
     the characters must have been checked."""
     if integer and len(begins):
-        if (token_ends(space) - begins).max() > 18:
+        ends = token_ends(space)
+        if (ends - begins).max() > 18:
+            return None
+        last = np.frombuffer(data, dtype=np.uint8)[ends - 1]
+        if ((last < 48) | (last > 57)).any():  # a sign alone, which numpy reads as 0 at the end of data
             return None
     try:
         with warnings.catch_warnings():  # numpy before 2.3 warns (and stops) where later ones raise

@@ -501,3 +501,18 @@ def test_atomic_write_to_a_name_near_the_length_limit(tmp_path):
     target = tmp_path / ("c" * 251 + ".ply")  # 255 bytes: the temporary name must not be longer
     write_files_atomic([(target, b"data")])
     assert target.read_bytes() == b"data" and [p.name for p in tmp_path.iterdir()] == [target.name]
+
+
+@pytest.mark.parametrize(("name", "text", "problem"), [
+    ("s.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 -\n", "not all integers"),
+    ("s.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+              "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+              "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 +\n", "malformed input"),
+    ("s.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 -\n", "not an integer vertex index"),
+])
+def test_a_sign_alone_is_not_an_index(tmp_path, name, text, problem):
+    # the block reader had taken a final '+' or '-' for 0: the face read as (0, 1, 0)
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(InputError, match=problem):
+        load_mesh(path)

@@ -42,6 +42,8 @@ def test_floats_read_as_python_reads_them():
     (b"99999999999999999999 1", True), (b"-99999999999999999999 1", True),  # beyond int64
     (b"1 0x1p3", False), (b"1,5 2", False), (b"1 nan(2)", False), (b"1 - 2", False), (b"1 2e", False),
     (b"1 \x1c2", False),
+    # a sign alone: numpy read it as 0 when it ended the data ("3 0 1 +" became the face 0 1 0)
+    (b"3 0 1 +", True), (b"3 0 1 -", True), (b"1 + 2", True), (b"1 2 +", False),
 ])
 def test_other_spellings_are_left_to_the_line_readers(line, integer):
     assert numbers_on_lines([b"1 2 3", line], integer) is None
