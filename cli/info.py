@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 from rich.table import Table
+from rich.text import Text
 
 from geoproc.report import json_safe
 from geoproc_cli.common import (
@@ -69,7 +70,8 @@ def info(
 
 
 def _table(name: str, s: dict) -> Table:
-    t = Table(title=name, show_header=False, title_justify="left")
+    # names come from the file (its name, property names): shown as given, never read as markup
+    t = Table(title=Text(name), show_header=False, title_justify="left")
     t.add_column("key", style="bold")
     t.add_column("value", justify="right")
     for k, v in s.items():
@@ -81,7 +83,7 @@ def _table(name: str, s: dict) -> Table:
             v = ", ".join(v) if v else "-"
         elif v is None:
             v = "-"
-        t.add_row(k, str(v))
+        t.add_row(Text(k), Text(str(v)))
     return t
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
 HEADLINE = (
     "mean_relative_error", "pearson_r", "rmse", "mae", "max_abs_error", "bias",
@@ -32,7 +33,7 @@ def headline_metrics(metrics: dict) -> list[tuple[str, float]]:
 
 def summary_table(folder: Path, max_metrics: int = 5) -> Table:
     """One row per report in ``folder``: command, input, a few metrics, total time."""
-    t = Table(title=f"geoproc reports in {folder}")
+    t = Table(title=Text(f"geoproc reports in {folder}"))
     for col in ("report", "command", "input", "metrics", "total s"):
         t.add_column(col)
     for path in sorted(folder.glob("*.json")):
@@ -47,7 +48,7 @@ def summary_table(folder: Path, max_metrics: int = 5) -> Table:
             for k, v in headline_metrics(rep["metrics"])
         ][:max_metrics]
         inputs = ", ".join(Path(i["path"]).name for i in rep.get("inputs", []))
-        t.add_row(path.name, rep["command"], inputs, " ".join(shown),
+        t.add_row(Text(path.name), Text(str(rep["command"])), Text(inputs), Text(" ".join(shown)),
                   f"{rep.get('timings_s', {}).get('total', float('nan')):.2f}")
     return t
 

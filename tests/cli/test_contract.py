@@ -59,6 +59,22 @@ def test_missing_file_unknown_extension_and_folder(cli, tmp_path):
         assert fragment in _one_error_line(p.stderr, str(path))
 
 
+def test_info_table_shows_names_as_given(cli, tmp_path):
+    # the file name and property names went to rich as markup: '[/x]' ended in
+    # MarkupError (exit 3) and '[red]' vanished from the title
+    folder = tmp_path / "d["
+    folder.mkdir()
+    header = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              "property float z\nproperty float [/q]\nelement face 1\nproperty list uchar int vertex_indices\n"
+              "end_header\n0 0 0 1\n1 0 0 1\n0 1 0 1\n3 0 1 2\n")
+    for name in ("d[/x].ply", "d[/[red]x.ply"):  # relative to tmp_path
+        (tmp_path / name).write_text(header)
+        p = cli("info", name, "--quiet", cwd=tmp_path)
+        assert p.returncode == 0, p.stderr
+        out = p.stdout.decode()
+        assert out.splitlines()[0].strip() == name and "[/q]" in out, out
+
+
 def test_debug_shows_the_traceback(cli, fixture_dir):
     p = cli("info", fixture_dir / "nan.ply", "--debug")
     assert p.returncode == 2 and "Traceback" in p.stderr and "InputError" in p.stderr
