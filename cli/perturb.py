@@ -42,8 +42,9 @@ def perturb(
     noise: Annotated[float, typer.Option("--noise", help="Gaussian noise standard deviation, in mean edge "
                                          "lengths (mean nearest-neighbour distance for a point cloud).",
                                          metavar="SIGMA")] = 0.3,
-    direction: Annotated[str, typer.Option("--direction", help="normal: along vertex normals (the benchmark "
-                                           "protocol); random: along random unit directions.")] = "normal",
+    direction: Annotated[str, typer.Option("--direction", help="normal: along vertex normals of the "
+                                           "consistently oriented faces (the benchmark protocol); random: along "
+                                           "random unit directions.")] = "normal",
     impulsive: Annotated[float, typer.Option("--impulsive", help="Apply the Gaussian noise to only this "
                                              "fraction of the vertices (impulsive noise), 0 to 1; 0 = all.",
                                              metavar="FRACTION")] = 0.0,

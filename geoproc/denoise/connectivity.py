@@ -15,6 +15,7 @@ import numpy as np
 from geoproc.denoise.face_geometry import face_edge_neighbors, face_ring_csr
 from geoproc.denoise.guidance import patch_interior_edges
 from geoproc.denoise.validate import require_denoisable
+from geoproc.mesh.orientation import consistent_orientation
 
 
 @dataclass(eq=False)
@@ -27,7 +28,7 @@ class FaceConnectivity:
     n : int
         Number of vertices.
     F : (m, 3) int64 the faces turned to agree with their edge neighbours
-        (:func:`consistent_orientation`).
+        (:func:`geoproc.mesh.orientation.consistent_orientation`).
     flip : (m,) bool faces that were turned.
     edge_nb : (m, 3) int64 :func:`geoproc.denoise.face_geometry.face_edge_neighbors` of F.
     ring : CSR (indptr, indices) the faces sharing a vertex with each face
@@ -67,21 +68,3 @@ def face_connectivity(F: np.ndarray, n: int) -> FaceConnectivity:
     Fo, flip = consistent_orientation(faces)
     return FaceConnectivity(faces=faces, n=int(n), F=Fo, flip=flip, edge_nb=face_edge_neighbors(Fo),
                             ring=face_ring_csr(Fo, n, 1))
-
-
-def consistent_orientation(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Faces turned to agree with their edge neighbours in each connected
-    patch (``igl.bfs_orient``): the filters compare face normals, and a face
-    stored the other way round reads as a crease of 180 degrees.
-
-    Returns the (m, 3) reoriented faces and the (m,) bool mask of the faces turned.
-    """
-    import igl
-
-    F = np.ascontiguousarray(F, dtype=np.int64)
-    if len(F) == 0:
-        return F, np.zeros(0, dtype=bool)
-    Fo, _ = igl.bfs_orient(F)
-    Fo = np.asarray(Fo, dtype=np.int64)
-    flip = ~np.any([(Fo == np.roll(F, r, axis=1)).all(axis=1) for r in range(3)], axis=0)
-    return Fo, flip

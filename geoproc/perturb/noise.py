@@ -59,11 +59,15 @@ class NoiseSpec:
 
 
 def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(n, 3) unit area-weighted vertex normals of a triangle mesh (libigl);
-    vertices without a usable normal get +z."""
+    """(n, 3) unit area-weighted vertex normals of a triangle mesh (libigl), its
+    faces first oriented consistently (a face stored the other way round would
+    cancel its neighbours' normals and tilt the noise sideways); vertices
+    without a usable normal get +z. The sign of each normal is arbitrary."""
     import igl
 
-    N = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)
+    from geoproc.mesh.orientation import consistent_orientation
+
+    N = igl.per_vertex_normals(V, consistent_orientation(F)[0], igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)
     N = np.asarray(N, dtype=np.float64)
     bad = ~np.isfinite(N).all(axis=1) | (np.linalg.norm(N, axis=1) < 0.5)
     N[bad] = [0.0, 0.0, 1.0]

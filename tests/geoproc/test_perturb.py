@@ -30,6 +30,20 @@ def test_normal_noise_has_requested_sigma(sphere, sigma):
     assert not flag.any()
 
 
+def test_normal_noise_on_faces_stored_the_other_way_round(sphere):
+    # the vertex normals were taken on the faces as stored: with 30 % of them
+    # reversed, normals cancelled and the noise went up to 90 degrees sideways
+    V, F = sphere
+    F = F.copy()
+    turn = np.random.default_rng(0).random(len(F)) < 0.3
+    F[turn] = F[turn][:, ::-1]
+    d = perturb_positions(V, F, NoiseSpec(sigma=0.3), np.random.default_rng(0))[0] - V
+    N = V / np.linalg.norm(V, axis=1, keepdims=True)
+    along = np.einsum("ij,ij->i", d, N)
+    tangential = np.linalg.norm(d - along[:, None] * N, axis=1)
+    assert tangential.max() < 0.01 * np.abs(along).max()
+
+
 def test_random_direction_noise_has_requested_sigma(sphere):
     V, F = sphere
     Vn, _ = perturb_positions(V, F, NoiseSpec(sigma=0.3, direction="random"), np.random.default_rng(1))
