@@ -14,6 +14,7 @@ validated (see :func:`validate_arrays`) and, unless ``clean=False``, cleaned by
 from __future__ import annotations
 
 import io
+import logging
 import os
 import re
 import warnings
@@ -466,6 +467,9 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     """STL, through trimesh."""
     import trimesh
 
+    log = logging.getLogger("trimesh")  # it logs a traceback for a malformed stored normal, which is not used
+    level = log.level
+    log.setLevel(logging.CRITICAL + 1)
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh")
     except IndexError as exc:
@@ -475,6 +479,8 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         if "index" in msg.lower() and "range" in msg.lower():
             raise InputError(path, f"face index out of range ({msg})") from exc
         raise InputError(path, f"unparseable {fmt.upper()}: {msg}") from exc
+    finally:
+        log.setLevel(level)
     V = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     F = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
     if V.size == 0 and len(data.strip()) > 0:

@@ -75,6 +75,16 @@ def test_info_table_shows_names_as_given(cli, tmp_path):
         assert out.splitlines()[0].strip() == name and "[/q]" in out, out
 
 
+def test_a_malformed_stored_stl_normal_is_ignored_quietly(cli, tmp_path):
+    # trimesh logged 'failed to extract face_normals' with a traceback on stderr, even with --quiet
+    facet = "facet normal {n}\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 1 0\n endloop\nendfacet\n"
+    path = tmp_path / "n.stl"
+    path.write_text("solid s\n" + facet.format(n="0 0 1x") + facet.format(n="0 0 1") + "endsolid s\n")
+    p = cli("info", path, "--quiet", "--no-clean", "--json")
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    assert '"faces": 2' in p.stdout.decode()
+
+
 def test_debug_shows_the_traceback(cli, fixture_dir):
     p = cli("info", fixture_dir / "nan.ply", "--debug")
     assert p.returncode == 2 and "Traceback" in p.stderr and "InputError" in p.stderr
