@@ -516,4 +516,3 @@ def test_a_sign_alone_is_not_an_index(tmp_path, name, text, problem):
     path.write_text(text)
     with pytest.raises(InputError, match=problem):
         load_mesh(path)
-
