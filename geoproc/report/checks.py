@@ -127,8 +127,10 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
         if measured is None:
             failures.append(f"check failed: {c.text} (not measured in this run: null in the report)")
         elif not c.passes(measured):
-            # every digit: 0.0376518 could hide a miss of <=0.037651843221598626
-            failures.append(f"check failed: {c.text} (measured: {measured!r})")
+            # every digit: 0.0376518 could hide a miss of <=0.037651843221598626; a count as the count
+            raw = metrics[c.metric]
+            shown = raw if isinstance(raw, int) and not isinstance(raw, bool) else measured
+            failures.append(f"check failed: {c.text} (measured: {shown!r})")
     return failures
 
 

@@ -128,3 +128,5 @@ def test_check_failures_show_every_digit_and_name_nulls():
     # six digits (0.0376518) would have shown a miss as a pass
     assert out == ["check failed: rms<=0.03765184322159862 (measured: 0.037651843221598626)",
                    "check failed: genus==0 (not measured in this run: null in the report)"]
+    # a count is shown as the count (it read 'measured: 4.0')
+    assert evaluate_checks([parse_check("genus==3")], {"genus": 4}) == ["check failed: genus==3 (measured: 4)"]
