@@ -89,14 +89,14 @@ def sniff_format(data: bytes, path: str = "-") -> str:
     first = head.split(None, 1)[0] if head.strip() else b""
     if _OFF_KEYWORD.fullmatch(first) or first.lower() == b"off":
         return "off"
+    # a binary STL's length is exact (its 80-byte header is free text, and may start with digits); text
+    # in bytes 80-84 would declare over 500 million triangles
+    if len(data) >= 84 and len(data) == 84 + 50 * int(np.frombuffer(data[80:84], dtype="<u4")[0]):
+        return "stl"
     if re.match(rb"\d+[ \t]+\d+([ \t]+\d+)?[ \t]*(#[^\n]*)?\r?\n", head):  # OFF without its keyword
         return "off"
     if head.startswith(b"solid") and b"facet" in data[:4096]:
         return "stl"
-    if len(data) >= 84:
-        n = int(np.frombuffer(data[80:84], dtype="<u4")[0])
-        if len(data) == 84 + 50 * n:
-            return "stl"
     if re.search(rb"^[ \t]*(v|vt|vn|vp|f|l|o|g|s|usemtl|mtllib)[ \t]", data[:65536], flags=re.M):
         return "obj"
     raise InputError(path, "cannot tell the mesh format of the data (not PLY, OFF, STL or OBJ)")

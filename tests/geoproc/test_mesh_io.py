@@ -236,6 +236,14 @@ def test_sniffing_standard_input(sphere, fmt):
     assert len(m.F) == len(sphere.F)
 
 
+def test_binary_stl_whose_header_starts_with_digits_is_sniffed_as_stl(sphere):
+    # the header is free text: '3 1' and a newline had read as an OFF without its keyword
+    data = mesh_to_bytes(sphere, "stl")
+    data = b"3 1\n".ljust(80, b" ") + data[80:]
+    assert sniff_format(data) == "stl"
+    assert len(read_mesh_bytes(data, "stl", "-").F) == len(sphere.F)
+
+
 def test_atomic_write_leaves_nothing_on_failure(tmp_path):
     def boom():
         raise RuntimeError("boom")
