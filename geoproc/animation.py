@@ -129,7 +129,9 @@ def _load_frame_folder(name: str) -> Animation:
     frames, per_frame_fields, digests = [], [], []
     F0 = None
     for f in files:
-        mesh = load_mesh(os.path.join(name, f), clean=False)
+        # as stored, but an STL frame holds separate triangles: its coincident corners are merged
+        # (in order of first use, the same in every frame whose triangles come in the same order)
+        mesh = load_mesh(os.path.join(name, f), clean=file_extension(f) == "stl")
         digests.append(mesh.log.sha256)
         if F0 is None:
             F0 = mesh.F

@@ -130,6 +130,18 @@ def test_folder_of_frames(tmp_path, make_fixtures):
         load_animation(tmp_path)
 
 
+def test_folder_of_stl_frames_gets_its_connectivity(tmp_path, make_fixtures):
+    # STL stores separate triangles: read as stored, the frames were a soup of
+    # 3 m vertices that denoise and perturb took as one
+    V, F = make_fixtures.icosphere(2)
+    for t in range(3):
+        save_mesh(tmp_path / f"f{t}.stl", Mesh(V * (1 + 0.1 * t), F))
+    a = load_animation(tmp_path)
+    assert a.V.shape == (3, len(V), 3) and a.F.shape == F.shape
+    for t in range(3):  # the same triangles, vertices numbered in order of first use
+        assert np.allclose(a.V[t][a.F], (V * (1 + 0.1 * t))[F], atol=1e-6)
+
+
 def test_folder_frames_in_natural_order_with_their_fields(tmp_path, make_fixtures):
     V, F = make_fixtures.icosphere(1)
     for t in (0, 1, 2, 10, 11):  # frame10 sorts before frame2 as plain text
