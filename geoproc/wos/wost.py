@@ -85,16 +85,16 @@ def closest_silhouette_d2(px, py, U, V, Wn, limit2):
 
 
 @numba.njit(cache=True, nogil=True)
-def ray_hit(ox, oy, dx, dy, rmax, A, B, nseg, skip, skip2, tiny):
+def ray_hit(ox, oy, dx, dy, rmax, A, B, nseg, skip, tiny):
     """First hit of the ray ``o + s d`` (``tiny < s < rmax``) on the segments ``nseg``
-    other than ``skip`` and ``skip2``; (s, seg) or (rmax, -1). ``tiny`` (length
-    units, a tiny fraction of the domain's size) ignores the segments that meet
-    the one ``o`` lies on at ``o`` itself."""
+    other than ``skip``; (s, seg) or (rmax, -1). ``tiny`` (length units, a tiny
+    fraction of the domain's size) ignores the segments that meet the one ``o``
+    lies on at ``o`` itself."""
     best = rmax
     best_s = -1
     for k in range(nseg.shape[0]):
         i = nseg[k]
-        if i == skip or i == skip2:
+        if i == skip:
             continue
         ex = B[i, 0] - A[i, 0]
         ey = B[i, 1] - A[i, 1]
@@ -135,7 +135,13 @@ def _sees(px, py, zx, zy, on_seg, nxn, nyn, seg, A, B, nseg, tiny):
     """Whether the point ``z`` on Neumann segment ``seg`` is visible from ``p``: no
     other Neumann segment crosses the segment p-z (the Dirichlet boundary is
     farther than the ball), and, when ``p`` lies on segment ``on_seg`` (inward
-    normal ``(nxn, nyn)``), ``z`` is on the domain's side of it."""
+    normal ``(nxn, nyn)``), ``z`` is on the domain's side of it.
+
+    A segment blocks only when its two ends lie strictly on opposite sides of
+    the line p-z and p and z strictly on opposite sides of its own line (each
+    farther than ``tiny`` from it): the pieces of a straight wall, collinear
+    with p and z, never block, where a ray's intersection with them is
+    rounding noise that fell inside them for most samples."""
     if seg == on_seg:
         return True
     ex = zx - px
@@ -146,8 +152,23 @@ def _sees(px, py, zx, zy, on_seg, nxn, nyn, seg, A, B, nseg, tiny):
     # behind p's own wall is hidden; along it (the next segment of a straight wall) is seen
     if on_seg >= 0 and ex * nxn + ey * nyn < -tiny:
         return False
-    _s, hit = ray_hit(px, py, ex / dist, ey / dist, dist - tiny, A, B, nseg, on_seg, seg, tiny)
-    return hit < 0
+    near = tiny * dist  # |cross(z - p, a - p)| / dist is a's distance to the line p-z
+    for k in range(nseg.shape[0]):
+        i = nseg[k]
+        if i == seg or i == on_seg:
+            continue
+        o1 = ex * (A[i, 1] - py) - ey * (A[i, 0] - px)
+        o2 = ex * (B[i, 1] - py) - ey * (B[i, 0] - px)
+        if not ((o1 > near and o2 < -near) or (o1 < -near and o2 > near)):
+            continue
+        sx = B[i, 0] - A[i, 0]
+        sy = B[i, 1] - A[i, 1]
+        far = tiny * math.sqrt(sx * sx + sy * sy)
+        o3 = sx * (py - A[i, 1]) - sy * (px - A[i, 0])
+        o4 = sx * (zy - A[i, 1]) - sy * (zx - A[i, 0])
+        if (o3 > far and o4 < -far) or (o3 < -far and o4 > far):
+            return False
+    return True
 
 
 @numba.njit(cache=True, nogil=True)
@@ -263,7 +284,7 @@ def wost_point(x0, y0, state, walks, eps, tiny, max_steps, A, B, dgrid, nseg, U,
                 th = TWO_PI * u
             dx = math.cos(th)
             dy = math.sin(th)
-            s, hit = ray_hit(px, py, dx, dy, R, A, B, nseg, on_seg, -1, tiny)
+            s, hit = ray_hit(px, py, dx, dy, R, A, B, nseg, on_seg, tiny)
             px += s * dx
             py += s * dy
             if hit >= 0:
