@@ -88,7 +88,7 @@ def _plane_residual_to_inliers(P, inlier, k, lam, spacing):
     (itself excluded), in spacings."""
     keep = np.flatnonzero(inlier)
     tree = cKDTree(P[keep])
-    _, j = tree.query(P, k=k + 1)
+    _, j = tree.query(P, k=k + 1, workers=-1)
     own = keep[j] == np.arange(len(P))[:, None]
     # drop the point itself where it is among its inlier neighbours, else the farthest
     drop = np.where(own.any(axis=1), own.argmax(axis=1), k)
@@ -151,7 +151,7 @@ def _score_distinct_points(P, k, threshold, path, lam, refine_passes) -> Outlier
     if n < k:
         raise InputError(path, f"has {n} points, fewer than the neighbourhood size k={k}")
     tree = cKDTree(P)
-    dist, idx = tree.query(P, k=k)
+    dist, idx = tree.query(P, k=k, workers=-1)
     spacing = float(np.median(dist[:, 1]))
     if spacing <= 0:
         spacing = float(dist[:, 1][dist[:, 1] > 0].mean()) if (dist[:, 1] > 0).any() else 1.0
@@ -320,7 +320,7 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
         raise InputError(path, f"has {T} frames; RPCA on the animation matrix needs at least 3")
     if n < 2:
         raise InputError(path, f"has {n} points per frame; at least 2 are needed")
-    dist, _ = cKDTree(V[0]).query(V[0], k=2)
+    dist, _ = cKDTree(V[0]).query(V[0], k=2, workers=-1)
     pos = dist[:, 1] > 0
     spacing = float(np.median(dist[pos, 1])) if pos.any() else 1.0
     X = V.transpose(1, 0, 2) / spacing  # (n, T, 3)

@@ -82,7 +82,7 @@ def point_cloud_normals(P: np.ndarray, k: int = 16) -> np.ndarray:
 
     U, inverse = np.unique(np.asarray(P, dtype=np.float64), axis=0, return_inverse=True)
     k = min(k, len(U))
-    _, idx = cKDTree(U).query(U, k=k)
+    _, idx = cKDTree(U).query(U, k=k, workers=-1)
     Q = U[idx] - U[idx].mean(axis=1, keepdims=True)
     _, W = np.linalg.eigh(np.einsum("nki,nkj->nij", Q, Q))
     return W[:, :, 0][np.ravel(inverse)]
@@ -102,7 +102,7 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     U = np.unique(np.asarray(V, dtype=np.float64), axis=0)
     if len(U) < 2:
         return 0.0
-    d, _ = cKDTree(U).query(U, k=2)
+    d, _ = cKDTree(U).query(U, k=2, workers=-1)
     return float(d[:, 1].mean())
 
 
