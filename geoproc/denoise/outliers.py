@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 
 from geoproc.denoise.rpca import rpca
 from geoproc.errors import InputError
+from geoproc.mesh.clean import unique_rows
 from geoproc.mesh.validate import mesh_arrays
 
 
@@ -134,7 +135,7 @@ def rpca_outliers(P: np.ndarray, k: int = 16, threshold: float | None = None,
     if k < 4:
         raise InputError(path, f"--k {k}: neighbourhoods need at least 4 points")
     P, _ = mesh_arrays(P, np.zeros((0, 3), dtype=np.int64), path, allow_point_cloud=True)
-    U, inv = np.unique(P, axis=0, return_inverse=True)
+    U, inv = unique_rows(P)
     if len(U) == len(P):
         return _score_distinct_points(P, k, threshold, path, lam, refine_passes)
     if len(U) < k:

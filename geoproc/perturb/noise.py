@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geoproc.errors import InputError, UsageError
+from geoproc.mesh.clean import unique_rows
 from geoproc.mesh.read import MAX_COORDINATE
 from geoproc.mesh.validate import mesh_arrays
 
@@ -80,12 +81,12 @@ def point_cloud_normals(P: np.ndarray, k: int = 16) -> np.ndarray:
     its normal)."""
     from scipy.spatial import cKDTree
 
-    U, inverse = np.unique(np.asarray(P, dtype=np.float64), axis=0, return_inverse=True)
+    U, inverse = unique_rows(P)
     k = min(k, len(U))
     _, idx = cKDTree(U).query(U, k=k, workers=-1)
     Q = U[idx] - U[idx].mean(axis=1, keepdims=True)
     _, W = np.linalg.eigh(np.einsum("nki,nkj->nij", Q, Q))
-    return W[:, :, 0][np.ravel(inverse)]
+    return W[:, :, 0][inverse]
 
 
 def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
@@ -99,7 +100,7 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     V, F = mesh_arrays(V, F, allow_point_cloud=True)
     if len(F):
         return mean_edge_length(V, F)
-    U = np.unique(np.asarray(V, dtype=np.float64), axis=0)
+    U = unique_rows(V)[0]
     if len(U) < 2:
         return 0.0
     d, _ = cKDTree(U).query(U, k=2, workers=-1)
@@ -135,7 +136,7 @@ def perturb_positions(
     n = len(V)
     if spec.direction not in ("normal", "random"):
         raise InputError(path, f"unknown noise direction '{spec.direction}' (normal or random)")
-    if len(F) == 0 and len(np.unique(V, axis=0)) < 3:
+    if len(F) == 0 and len(unique_rows(V)[0]) < 3:
         raise InputError(path, "a point cloud needs at least 3 distinct points (the noise unit is their "
                          "spacing, the normals their least-variance direction)")
     out = np.array(V, dtype=np.float64, copy=True)

@@ -9,7 +9,7 @@ import trimesh
 from geoproc.errors import InputError
 from geoproc.fileio import write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes, read_mesh_bytes, save_mesh
-from geoproc.mesh.clean import merge_coincident_vertices, remove_unreferenced_vertices
+from geoproc.mesh.clean import merge_coincident_vertices, remove_unreferenced_vertices, unique_rows
 from geoproc.mesh.read import sniff_format
 
 
@@ -524,3 +524,14 @@ def test_a_sign_alone_is_not_an_index(tmp_path, name, text, problem):
     path.write_text(text)
     with pytest.raises(InputError, match=problem):
         load_mesh(path)
+
+
+def test_unique_rows_match_numpy():
+    rng = np.random.default_rng(4)
+    P = rng.integers(-3, 4, (5000, 3)).astype(np.float64) * 0.5  # many repeated rows
+    P[::7] = rng.standard_normal((len(P[::7]), 3))
+    U, inverse = unique_rows(P)
+    Un, inv_n = np.unique(P, axis=0, return_inverse=True)
+    assert np.array_equal(U, Un) and np.array_equal(inverse, inv_n.ravel())
+    assert np.array_equal(U[inverse], P)
+    assert unique_rows(np.zeros((0, 3)))[0].shape == (0, 3)
