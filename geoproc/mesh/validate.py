@@ -77,7 +77,8 @@ def require_triangle_mesh(mesh: Mesh) -> None:
     path = mesh.log.path or None
     if mesh.is_point_cloud:
         raise InputError(path, "is a point cloud (no faces); this method needs a triangle mesh")
-    if not (face_areas(mesh.V, mesh.F) > 0).any():
+    # the first faces nearly always settle it; the whole mesh only when they are all flat
+    if not (face_areas(mesh.V, mesh.F[:4096]) > 0).any() and not (face_areas(mesh.V, mesh.F) > 0).any():
         raise InputError(path, "degenerate mesh: every face has zero area")
 
 
