@@ -85,21 +85,30 @@ def rpca_thin_batch(D, lam, tol, max_iter, rho, P_out, S_out, iters, converged):
     """Inexact-ALM RPCA of every D[t] (p x q, q small); see :func:`geoproc.denoise.rpca.rpca`."""
     b, p, q = D.shape
     for t in numba.prange(b):
-        X = D[t]
         P = P_out[t]
         S = S_out[t]
         G = np.empty((q, q))
         W = np.empty((q, q))
         T = np.empty((p, q))
         Y = np.empty((p, q))
-        normF = 0.0
+        X = np.empty((p, q))
         amax = 0.0
         for a in range(p):
             for j in range(q):
+                amax = max(amax, abs(D[t, a, j]))
+        # RPCA is scale-equivariant: far from 1 the matrix is solved divided by its
+        # largest entry and the parts scaled back (its Gram matrix and the Jacobi
+        # test's sums of squared Gram entries, the data's 4th power, overflowed or
+        # underflowed beyond about 1e+-77 and the iteration stopped at once)
+        c = amax if (amax > 1e60 or amax < 1e-60) and amax > 0.0 else 1.0
+        normF = 0.0
+        for a in range(p):
+            for j in range(q):
+                X[a, j] = D[t, a, j] / c if c != 1.0 else D[t, a, j]
                 normF += X[a, j] * X[a, j]
-                amax = max(amax, abs(X[a, j]))
                 S[a, j] = 0.0
                 P[a, j] = 0.0
+        amax /= c
         normF = np.sqrt(normF)
         if normF == 0.0:
             iters[t] = 0
@@ -143,5 +152,10 @@ def rpca_thin_batch(D, lam, tol, max_iter, rho, P_out, S_out, iters, converged):
             mu = min(mu * rho, mu_bar)
             if np.sqrt(res) <= tol * normF:
                 done = True
+        if c != 1.0:
+            for a in range(p):
+                for j in range(q):
+                    P[a, j] *= c
+                    S[a, j] *= c
         iters[t] = it
         converged[t] = done

@@ -55,6 +55,20 @@ def test_batched_thin_matches_single_matrix_solves():
     assert np.allclose(np.swapaxes(wide.P, 1, 2), batch.P, atol=1e-9)
 
 
+@pytest.mark.parametrize("scale", [1e-300, 1e-150, 1e-80, 1e80, 1e150, 1e300])
+def test_batched_thin_is_scale_free(scale):
+    # the Jacobi test summed squared Gram entries (the data's 4th power): beyond about
+    # 1e+-77 they overflowed or underflowed, the iteration stopped at once and P was
+    # 0.35 off while reporting convergence
+    rng = np.random.default_rng(0)
+    D = np.stack([np.outer(rng.standard_normal(10), rng.standard_normal(3)) for _ in range(4)])
+    D[:, 2, 1] += 5.0
+    ref = rpca(D)
+    got = rpca(D * scale)
+    assert got.converged
+    np.testing.assert_allclose(got.P / scale, ref.P, rtol=0, atol=1e-12 * np.abs(ref.P).max())
+
+
 def test_svt_matches_svd_formula():
     rng = np.random.default_rng(1)
     for shape in [(50, 10, 3), (50, 6, 6), (1, 400, 12)]:
