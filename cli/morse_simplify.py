@@ -61,10 +61,10 @@ def morse_simplify(
     relative: Annotated[bool, typer.Option(
         "--relative", help="Read P as a fraction of the field's range (max - min).")] = False,
     critical: Annotated[str | None, typer.Option(
-        "--critical", help="Write the critical cells before and after, with their pairs, as JSON.",
+        "--critical", help="Write the critical cells before and after, with their pairs, as JSON (- for stdout).",
         metavar="CRIT.json", show_default=False)] = None,
     diagram: Annotated[str | None, typer.Option(
-        "--diagram", help="Write the persistence diagrams before and after as a PNG.",
+        "--diagram", help="Write the persistence diagrams before and after as a PNG (- for stdout).",
         metavar="PD.png", show_default=False)] = None,
     exact_windows: Annotated[int, typer.Option(
         "--exact-windows",

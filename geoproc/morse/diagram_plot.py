@@ -34,7 +34,10 @@ def persistence_diagram_png(before: PersistencePairs, after: PersistencePairs, t
     for k, (pp, name) in enumerate([(before, "before (f)"), (after, "after (g)")]):
         ax = fig.add_subplot(1, 2, k + 1)
         xs = np.array([lo - pad, top])
-        ax.fill_between(xs, xs, xs + threshold, color="0.85", lw=0, label=f"persistence < {threshold:.4g}")
+        # the band's top edge is clipped to the plot: at P near the float range matplotlib's
+        # transform overflowed and the band vanished
+        ax.fill_between(xs, xs, np.minimum(xs + threshold, top + pad), color="0.85", lw=0,
+                        label=f"persistence < {threshold:.4g}")
         ax.plot(xs, xs, color="0.4", lw=0.8)
         ax.axhline(top, color="0.4", lw=0.8, ls="--")
         for dim, style, colour in [(0, "o", "tab:blue"), (1, "^", "tab:red"), (2, "s", "tab:green")]:

@@ -170,3 +170,20 @@ def test_npy_field_names_are_ascii_property_names():
     # é.npy became the property '_' (and '__original'); accents are dropped now
     assert field_name("é.npy") == "e" and field_name("dist ance.npy") == "dist_ance"
     assert field_name("y.npy") == "y_value" and field_name("距离.npy") == "field"
+
+
+@pytest.mark.parametrize("threshold", [0.5, 1e305, 1e307])
+def test_diagram_band_drawn_at_any_threshold(make_fixtures, threshold):
+    # the grey band below P vanished at P = 1e307: matplotlib's transform overflowed
+    import io
+
+    import matplotlib.image
+
+    from geoproc.morse.diagram_plot import persistence_diagram_png
+
+    V, F = make_fixtures.icosphere(2)
+    f = np.random.default_rng(0).random(len(V))
+    pp = lower_star_persistence(surface_complex(F, len(V)), f)
+    img = matplotlib.image.imread(io.BytesIO(persistence_diagram_png(pp, pp, threshold)))
+    band = np.all(np.abs(img[..., :3] - 0.85) < 0.01, axis=-1)  # the band's grey, 0.85
+    assert band.mean() > 0.05, band.mean()
