@@ -15,6 +15,8 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
     drawn back to front with Lambert shading, colored by distance (viridis);
     isolines at ``isolines`` equal spacings of the finite range (drawn on the
     faces that face the viewer); vertices at +inf in grey; sources as red dots.
+    Isolines and sources behind the surface are left out: a face-index picture
+    of the same view tells which faces are in front at each pixel.
 
     Parameters
     ----------
@@ -63,20 +65,24 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
 
     fig = plt.figure(figsize=(size_px / 100, size_px / 100), dpi=100)
     ax = fig.add_axes((0, 0, 1, 1) if title is None else (0, 0, 1, 0.95))
-    ax.add_collection(PolyCollection(P[F[order]], facecolors=colors[order], edgecolors="none",
-                                     antialiaseds=False))
-    if isolines > 0 and fin.any():
-        segs = isoline_segments(P, F[nz > 0], d, np.linspace(lo, hi, isolines + 2)[1:-1])
-        if len(segs):
-            ax.add_collection(LineCollection(segs, colors="black", linewidths=0.6))
-    if sources is not None:
-        s = np.asarray(sources)
-        ax.plot(P[s, 0], P[s, 1], "o", color="red", markersize=4)
     pad = 0.03 * max(np.ptp(P[:, 0]), np.ptp(P[:, 1]))
     ax.set_xlim(P[:, 0].min() - pad, P[:, 0].max() + pad)
     ax.set_ylim(P[:, 1].min() - pad, P[:, 1].max() + pad)
     ax.set_aspect("equal")
     ax.axis("off")
+    front = _front_face_image(fig, ax, P, F, order)
+    ax.add_collection(PolyCollection(P[F[order]], facecolors=colors[order], edgecolors="none",
+                                     antialiaseds=False))
+    if isolines > 0 and fin.any():
+        shown = np.flatnonzero(nz > 0)
+        segs, seg_face = isoline_segments(P, F[shown], d, np.linspace(lo, hi, isolines + 2)[1:-1])
+        keep = _seen(ax, front, F, segs.mean(axis=1), F[shown[seg_face]]) if len(segs) else []
+        if len(segs) and keep.any():
+            ax.add_collection(LineCollection(segs[keep], colors="black", linewidths=0.6))
+    if sources is not None:
+        s = np.asarray(sources, dtype=np.int64)
+        s = s[_seen(ax, front, F, P[s], s[:, None])] if len(s) else s
+        ax.plot(P[s, 0], P[s, 1], "o", color="red", markersize=4)
     if title:
         fig.suptitle(title, fontsize=10)
     buf = io.BytesIO()
@@ -85,15 +91,51 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
     return buf.getvalue()
 
 
-def isoline_segments(P: np.ndarray, F: np.ndarray, d: np.ndarray, levels: np.ndarray) -> np.ndarray:
-    """(k, 2, 2) line segments where the piecewise-linear ``d`` crosses each level.
+def _front_face_image(fig, ax, P: np.ndarray, F: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """(H, W) index of the face seen at each pixel (-1 for none): the faces drawn
+    back to front, as the picture draws them, each in a colour that spells its
+    index, then read back from the canvas."""
+    from matplotlib.collections import PolyCollection
+
+    ids = order.astype(np.int64) + 1
+    rgb = np.stack([(ids >> 16) & 255, (ids >> 8) & 255, ids & 255], axis=1) / 255.0
+    coll = ax.add_collection(PolyCollection(P[F[order]], facecolors=rgb, edgecolors="none",
+                                            antialiaseds=False))
+    fig.canvas.draw()
+    buf = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(np.int64)
+    coll.remove()
+    face = ((buf[..., 0] << 16) | (buf[..., 1] << 8) | buf[..., 2]) - 1
+    return np.where(face < len(F), face, -1)
+
+
+def _seen(ax, front: np.ndarray, F: np.ndarray, Q: np.ndarray, owners: np.ndarray) -> np.ndarray:
+    """(k,) whether the points ``Q`` (k, 2) are in sight: within a pixel of each
+    point some front face shares a vertex with the point's own ``owners`` (k, c)
+    vertex indices (its face's corners, or a source vertex)."""
+    H, W = front.shape
+    xy = ax.transData.transform(Q)
+    col = np.clip(np.floor(xy[:, 0]).astype(np.int64), 0, W - 1)
+    row = np.clip(H - 1 - np.floor(xy[:, 1]).astype(np.int64), 0, H - 1)
+    seen = np.zeros(len(Q), dtype=bool)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            f = front[np.clip(row + dr, 0, H - 1), np.clip(col + dc, 0, W - 1)]
+            corners = np.where(f[:, None] >= 0, F[np.maximum(f, 0)], -1)  # (k, 3)
+            seen |= (corners[:, :, None] == owners[:, None, :]).any(axis=(1, 2)) & (f >= 0)
+    return seen
+
+
+def isoline_segments(P: np.ndarray, F: np.ndarray, d: np.ndarray,
+                     levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(k, 2, 2) line segments where the piecewise-linear ``d`` crosses each level,
+    and (k,) the index into ``F`` of the face each lies on.
 
     ``P`` (n, 2) are projected positions; faces with a non-finite value are skipped.
     """
     df = d[F]
-    ok = np.isfinite(df).all(axis=1)
+    ok = np.flatnonzero(np.isfinite(df).all(axis=1))
     F, df = F[ok], df[ok]
-    out = []
+    out, faces = [], []
     for c in levels:
         above = df > c
         cnt = above.sum(axis=1)
@@ -112,4 +154,7 @@ def isoline_segments(P: np.ndarray, F: np.ndarray, d: np.ndarray, levels: np.nda
         idx = np.argsort(~has, axis=1, kind="stable")[:, :2]
         seg = np.take_along_axis(pts, idx[:, :, None], axis=1)
         out.append(seg)
-    return np.concatenate(out) if out else np.zeros((0, 2, 2))
+        faces.append(ok[cut])
+    if not out:
+        return np.zeros((0, 2, 2)), np.zeros(0, dtype=np.int64)
+    return np.concatenate(out), np.concatenate(faces)

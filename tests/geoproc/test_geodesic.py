@@ -565,3 +565,25 @@ def test_heat_uniform_to_rounding_is_refused_not_returned_as_zeros(make_fixtures
         gd.geodesic_distance(V, F, [0], "log-heat", time_factor=1e4, steps=20)
     d = gd.geodesic_distance(V, F, [0], "log-heat", time_factor=1e4, steps=1).distance
     assert d.max() > 0
+
+
+def test_render_hides_what_is_behind_the_surface(make_fixtures):
+    # two spheres along the view axis: the front one is unreachable (grey), and the
+    # back one's isolines and source had been drawn across it
+    import io
+
+    import matplotlib.image
+
+    from geoproc.geodesic.render import render_distance_png
+
+    V, F = make_fixtures.icosphere(3)
+    V2 = np.vstack([V, V + [0.0, 0.0, 3.0]])
+    F2 = np.vstack([F, F + len(V)])
+    d = np.concatenate([np.linalg.norm(V - V[0], axis=1), np.full(len(V), np.inf)])
+    src = [int(np.argmin(V[:, 2]))]  # on the far side of the back sphere
+    stacked = matplotlib.image.imread(io.BytesIO(render_distance_png(V2, F2, d, src)))[..., :3]
+    alone = matplotlib.image.imread(io.BytesIO(render_distance_png(V, F, d[:len(V)], src)))[..., :3]
+    dark = lambda img: (img.max(axis=-1) < 0.15).mean()  # noqa: E731  black isoline pixels
+    red = lambda img: ((img[..., 0] > 0.8) & (img[..., 1] < 0.3)).sum()  # noqa: E731
+    assert dark(alone) > 0.001 and dark(stacked) == 0.0
+    assert red(stacked) == 0
