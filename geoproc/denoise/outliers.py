@@ -141,7 +141,6 @@ def rpca_outliers(P: np.ndarray, k: int = 16, threshold: float | None = None,
     if len(U) < k:
         raise InputError(path, f"has {len(U)} distinct points, fewer than the neighbourhood size k={k}")
     res = _score_distinct_points(U, k, threshold, path, lam, refine_passes)
-    inv = inv.reshape(-1)
     return OutlierResult(score=res.score[inv], outlier=res.outlier[inv], threshold=res.threshold,
                          refined=res.refined[inv])
 

@@ -76,8 +76,8 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
     if isolines > 0 and fin.any():
         shown = np.flatnonzero(nz > 0)
         segs, seg_face = isoline_segments(P, F[shown], d, np.linspace(lo, hi, isolines + 2)[1:-1])
-        keep = _seen(ax, front, F, segs.mean(axis=1), F[shown[seg_face]]) if len(segs) else []
-        if len(segs) and keep.any():
+        if len(segs):
+            keep = _seen(ax, front, F, segs.mean(axis=1), F[shown[seg_face]])
             ax.add_collection(LineCollection(segs[keep], colors="black", linewidths=0.6))
     if sources is not None:
         s = np.asarray(sources, dtype=np.int64)

@@ -56,9 +56,7 @@ def position_groups(V: np.ndarray) -> np.ndarray:
     new[1:] = (Vs[1:] != Vs[:-1]).any(axis=1)
     hs = h[order]
     if (new[1:] & (hs[1:] == hs[:-1])).any():  # two positions share a hash
-        order = np.lexsort((V[:, 2], V[:, 1], V[:, 0]))
-        Vs = V[order]
-        new[1:] = (Vs[1:] != Vs[:-1]).any(axis=1)
+        return unique_rows(V)[1]
     group = np.empty(len(V), dtype=np.int64)
     group[order] = np.cumsum(new) - 1
     return group

@@ -29,8 +29,9 @@ def _repeats_a_directed_edge(F: np.ndarray) -> bool:
     """Whether two corners of ``F`` (m, 3) run along the same edge in the same
     direction: two faces sharing an edge agree in orientation exactly when they
     run along it in opposite directions."""
-    a = F.ravel()
-    b = F[:, [1, 2, 0]].ravel()
-    key = a * (int(F.max()) + 1) + b
+    from geoproc.mesh.topology import halfedges
+
+    H = halfedges(F)
+    key = H[:, 0] * (int(F.max()) + 1) + H[:, 1]
     key.sort()
     return bool((key[1:] == key[:-1]).any())

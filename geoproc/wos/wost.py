@@ -26,7 +26,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from geoproc.wos.closest import closest_point
+from geoproc.wos.closest import closest_point, point_segment_d2
 from geoproc.wos.kernels import cv_gradient, cv_value
 from geoproc.wos.program import eval_program
 from geoproc.wos.rng import next_uniform, stream_state
@@ -231,14 +231,8 @@ def off_neumann_walls(x, y, A, B, nseg, tiny):
         i = nseg[k]
         ex = B[i, 0] - A[i, 0]
         ey = B[i, 1] - A[i, 1]
-        ln2 = ex * ex + ey * ey
-        if ln2 <= 0.0:
-            continue
-        t = min(max(((x - A[i, 0]) * ex + (y - A[i, 1]) * ey) / ln2, 0.0), 1.0)
-        qx = A[i, 0] + t * ex - x
-        qy = A[i, 1] + t * ey - y
-        if qx * qx + qy * qy <= close * close:
-            ln = math.sqrt(ln2)
+        ln = math.sqrt(ex * ex + ey * ey)
+        if ln > 0.0 and point_segment_d2(x, y, A[i, 0], A[i, 1], B[i, 0], B[i, 1])[0] <= close * close:
             mx -= ey / ln  # inward normal: left of the directed segment
             my += ex / ln
     m = math.sqrt(mx * mx + my * my)
