@@ -1,6 +1,6 @@
 """How far the denoise targets of the two hardest benchmark inputs are from reach.
 
-Two oracle experiments, each given the clean mesh that a real run never sees:
+Oracle experiments, each given the clean mesh that a real run never sees:
 
 0. Where the default result's error on SharpSphere0.3 lies: by edge-ring
    distance from the clean creases.
@@ -21,6 +21,14 @@ Two oracle experiments, each given the clean mesh that a real run never sees:
    coefficients (as Taubin and Laplacian smoothing do). Its theta is compared
    with the issue's target (0.8 x the best peer's theta, from
    denoise_pairs.py).
+3. Bunny0.2 (../shared/data/denoise): whether choosing the schedule face by
+   face could reach the target. The faces are put in six classes by the
+   clean scan's own detail (the largest angle to an edge neighbour: quartiles,
+   then the 90th and 99th percentiles); the ``guided`` result of the default
+   schedule and of nine fixed ones (1 to 3 rounds of 1 to 5 passes, sigma_r
+   0.35 to 0.7, sigma_s 1 or 1.5 spacings) is scored per class, and each class
+   takes its best schedule. Faces of different runs do not share vertices,
+   so the combined theta is a bound no real per-face choice can beat.
 
 Usage: python bench/denoise_limits.py  (about a minute on two cores)
 """
@@ -185,6 +193,53 @@ def bunny_wiener_table() -> str:
     return f"bunny.off ({len(V)} vertices) perturbed along the normals, seed 1\n\n" + "\n".join(rows)
 
 
+# rounds, passes per round, sigma_r, sigma_s in centroid spacings
+BUNNY_SCHEDULES = ((1, 1, 0.5, 1.0), (1, 2, 0.5, 1.0), (2, 2, 0.5, 1.0), (2, 3, 0.5, 1.0), (3, 3, 0.4, 1.0),
+                   (2, 2, 0.35, 1.0), (2, 2, 0.7, 1.0), (2, 2, 0.5, 1.5), (3, 5, 0.35, 1.0))
+BUNNY02_TARGET = 5.00  # 0.8 x the best peer's 6.25 degrees (the issue)
+
+
+def bunny02_schedule_oracle() -> str:
+    """Bunny0.2: the best schedule per class of clean detail (see the module docstring, 3)."""
+    from geoproc.denoise import denoise_mesh
+    from geoproc.denoise.params import DenoiseParams
+
+    d = SHARED / "denoise" / "Bunny0.2"
+    noisy, clean = load_mesh(d / "Noisy.obj", clean=False), load_mesh(d / "Original.obj", clean=False)
+    F = noisy.F
+    Nc, _ = face_normals_and_areas(clean.V, F)
+    enb = face_edge_neighbors(F)
+    detail = np.zeros(len(F))
+    for k in range(3):
+        j = enb[:, k]
+        ok = j >= 0
+        detail[ok] = np.maximum(detail[ok], normal_angles_deg(Nc[ok], Nc[j[ok]]))
+    cuts = np.quantile(detail, [0.25, 0.5, 0.75, 0.9, 0.99])
+    cls = np.digitize(detail, cuts)
+    names = ["default"]
+    errs = [normal_angles_deg(face_normals_and_areas(denoise_mesh(noisy.V, F).V, F)[0], Nc)]
+    for o, i, sr, ss in BUNNY_SCHEDULES:
+        p = DenoiseParams(outer_iterations=o, normal_iterations=i, sigma_r=sr, sigma_s_scale=ss)
+        errs.append(normal_angles_deg(face_normals_and_areas(denoise_mesh(noisy.V, F, "guided", p).V, F)[0], Nc))
+        names.append(f"{o} × {i}, σr {sr}, σs {ss}")
+    E = np.array(errs)
+    rows = ["| clean detail class (largest angle to an edge neighbour) "
+            "| faces | default θ° | best θ° | best schedule |",
+            "|---|---:|---:|---:|---|"]
+    bound = 0.0
+    edges = [0.0, *cuts, 180.0]
+    for c in range(len(edges) - 1):
+        m = cls == c
+        per = E[:, m].mean(axis=1)
+        b = int(np.argmin(per))
+        bound += per[b] * m.sum() / len(F)
+        rows.append(f"| {edges[c]:.1f}–{edges[c + 1]:.1f}° | {int(m.sum())} | {per[0]:.2f} | {per[b]:.2f} | "
+                    f"{names[b]} |")
+    best_one = int(np.argmin(E.mean(axis=1)))
+    return (f"default θ {E[0].mean():.2f}°; best single schedule {names[best_one]}: {E[best_one].mean():.2f}°; "
+            f"best schedule per class, combined: {bound:.2f}° (target {BUNNY02_TARGET:.2f}°)\n\n" + "\n".join(rows))
+
+
 def main() -> int:
     if not (SHARED / "denoise").is_dir():
         print(f"shared data not found at {SHARED}; nothing to benchmark")
@@ -192,7 +247,9 @@ def main() -> int:
     text = "\n\n".join(["## denoise limits: the default result on SharpSphere0.3 by distance to the creases",
                         sharpsphere_default_breakdown(),
                         "## denoise limits: oracle guidance on SharpSphere0.3", sharpsphere_table(),
-                        "## denoise limits: oracle Wiener filter on the coarse bunny", bunny_wiener_table()])
+                        "## denoise limits: oracle Wiener filter on the coarse bunny", bunny_wiener_table(),
+                        "## denoise limits: the best schedule per class of clean detail on Bunny0.2",
+                        bunny02_schedule_oracle()])
     print()
     print(text)
     out = ROOT / "out" / "bench"
