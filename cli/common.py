@@ -190,6 +190,9 @@ class Run:
         if notes:
             self.note(f"{log.path}: " + ", ".join(notes) + " (--no-clean keeps the mesh as stored)"
                       if log.merged_vertices or log.removed_unreferenced else f"{log.path}: " + ", ".join(notes))
+        if log.unread_properties:
+            self.note(f"{log.path}: not carried (only scalar PLY properties travel): "
+                      + ", ".join(log.unread_properties))
 
     def note(self, text: str) -> None:
         """A one-line remark for stderr (silenced by --quiet), shown when the run

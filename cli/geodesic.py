@@ -78,7 +78,7 @@ def geodesic(
     mesh: Annotated[str, typer.Argument(help="Triangle mesh: .obj, .ply, .off, .stl, or - for stdin.",
                                         metavar="MESH")],
     output: Annotated[str, typer.Option("--output", "-o", help="Output PLY with the distance per vertex "
-                                        "(input vertex and face properties kept); - for stdout.",
+                                        "(input scalar vertex and face properties kept); - for stdout.",
                                         metavar="OUT.ply")],
     source: Annotated[list[int] | None, typer.Option("--source", "-s", help="Source vertex index "
                       "(0-based, in the mesh as loaded); repeatable: distance to the nearest.",

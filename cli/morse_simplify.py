@@ -135,7 +135,7 @@ def morse_simplify(
             require_extension(critical, ".json", "--critical", stdout_ok=True)
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
-        require_manifold(m)
+        require_manifold(m, "; morse-simplify needs a manifold mesh")
         # the methods (scipy, the compiled kernels) load once the mesh is read and checked
         from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field

@@ -4,7 +4,8 @@ Stored as ``.npz`` with ``vertices`` (frames, n, 3) and ``faces`` (m, 3), plus
 optional per-vertex-per-frame fields (frames, n); or read from a folder of frame
 meshes that all have the same faces, in natural order of their names (digit
 runs compare as numbers: ``frame2.ply`` before ``frame10.ply``), whose
-per-vertex properties present in every frame become the fields.
+per-vertex properties present in every frame become the fields (except
+properties named ``vertices`` or ``faces``, the ``.npz`` names of the geometry).
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ import numpy as np
 from geoproc.errors import InputError
 from geoproc.fileio import file_extension, read_input_bytes, sha256_bytes
 from geoproc.mesh.read import require_coordinates_in_range
+
+GEOMETRY_KEYS = ("vertices", "faces")
+"""The ``.npz`` names of the positions and triangles: no field can take them."""
 
 
 @dataclass
@@ -141,7 +145,7 @@ def _load_frame_folder(name: str) -> Animation:
         per_frame_fields.append({k: np.asarray(v, dtype=np.float64).reshape(len(mesh.V), -1)
                                  for k, v in mesh.vertex_fields.items()})
     common = set.intersection(*(set(d) for d in per_frame_fields))
-    fields = {k: np.stack([d[k][:, 0] for d in per_frame_fields]) for k in sorted(common)
+    fields = {k: np.stack([d[k][:, 0] for d in per_frame_fields]) for k in sorted(common - set(GEOMETRY_KEYS))
               if all(d[k].shape[1] == 1 for d in per_frame_fields)}
     folder = hashlib.sha256()
     for f, digest in sorted(zip(files, digests, strict=True)):
@@ -152,6 +156,9 @@ def _load_frame_folder(name: str) -> Animation:
 
 def animation_to_bytes(anim: Animation) -> bytes:
     """``.npz`` bytes with fixed zip timestamps, so equal data give equal bytes."""
+    clash = sorted(set(anim.fields) & set(GEOMETRY_KEYS))
+    if clash:
+        raise ValueError(f"a field named {clash[0]!r} would replace the geometry in the .npz")
     buf = io.BytesIO()
     arrays = {"vertices": np.ascontiguousarray(anim.V, dtype=np.float64),
               "faces": np.ascontiguousarray(anim.F, dtype=np.int64)}

@@ -36,7 +36,9 @@ def mesh_info(mesh: Mesh) -> dict:
         duplicate_vertices`` (vertices at a position already taken by a lower index),
         ``unreferenced_vertices, mean_edge_length`` (length unit),
         ``bbox_diagonal`` (length unit), ``vertex_properties, face_properties``
-        (names), ``point_cloud``. Topology entries are None for a point cloud.
+        (names), ``unread_properties`` (PLY properties not read, as
+        :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`), ``point_cloud``.
+        Topology entries are None for a point cloud.
     """
     V, F = mesh.V, mesh.F
     n = len(V)
@@ -50,6 +52,7 @@ def mesh_info(mesh: Mesh) -> dict:
         "bbox_diagonal": diag,
         "vertex_properties": sorted(mesh.vertex_fields),
         "face_properties": sorted(mesh.face_fields),
+        "unread_properties": list(mesh.log.unread_properties),
     }
     if mesh.is_point_cloud:
         info.update(dict.fromkeys(

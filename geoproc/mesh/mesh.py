@@ -30,6 +30,11 @@ class LoadLog:
     sha256 : str
         Hex SHA-256 of the bytes parsed ("" when the mesh was not read from bytes):
         what a report records, without reading the file a second time.
+    unread_properties : list of str
+        PLY properties stored in the file but not read into fields, as
+        ``"vertex nbrs"`` or ``"face texcoord"``: list properties (other than
+        the face's vertex indices), and face properties when the file also
+        holds triangle strips. Only scalar properties travel.
     """
 
     path: str = ""
@@ -41,10 +46,11 @@ class LoadLog:
     removed_unreferenced: int = 0
     cleaned: bool = True
     sha256: str = ""
+    unread_properties: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
         """Plain-dict form, for reports."""
-        return dict(self.__dict__)
+        return {k: list(v) if isinstance(v, list) else v for k, v in self.__dict__.items()}
 
 
 @dataclass

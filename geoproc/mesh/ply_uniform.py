@@ -258,8 +258,9 @@ def _typed(values: np.ndarray, dtype: np.dtype) -> np.ndarray | None:
     """int64 or float64 values read from text as ``dtype``, or None where an
     integer type cannot hold one exactly (beyond its range, or a float64
     reading beyond 2**53, where it may have rounded)."""
-    if dtype.kind == "f":
-        return values.astype(dtype)
+    if dtype.kind == "f":  # beyond float32's range becomes inf, as a binary float32 file would hold
+        with np.errstate(over="ignore"):
+            return values.astype(dtype)
     info = np.iinfo(dtype)
     low, high = (max(info.min, -2**53), min(info.max, 2**53)) if values.dtype.kind == "f" else (info.min, info.max)
     if values.size and (values.min() < low or values.max() > high):

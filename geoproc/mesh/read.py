@@ -1,9 +1,10 @@
 """Read OBJ, PLY (ASCII and binary), OFF and STL files into a :class:`Mesh`.
 
-PLY keeps every named vertex and face property (positions and fields as
-float64): the usual layout (faces as index lists of one length) is read
-vectorized by :mod:`geoproc.mesh.ply_uniform`, anything else by plyfile. OBJ
-and ASCII OFF are parsed here, vectorized; STL goes through trimesh with
+PLY keeps every named scalar vertex and face property (positions and fields
+as float64; list properties are named in ``mesh.log.unread_properties``):
+the usual layout (faces as index lists of one length) is read vectorized by
+:mod:`geoproc.mesh.ply_uniform`, anything else by plyfile. OBJ and ASCII OFF
+are parsed here, vectorized; STL goes through trimesh with
 ``process=False``. Polygons with more than three corners are triangulated as
 fans and counted in
 ``mesh.log.triangulated_polygons``. After reading, the mesh is
@@ -108,8 +109,9 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
         raise InputError(path, "file is empty")
     if data.startswith(b"\xef\xbb\xbf") and fmt in ("obj", "off"):  # a UTF-8 byte order mark
         data = data[3:]
+    unread: list[str] = []
     if fmt == "ply":
-        mesh, polys = _parse_ply(data, path)
+        mesh, polys, unread = _parse_ply(data, path)
     elif fmt == "obj":
         mesh, polys = _parse_obj(data, path)
     elif fmt == "off":
@@ -124,6 +126,7 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
         triangulated_polygons=polys,
         cleaned=clean,
         sha256=sha256_bytes(data),
+        unread_properties=unread,
     )
     validate_arrays(mesh.V, mesh.F, path, allow_point_cloud=(fmt == "ply"))
     if clean:
@@ -203,7 +206,14 @@ def _fans(idx: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, int]:
     return tris.astype(np.int64), int((counts > 3).sum())
 
 
-def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
+def _scalar_property(dtype: np.dtype, name: str) -> bool:
+    """Whether a PLY property can travel as a field: one number per row."""
+    return dtype[name].shape == () and dtype[name].kind in "fiub"
+
+
+def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
+    """The mesh, its polygon count (as :func:`_fans`) and the properties not read
+    (see :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`)."""
     elements = read_uniform_ply(data)
     if elements is None:  # outside the vectorized layout: plyfile reads it, or names the problem
         _require_declared_rows_fit(data, path)
@@ -221,8 +231,9 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
         vfields = {  # copies: the vectorized reader's rows are read-only views of the file's bytes
             n: np.array(vert[n], dtype=np.float64)
             for n in vert.dtype.names
-            if n not in ("x", "y", "z") and vert.dtype[n].shape == () and vert.dtype[n].kind in "fiub"
+            if n not in ("x", "y", "z") and _scalar_property(vert.dtype, n)
         }
+    unread = [f"vertex {n}" for n in vert.dtype.names if n not in ("x", "y", "z") and n not in vfields]
     F = np.zeros((0, 3), dtype=np.int64)
     ffields: dict[str, np.ndarray] = {}
     polys = 0
@@ -244,8 +255,9 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
             ffields = {  # a polygon's values go to each triangle of its fan
                 n: np.repeat(np.asarray(fdata[n], dtype=np.float64), counts - 2)
                 for n in fdata.dtype.names
-                if n != key and fdata.dtype[n].shape == () and fdata.dtype[n].kind in "fiub"
+                if n != key and _scalar_property(fdata.dtype, n)
             }
+        unread += [f"face {n}" for n in fdata.dtype.names if n != key and n not in ffields]
     if "tristrips" in elements and len(elements["tristrips"]):
         sdata = elements["tristrips"]
         if "vertex_indices" not in sdata.dtype.names:
@@ -253,8 +265,9 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int]:
         flat, counts = _index_lists(sdata, "vertex_indices", path, "tristrips")
         _require_integer_indices(flat, counts, path, "tristrips row")
         F = np.concatenate([F, _strip_triangles(flat, counts)])
+        unread += [f"face {n}" for n in ffields]
         ffields = {}  # per-face properties belong to the face element alone
-    return Mesh(V, F, vfields, ffields), polys
+    return Mesh(V, F, vfields, ffields), polys, unread
 
 
 def _require_declared_rows_fit(data: bytes, path: str) -> None:

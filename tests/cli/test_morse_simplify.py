@@ -96,6 +96,7 @@ def test_non_manifold_refused(cli, fixture_dir, tmp_path, name, needle):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and "non-manifold" in lines[0]
     assert f"first: {needle}" in lines[0]
+    assert lines[0].endswith("; morse-simplify needs a manifold mesh")
     assert not out.exists()
 
 

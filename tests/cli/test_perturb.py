@@ -9,7 +9,7 @@ import os
 import numpy as np
 
 from geoproc.animation import load_animation
-from geoproc.mesh import load_mesh
+from geoproc.mesh import Mesh, load_mesh, save_mesh
 from geoproc.perturb import noise_scale
 from geoproc.report import validate_report
 from tests.conftest import load_fixture_module
@@ -139,6 +139,22 @@ def test_animation_with_differing_connectivity_exit_2(cli, tmp_path):
     out = tmp_path / "o.npz"
     p = cli("perturb", tmp_path / "bad.npz", "--seed", "1", "-o", out)
     assert p.returncode == 2 and "connectivity" in p.stderr and not out.exists()
+
+
+def test_frame_properties_named_like_the_geometry_do_not_replace_it(cli, tmp_path):
+    V, F = denoise_fixtures().wave_animation(3)
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, Vk in enumerate(V):
+        fields = {"vertices": np.ones(len(Vk)), "faces": np.ones(len(Vk)), "tag": np.full(len(Vk), k + 0.5)}
+        save_mesh(folder / f"f{k}.ply", Mesh(Vk, F, vertex_fields=fields))
+    out = tmp_path / "n.npz"
+    p = cli("perturb", folder, "--noise", "0.3", "--seed", "3", "-o", out)
+    assert p.returncode == 0, p.stderr
+    z = np.load(out)
+    assert sorted(z.files) == ["faces", "tag", "vertices"]
+    assert z["vertices"].shape == V.shape and np.array_equal(z["faces"], F)
+    assert np.abs(z["vertices"] - V).max() > 0 and z["tag"][:, 0].tolist() == [0.5, 1.5, 2.5]
 
 
 def test_animation_folder_is_recorded_in_the_report(cli, tmp_path):

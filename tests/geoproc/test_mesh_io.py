@@ -478,6 +478,34 @@ def test_ply_polygon_face_properties_follow_their_fan_triangles():
     assert m.face_fields["region"].tolist() == [7.0, 7.0, 9.0]
 
 
+def test_ply_list_properties_are_named_as_unread():
+    head = _PLY_HEAD.format(el="face", n=1, prop="property list uchar int vertex_indices\n"
+                            "property list uchar float texcoord\nproperty float w")
+    head = head.replace("property float z\n", "property float z\nproperty list uchar int nbrs\nproperty float q\n")
+    rows = head.split("end_header\n")
+    body = "".join(line + f" 2 {i} {i + 1} {i}.5\n" for i, line in enumerate(rows[1].splitlines()))
+    data = rows[0] + "end_header\n" + body + "3 0 1 2 6 0 0 1 0 0 1 7\n"
+    m = read_mesh_bytes(data.encode(), "ply", "l.ply", clean=False)
+    assert sorted(m.vertex_fields) == ["q"] and m.vertex_fields["q"].tolist() == [0.5, 1.5, 2.5, 3.5]
+    assert sorted(m.face_fields) == ["w"] and m.face_fields["w"].tolist() == [7.0]
+    assert m.log.unread_properties == ["vertex nbrs", "face texcoord"]
+    assert read_mesh_bytes(_PLY_HEAD.format(el="face", n=1, prop="property list uchar int vertex_indices").encode()
+                           + b"3 0 1 2\n", "ply", "t.ply").log.unread_properties == []
+
+
+def test_float32_property_beyond_its_range_reads_as_inf_without_a_warning():
+    import warnings
+
+    data = _PLY_HEAD.format(el="face", n=1, prop="property list uchar int vertex_indices")
+    data = data.replace("property float z\n", "property float z\nproperty float q\n")
+    rows = data.split("end_header\n")
+    body = "".join(line + (" 1e39\n" if i == 0 else " 1\n") for i, line in enumerate(rows[1].splitlines()))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = read_mesh_bytes((rows[0] + "end_header\n" + body + "3 0 1 2\n").encode(), "ply", "f.ply", clean=False)
+    assert m.vertex_fields["q"].tolist() == [np.inf, 1.0, 1.0, 1.0]
+
+
 def test_signalling_nan_is_refused_without_a_warning():
     import struct
     import warnings
