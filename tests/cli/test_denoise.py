@@ -74,6 +74,19 @@ def test_stdout_pipe_is_binary_ply(cli, cube_pair):
     assert p.stdout.startswith(b"ply\nformat binary_little_endian")
 
 
+def test_replacing_an_input_property_is_noted(cli, cube_pair, dfx, tmp_path):
+    noisy, _ = cube_pair
+    first, second = tmp_path / "a.ply", tmp_path / "b.ply"
+    p = cli("denoise", noisy, "-o", first)
+    assert p.returncode == 0 and "replacing" not in p.stderr, p.stderr
+    p = cli("denoise", first, "-o", second)
+    assert p.returncode == 0 and "note: replacing the input's face property 'feature'" in p.stderr, p.stderr
+    P, _ = dfx.cloud_with_outliers(2000, 0.2, 0.05)
+    save_mesh(tmp_path / "c.ply", Mesh(P, np.zeros((0, 3), int), {"outlier_score": np.zeros(len(P))}))
+    p = cli("denoise", tmp_path / "c.ply", "--outliers", "--keep-all", "-o", tmp_path / "s.ply")
+    assert p.returncode == 0 and "note: replacing the input's vertex property 'outlier_score'" in p.stderr, p.stderr
+
+
 def test_outliers_f1_and_outputs(cli, dfx, tmp_path):
     P, flag = dfx.cloud_with_outliers(8000, 0.2, 0.05)
     src = tmp_path / "cloud.ply"
