@@ -55,11 +55,19 @@ def reference_metrics(V: np.ndarray, V_input: np.ndarray, F: np.ndarray, V_ref: 
             "new_flipped_faces": new_flipped_faces(V, F, V_ref, before)}
 
 
+def used_vertices(F: np.ndarray, n: int) -> np.ndarray:
+    """(n,) bool: the vertices some face of F uses (the surface's own points)."""
+    used = np.zeros(n, dtype=bool)
+    used[np.asarray(F, dtype=np.int64).ravel()] = True
+    return used
+
+
 def two_sided_hausdorff(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray, F_ref: np.ndarray) -> float:
     """Two-sided Hausdorff distance between two surfaces, from vertices to surfaces
-    (the largest vertex-to-surface distance either way), in length units."""
-    d1, _, _ = igl.point_mesh_squared_distance(V, V_ref, F_ref)
-    d2, _, _ = igl.point_mesh_squared_distance(V_ref, V, F)
+    (the largest vertex-to-surface distance either way), in length units.
+    Vertices no face uses are not points of either surface and are left out."""
+    d1, _, _ = igl.point_mesh_squared_distance(V[used_vertices(F, len(V))], V_ref, F_ref)
+    d2, _, _ = igl.point_mesh_squared_distance(V_ref[used_vertices(F_ref, len(V_ref))], V, F)
     return float(np.sqrt(max(d1.max(), d2.max())))
 
 
@@ -78,16 +86,20 @@ def denoise_errors(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> dict:
         flipped_faces : faces more than 90 degrees from the reference;
         hausdorff : two-sided Hausdorff distance / reference bounding-box diagonal;
         vertex_rmse : RMS vertex distance / reference mean edge length.
+    The bounding box and the vertex distances count only the vertices some
+    face uses (a vertex no face uses is not on the surface).
     """
     N, _ = face_normals_and_areas(V, F)
     N_ref, _ = face_normals_and_areas(V_ref, F)
     ang = normal_angles_deg(N, N_ref)
-    diag = float(np.linalg.norm(V_ref.max(axis=0) - V_ref.min(axis=0)))
+    used = used_vertices(F, len(V))
+    on = V_ref[used]
+    diag = float(np.linalg.norm(on.max(axis=0) - on.min(axis=0)))
     le = mean_edge_length(V_ref, F)
     return {
         "mean_normal_angle_deg": float(ang.mean()),
         "max_normal_angle_deg": float(ang.max()),
         "flipped_faces": int((ang > 90.0).sum()),
         "hausdorff": two_sided_hausdorff(V, F, V_ref, F) / diag,
-        "vertex_rmse": float(np.sqrt(np.mean(np.sum((V - V_ref) ** 2, axis=1)))) / le,
+        "vertex_rmse": float(np.sqrt(np.mean(np.sum((V[used] - on) ** 2, axis=1)))) / le,
     }

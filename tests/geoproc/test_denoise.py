@@ -406,3 +406,13 @@ def test_denoise_mesh_checks_its_arrays(make_fixtures):
                           ((Vn, np.zeros((0, 3), int)), "no faces")):
         with pytest.raises(InputError, match=message):
             denoise_mesh(*args)
+
+
+def test_reference_metrics_leave_out_vertices_no_face_uses(dfx):
+    from geoproc.denoise import denoise_errors
+
+    Vn, F, V = dfx.noisy_cube(n=6, sigma=0.3, seed=4)
+    base = denoise_errors(Vn, F, V)
+    stray = np.array([[40.0, 0.0, 0.0], [-3.0, 9.0, 1.0]])
+    with_stray = denoise_errors(np.vstack([Vn, stray + 0.5]), F, np.vstack([V, stray]))
+    assert with_stray == pytest.approx(base, rel=1e-12)
