@@ -355,7 +355,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
                         "detected_outliers": int(res.outlier.sum()), "threshold": res.threshold,
                         "motion_basis": res.rank, "rpca_iterations": res.rpca_iterations})
     if "outlier" in anim.fields:
-        truth = outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path)
+        truth = outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path, anim.frame_files)
         run.metrics["true_outliers"] = int(truth.sum())
         run.metrics.update(detection_scores(res.outlier, truth))
     fields = dict(anim.fields)
@@ -375,14 +375,14 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     if anim.n_frames < 3:
         raise InputError(anim.path, f"has {anim.n_frames} frame{'s' if anim.n_frames != 1 else ''}; --dynamic "
                          "needs at least 3 (save a single frame as a mesh file and denoise it without --dynamic)")
-    require_triangle_frames(anim.V, anim.F, anim.path)
+    require_triangle_frames(anim.V, anim.F, anim.path, anim.frame_files)
     from geoproc.denoise.dynamic import denoise_animation
     from geoproc.denoise.metrics import reference_metrics
     from geoproc.denoise.validate import reference_in_input_order, require_denoisable
 
     require_denoisable(anim.F, anim.path)
     if "outlier" in anim.fields:  # carried to the output: refused as perturb and --outliers refuse it
-        outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path)
+        outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path, anim.frame_files)
     ref_V = None
     if reference == "-":
         raise UsageError("--reference -: an animation reference is read from a .npz file or a folder")

@@ -91,24 +91,28 @@ def perturb(
             refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")
             anim = run.load_animation(input)
             if len(anim.F):  # a moving point cloud has no faces; its frames are checked as clouds below
-                require_triangle_frames(anim.V, anim.F, anim.path)  # normals and the edge-length unit
+                require_triangle_frames(anim.V, anim.F, anim.path, anim.frame_files)  # normals and the edge-length unit
             _note_fractions_of_none(run, int(anim.V.shape[1]), impulsive, outliers)
             with run.timer("compute"):
-                frames, flags = [], []
+                frames, flags, scales = [], [], []
                 for t in range(anim.n_frames):
-                    try:
-                        Vt, ot = perturb_positions(anim.V[t], anim.F, spec, rng, input)
+                    try:  # sigma in each frame's own length unit
+                        scales.append(noise_scale(anim.V[t], anim.F))
+                        Vt, ot = perturb_positions(anim.V[t], anim.F, spec, rng, input, scale=scales[-1])
                     except InputError as exc:  # say which frame
+                        if anim.frame_files:
+                            raise InputError(anim.frame_files[t], exc.problem) from None
                         raise InputError(exc.path, f"frame {t}: {exc.problem}") from None
                     frames.append(Vt)
                     flags.append(ot)
                 fields = dict(anim.fields)
                 V = np.stack(frames)
-                flag = _merged_flags(np.stack(flags), fields, anim.V.shape[:2], anim.path, outliers > 0)
+                flag = _merged_flags(np.stack(flags), fields, anim.V.shape[:2], anim.path, outliers > 0,
+                                     anim.frame_files)
                 out = Animation(V, anim.F, fields, output)
             run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]),
                                 "faces": len(anim.F),
-                                "noise_scale": noise_scale(anim.V[0], anim.F),
+                                "noise_scale": float(np.mean(scales)),
                                 "rms_displacement": _rms(V - anim.V),
                                 "outlier_vertices": int(flag.sum())})
             run.write_bytes(output, animation_to_bytes(out))
@@ -135,14 +139,15 @@ def _rms(D: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(D**2, axis=-1)))) if D.size else 0.0
 
 
-def _merged_flags(new: np.ndarray, fields: dict, shape: tuple, path: str, added: bool) -> np.ndarray:
+def _merged_flags(new: np.ndarray, fields: dict, shape: tuple, path: str, added: bool,
+                  frame_files: list[str] | None = None) -> np.ndarray:
     """The ``outlier`` flags after this run: those the input already carried
     (an earlier perturb) joined with the ``new`` ones (1.0 where moved as an
     outlier now); ``fields["outlier"]`` is set when outliers were ``added``.
     Returns the (bool) flags, of ``shape``."""
     flags = new > 0.5
     if "outlier" in fields:
-        flags |= outlier_flags(fields["outlier"], shape, path)
+        flags |= outlier_flags(fields["outlier"], shape, path, frame_files)
     if added:
         fields["outlier"] = flags.astype(np.float64)
     return flags

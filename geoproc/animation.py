@@ -3,7 +3,8 @@
 Stored as ``.npz`` with ``vertices`` (frames, n, 3) and ``faces`` (m, 3), plus
 optional per-vertex-per-frame fields (frames, n); or read from a folder of frame
 meshes that all have the same faces, in natural order of their names (digit
-runs compare as numbers: ``frame2.ply`` before ``frame10.ply``), whose
+runs compare as numbers: ``frame2.ply`` before ``frame10.ply``; hidden files,
+whose names start with a dot, and subfolders are not frames), whose
 per-vertex properties present in every frame become the fields (except
 properties named ``vertices`` or ``faces``, the ``.npz`` names of the geometry).
 """
@@ -76,14 +77,9 @@ def load_animation(path: str | os.PathLike) -> Animation:
     if os.path.isdir(name):
         return _load_frame_folder(name)
     raw = read_input_bytes(name, "animation file")
-    try:
-        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except Exception as exc:  # zip or array format errors
-        raise InputError(name, f"not a readable .npz animation ({type(exc).__name__})") from None
-    for key in ("vertices", "faces"):
-        if key not in data:
-            raise InputError(name, f"missing array '{key}' (an animation needs 'vertices' (frames, n, 3) and 'faces')")
+    if not raw:
+        raise InputError(name, "file is empty")
+    data = _npz_arrays(raw, name)
     V = data.pop("vertices")
     if V.dtype.kind not in "fiu":
         raise InputError(name, f"'vertices' must hold real numbers, got dtype {V.dtype}")
@@ -108,6 +104,43 @@ def load_animation(path: str | os.PathLike) -> Animation:
     return Animation(V, F.astype(np.int64), fields, name, sha256=sha256_bytes(raw))
 
 
+def _npz_arrays(raw: bytes, name: str) -> dict[str, np.ndarray]:
+    """The arrays of a ``.npz`` file's bytes, by name.
+
+    ``vertices`` and ``faces`` must be numeric ``.npy`` members (InputError
+    otherwise); any other member that is not one (a text file, an object array,
+    which would need unpickling) is left out, as non-numeric arrays are.
+    """
+    try:
+        z = np.load(io.BytesIO(raw), allow_pickle=False)
+    except Exception as exc:  # not a zip, a damaged one
+        raise InputError(name, f"not a readable .npz animation ({type(exc).__name__})") from None
+    if not isinstance(z, np.lib.npyio.NpzFile):  # a lone .npy array
+        raise InputError(name, "not a .npz archive (a single array; an animation needs 'vertices' and 'faces')")
+    data = {}
+    with z:
+        for key in ("vertices", "faces"):
+            if key not in z.files:
+                raise InputError(name, f"missing array '{key}' (an animation needs 'vertices' (frames, n, 3) "
+                                       "and 'faces')")
+        for key in z.files:
+            try:
+                arr = z[key]
+            except ValueError:  # an object array: numpy would have to unpickle it
+                arr = None
+                why = "an object array (pickled Python objects)"
+            except Exception as exc:  # a damaged member
+                arr = None
+                why = f"not readable ({type(exc).__name__})"
+            else:
+                why = "not a .npy array"
+            if isinstance(arr, np.ndarray):
+                data[key] = arr
+            elif key in ("vertices", "faces"):
+                raise InputError(name, f"'{key}' is {why}; an animation's '{key}' is a numeric array")
+    return data
+
+
 def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
     if not np.isfinite(V).all():
         t, i = (int(x) for x in np.argwhere(~np.isfinite(V).all(axis=2))[0])
@@ -127,7 +160,8 @@ def _load_frame_folder(name: str) -> Animation:
     from geoproc.mesh import load_mesh
     from geoproc.mesh.read import MESH_FORMATS
 
-    files = sorted((f for f in os.listdir(name) if file_extension(f) in MESH_FORMATS), key=natural_key)
+    files = sorted((f for f in os.listdir(name) if file_extension(f) in MESH_FORMATS and not f.startswith(".")
+                    and not os.path.isdir(os.path.join(name, f))), key=natural_key)
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
     frames, per_frame_fields, digests = [], [], []

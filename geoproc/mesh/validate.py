@@ -82,15 +82,19 @@ def require_triangle_mesh(mesh: Mesh) -> None:
         raise InputError(path, "degenerate mesh: every face has zero area")
 
 
-def require_triangle_frames(V: np.ndarray, F: np.ndarray, path: str | None) -> None:
+def require_triangle_frames(V: np.ndarray, F: np.ndarray, path: str | None,
+                            frame_files: list[str] | None = None) -> None:
     """Refuse an animation (V of shape (frames, n, 3), shared triangles F)
-    any of whose frames has no face of nonzero area, naming the first such frame."""
+    any of whose frames has no face of nonzero area, naming the first such
+    frame: its file when ``frame_files`` (one per frame) is given, else its index."""
     from geoproc.mesh.topology import face_areas
 
     if len(F) == 0:
         raise InputError(path, "has no faces; this method needs a triangle mesh")
     for t in range(len(V)):
         if not (face_areas(V[t], F) > 0).any():
+            if frame_files:
+                raise InputError(frame_files[t], "degenerate mesh: every face has zero area")
             raise InputError(path, f"frame {t}: degenerate mesh: every face has zero area")
 
 

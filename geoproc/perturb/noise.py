@@ -180,7 +180,8 @@ def _add_noise(out: np.ndarray, outlier: np.ndarray, V: np.ndarray, F: np.ndarra
         outlier[idx] = 1.0
 
 
-def outlier_flags(values: np.ndarray, shape: tuple[int, ...], path: str | None = None) -> np.ndarray:
+def outlier_flags(values: np.ndarray, shape: tuple[int, ...], path: str | None = None,
+                  frame_files: list[str] | None = None) -> np.ndarray:
     """An ``outlier`` property read back as flags.
 
     Parameters
@@ -190,6 +191,9 @@ def outlier_flags(values: np.ndarray, shape: tuple[int, ...], path: str | None =
     shape : (n,) for a mesh or cloud, (frames, n) for an animation.
     path : str, optional
         File name for error messages.
+    frame_files : list of str, optional
+        For an animation read from a folder, its frame files: a frame with
+        non-finite values is named by its file (else by its index).
 
     Returns
     -------
@@ -201,5 +205,11 @@ def outlier_flags(values: np.ndarray, shape: tuple[int, ...], path: str | None =
     if flags.shape != tuple(shape):
         raise InputError(path, f"'outlier' property has shape {flags.shape}; expected {tuple(shape)}")
     if not np.isfinite(flags).all():
-        raise InputError(path, "'outlier' property has non-finite values (0 marks an inlier, 1 an outlier)")
+        what = "'outlier' property has non-finite values (0 marks an inlier, 1 an outlier)"
+        if flags.ndim == 2:  # an animation: name the first frame that has one
+            t = int(np.flatnonzero(~np.isfinite(flags).all(axis=1))[0])
+            if frame_files:
+                raise InputError(frame_files[t], what)
+            raise InputError(path, f"frame {t}: {what}")
+        raise InputError(path, what)
     return flags > 0.5

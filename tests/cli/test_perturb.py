@@ -7,6 +7,7 @@ import json
 import os
 
 import numpy as np
+import pytest
 
 from geoproc.animation import load_animation
 from geoproc.mesh import Mesh, load_mesh, save_mesh
@@ -155,6 +156,33 @@ def test_frame_properties_named_like_the_geometry_do_not_replace_it(cli, tmp_pat
     assert sorted(z.files) == ["faces", "tag", "vertices"]
     assert z["vertices"].shape == V.shape and np.array_equal(z["faces"], F)
     assert np.abs(z["vertices"] - V).max() > 0 and z["tag"][:, 0].tolist() == [0.5, 1.5, 2.5]
+
+
+def test_a_bad_frame_of_a_folder_is_named_by_its_file(cli, tmp_path):
+    V, F = denoise_fixtures().wave_animation(4)
+    for case in ("degenerate", "outlier"):
+        folder = tmp_path / case
+        folder.mkdir()
+        for k, Vk in enumerate(V):
+            flags = np.zeros(len(Vk))
+            flags[5] = np.nan if (case == "outlier" and k == 2) else 0.0
+            Vk = Vk * 0.0 if (case == "degenerate" and k == 2) else Vk
+            save_mesh(folder / f"shot_{10 * (k + 1)}.ply", Mesh(Vk, F, vertex_fields={"outlier": flags}))
+        out = tmp_path / f"{case}.npz"
+        p = cli("perturb", folder, "--seed", "1", "-o", out)
+        assert p.returncode == 2 and p.stderr.startswith(f"error: {folder / 'shot_30.ply'}: "), p.stderr
+        assert not out.exists()
+
+
+def test_animation_noise_scale_is_the_mean_of_the_frames(cli, tmp_path):
+    V, F = denoise_fixtures().wave_animation(3)
+    V = V * np.array([1.0, 10.0, 100.0])[:, None, None]
+    np.savez(tmp_path / "s.npz", vertices=V, faces=F)
+    rep = tmp_path / "r.json"
+    p = cli("perturb", tmp_path / "s.npz", "--seed", "1", "-o", tmp_path / "n.npz", "--report", rep)
+    assert p.returncode == 0, p.stderr
+    scales = [noise_scale(Vk, F) for Vk in V]
+    assert json.loads(rep.read_text())["metrics"]["noise_scale"] == pytest.approx(np.mean(scales), rel=1e-12)
 
 
 def test_animation_folder_is_recorded_in_the_report(cli, tmp_path):

@@ -1,0 +1,74 @@
+"""Reading animations: ``.npz`` members and frame folders (geoproc/animation.py)."""
+
+from __future__ import annotations
+
+import io
+import zipfile
+
+import numpy as np
+import pytest
+
+from geoproc.animation import load_animation
+from geoproc.errors import InputError
+from geoproc.mesh import Mesh, save_mesh
+from tests.conftest import load_fixture_module
+
+
+@pytest.fixture(scope="module")
+def wave():
+    return load_fixture_module("denoise_fixtures").wave_animation(4)
+
+
+def _npz(path, extra_members=(), **arrays):
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    path.write_bytes(buf.getvalue())
+    with zipfile.ZipFile(path, "a") as z:
+        for name, data in extra_members:
+            z.writestr(name, data)
+    return path
+
+
+def test_members_that_are_not_numeric_arrays_are_left_out(wave, tmp_path):
+    V, F = wave
+    p = _npz(tmp_path / "a.npz", [("README.txt", "exported by X\n")], vertices=V, faces=F,
+             meta=np.array([{"units": "m"}], dtype=object), tag=np.ones(V.shape[:2]))
+    anim = load_animation(p)
+    assert np.array_equal(anim.V, V) and np.array_equal(anim.F, F) and sorted(anim.fields) == ["tag"]
+
+
+@pytest.mark.parametrize("case,message", [
+    ("object", "'vertices' is an object array (pickled Python objects)"),
+    ("text", "'faces' is not a .npy array"),
+    ("empty", "file is empty"),
+    ("npy", "not a .npz archive (a single array"),
+])
+def test_unreadable_geometry_is_named(wave, tmp_path, case, message):
+    V, F = wave
+    p = tmp_path / "b.npz"
+    if case == "object":
+        _npz(p, vertices=V.astype(object), faces=F)
+    elif case == "text":
+        _npz(p, [("faces", "0 1 2\n")], vertices=V)
+    elif case == "empty":
+        p.write_bytes(b"")
+    else:
+        buf = io.BytesIO()
+        np.save(buf, V)
+        p.write_bytes(buf.getvalue())
+    with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        load_animation(p)
+
+
+def test_hidden_files_and_subfolders_are_not_frames(wave, tmp_path):
+    V, F = wave
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, Vk in enumerate(V):
+        save_mesh(folder / f"frame{k}.ply", Mesh(Vk, F))
+    save_mesh(folder / ".frame3.ply.bak.ply", Mesh(V[3] + 5.0, F))  # an editor's backup
+    (folder / "._frame2.ply").write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        ")
+    (folder / "zz.ply").mkdir()
+    anim = load_animation(folder)
+    assert np.array_equal(anim.V, V)
+    assert [f.rsplit("/", 1)[-1] for f in anim.frame_files] == [f"frame{k}.ply" for k in range(len(V))]
