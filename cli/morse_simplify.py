@@ -143,6 +143,7 @@ def morse_simplify(
         from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
         from geoproc.morse.diagram_plot import persistence_diagram_png
         from geoproc.morse.fields import field_name, vertex_field
+        from geoproc.morse.window_repair import half_bound_tolerance
 
         npy = read_input_bytes(npy_path, "field file (.npy)") if npy_path else None
         with run.timer("field"):
@@ -192,8 +193,7 @@ def morse_simplify(
         # largest value is rounding of the assigned values, not a move beyond
         # P/2; with P = 0 (nothing removed), --barycentric breaks the
         # lower-star extension's ties by units in the last place
-        rounding = 64 * np.finfo(np.float64).eps * float(np.abs(f_ref).max(initial=0.0))
-        half_tol = threshold / 2.0 * (1 + 1e-12) + rounding
+        half_tol = half_bound_tolerance(f_ref, threshold / 2.0)
         beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol)) if threshold > 0 else 0
         b0, b1, b2 = before.betti
         run.metrics.update({

@@ -111,7 +111,7 @@ from geoproc.morse.heap import heap_pop, heap_push
 from geoproc.morse.merge_forest import cone_adjacency, merge_forest
 from geoproc.morse.order import vertex_order
 from geoproc.morse.refine import refine_types, vertex_faces
-from geoproc.morse.window_repair import repair_windows
+from geoproc.morse.window_repair import half_bound_tolerance, repair_windows
 
 
 @dataclass
@@ -132,7 +132,8 @@ class Simplification:
     max_abs_change : float
         ``max |f - g|``.
     widened_vertices : int64 array
-        Vertices with |f - g| > P/2 (see step 4 of the module docstring).
+        Vertices with |f - g| > P/2 past rounding (:func:`geoproc.morse.window_repair.half_bound_tolerance`;
+        see step 4 of the module docstring).
     repaired_vertices : int
         Value changes made by the repair sweeps of step 5 (0 when the
         cancellation relation alone gave the right extrema).
@@ -489,6 +490,6 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
         pairs_removed=removed,
         pairs_kept=int(len(pers) - removed),
         max_abs_change=float(np.max(np.abs(g - f))) if n else 0.0,
-        widened_vertices=np.flatnonzero(np.abs(g - f) > P / 2.0 * (1 + 1e-12)),
+        widened_vertices=np.flatnonzero(np.abs(g - f) > half_bound_tolerance(f, P / 2.0)),
         repaired_vertices=repaired,
     )

@@ -273,11 +273,22 @@ def _values_from_order(W, g, f, T, below):
     return x
 
 
-def _window_score(W, C, g, f, half, need, cx, vf_ptr, vf_tri):
+def half_bound_tolerance(f: np.ndarray, half: float) -> float:
+    """Largest |g - f| that still counts as within ``half`` (P/2).
+
+    Values placed at f +- P/2 carry the rounding of numbers of f's size, which
+    exceeds P/2 * 1e-12 when f sits far from 0 (``--field y`` on a mesh moved
+    by 1000 units): the tolerance is ``half (1 + 1e-12) + 64 eps max|f|``, so
+    that the test does not depend on the field's offset.
+    """
+    return half * (1 + 1e-12) + 64 * np.finfo(np.float64).eps * float(np.abs(f).max(initial=0.0))
+
+
+def _window_score(W, C, g, f, tol, need, cx, vf_ptr, vf_tri):
     wrong = sum(vertex_type(c, g, cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary) != need[c]
                 for c in C.tolist())
     e = np.abs(g[W] - f[W])
-    return wrong, float(e.max()), int((e > half * (1 + 1e-12)).sum())
+    return wrong, float(e.max()), int((e > tol).sum())
 
 
 def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, radius: int = 1,
@@ -317,8 +328,9 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
         Windows solved and windows written back.
     """
     half = P / 2.0
+    tol = half_bound_tolerance(f, half)
     kw = (cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary)
-    bad = np.abs(g - f) > half * (1 + 1e-12)
+    bad = np.abs(g - f) > tol
     windows = [W for W in _windows(bad, cx.adj_ptr, cx.adj_nbr, radius) if len(W) <= max_window]
     if max_windows < 0 or len(windows) < max_windows:  # room for the wrong saddle types too
         bad |= vertex_types(g, *kw) != want
@@ -337,10 +349,10 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
             x = _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri, node_limit)
             if x is None:
                 continue
-            before = _window_score(W, C, g, f, half, want, cx, vf_ptr, vf_tri)
+            before = _window_score(W, C, g, f, tol, want, cx, vf_ptr, vf_tri)
             old = g[W].copy()
             g[W] = x
-            after = _window_score(W, C, g, f, half, want, cx, vf_ptr, vf_tri)
+            after = _window_score(W, C, g, f, tol, want, cx, vf_ptr, vf_tri)
             ok = all(vertex_type(c, g, *kw) == need[c] for c in C.tolist())
             tol = 1e-9 * P
             better = after[0] < before[0] or (after[0] == before[0] and (

@@ -261,3 +261,18 @@ def test_bad_input_to_the_library_function_is_refused(make_fixtures):
         with pytest.raises(UsageError, match="threshold"):
             morse_simplify(F, f, P)
     assert np.array_equal(morse_simplify(F.tolist(), f.tolist(), 0.2).g, morse_simplify(F, f, 0.2).g)
+
+
+def test_an_offset_of_the_field_changes_nothing(fixture_dir):
+    import igl
+
+    from geoproc.morse import morse_simplify
+
+    mesh = load_mesh(fixture_dir / "torus.ply")
+    V, F = igl.upsample(mesh.V, mesh.F)
+    f = V[:, 1] + 0.02 * np.ptp(V[:, 1]) * np.random.default_rng(0).standard_normal(len(V))
+    P = 0.01 * np.ptp(f)
+    a, b = morse_simplify(F, f, P), morse_simplify(F, f + 1000.0, P)
+    # values placed at f +- P/2 round by units in the last place of 1000, far above 1e-12 P: not beyond P/2
+    assert len(b.simplification.widened_vertices) == len(a.simplification.widened_vertices) <= 5
+    np.testing.assert_allclose(b.g - 1000.0, a.g, rtol=0, atol=1e-9 * P)
