@@ -57,8 +57,8 @@ ReportOpt = Annotated[
 ]
 CheckOpt = Annotated[
     list[str] | None,
-    typer.Option("--check", help="Gate on a metric, e.g. 'rmse<=0.01' (operators <=, <, >=, >, ==); "
-                 "repeatable; exit 1 when any fails.", metavar="'METRIC<=VALUE'", show_default=False),
+    typer.Option("--check", help="Gate on one of the metrics listed below, as 'METRIC<=VALUE' (operators <=, <, "
+                 ">=, >, ==); repeatable; exit 1 when any fails.", metavar="'METRIC<=VALUE'", show_default=False),
 ]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or notes on stderr.")]
 DebugOpt = Annotated[bool, typer.Option("--debug", help="Show the full traceback on errors.")]

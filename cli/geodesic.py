@@ -179,6 +179,8 @@ def geodesic(
             "mean_distance": float(d[fin].mean()) if fin.any() else None,
         })
         run.metrics.update(res.stats)
+        if res.stats.get("operators") == "intrinsic":  # the heat step used the intrinsic Laplacian too
+            run.params["laplacian"] = "intrinsic-delaunay"
         if laplacian is not None and res.stats.get("operators") == "intrinsic":  # auto chose intrinsic
             run.note(f"--laplacian {laplacian.value} not used: --operators auto chose the intrinsic operators "
                      "on this mesh (slivers); give --operators extrinsic to use it")

@@ -56,8 +56,10 @@ def morse_simplify(
         metavar="P", show_default=False)],
     output: Annotated[str, typer.Option(
         "--output", "-o",
-        help="Output .ply (or - for binary PLY on stdout): the simplified field under the field's name, "
-        "the input field as NAME_original.", metavar="OUT.ply", show_default=False)],
+        help="Output .ply (or - for binary PLY on stdout): the simplified field as NAME, the input field as "
+        "NAME_original, where NAME is x_value, y_value or z_value for a coordinate, mean_curvature or "
+        "gaussian_curvature, a vertex property's own name, or a .npy file's stem.", metavar="OUT.ply",
+        show_default=False)],
     relative: Annotated[bool, typer.Option(
         "--relative", help="Read P as a fraction of the field's range (max - min).")] = False,
     critical: Annotated[str | None, typer.Option(

@@ -70,12 +70,14 @@ def wos_solve(
                                       "side (1 to 8192).", min=1, max=8192)] = 256,
     epsilon: Annotated[float, typer.Option("--epsilon", help="Stopping distance to the Dirichlet "
                                            "boundary, in domain length units.")] = 1e-3,
-    kernels: Annotated[int, typer.Option("--kernels", help="Control-variate kernels (1 to 10000).",
+    kernels: Annotated[int, typer.Option("--kernels", help="Control-variate kernels (1 to 10000; cv-angle "
+                                         "uses at most one per boundary segment).",
                                          min=1, max=10000)] = 80,
     fit_walks: Annotated[int, typer.Option("--fit-walks", help="Walks per fit point (1 to 10^7).",
                                            min=1, max=10**7)] = 128,
     fit_points: Annotated[int | None, typer.Option(
-        "--fit-points", help="Fit points spread in the domain, 1 to 10^6 [default: 8 x kernels].", min=1, max=10**6,
+        "--fit-points", help="Fit points spread in the domain, 1 to 10^6, at most the grid points farther than "
+        "2 x epsilon from the boundary [default: 8 x the kernels used].", min=1, max=10**6,
         show_default=False)] = None,
     ridge: Annotated[float, typer.Option("--ridge", help="Ridge weight of the fit (on unit-RMS "
                                          "kernel columns).")] = 0.1,
@@ -141,6 +143,12 @@ def wos_solve(
                                 fit_points_n=fit_points, ridge=ridge, seed=seed, exact=exact,
                                 progress=update)
         run.metrics.update(res.metrics)
+        used = res.metrics.get("kernels_used")
+        if used is not None and used < kernels:
+            run.note(f"{used} kernels used, not {kernels}: cv-angle puts at most one on each boundary segment")
+        if fit_points is not None and res.metrics.get("fit_points", fit_points) < fit_points:
+            run.note(f"{res.metrics['fit_points']} fit points used, not {fit_points}: every grid point farther "
+                     "than 2 x epsilon from the boundary (raise --grid for more)")
         gs = res.grid
         extent = (gs.x0, gs.x0 + gs.nx * gs.h, gs.y1 - gs.ny * gs.h, gs.y1)
         with run.timer("write"):

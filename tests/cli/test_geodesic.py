@@ -378,3 +378,12 @@ def test_report_params_of_options_the_method_does_not_use_are_null(cli, fixture_
                 "--report", rep)
         assert p.returncode == 0, p.stderr
         assert json.loads(rep.read_text())["params"]["solver"] == solver
+
+
+def test_report_names_the_laplacian_the_intrinsic_operators_used(cli, fixture_dir, tmp_path):
+    rep = tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-m", "heat", "--operators", "intrinsic",
+            "-o", tmp_path / "d.ply", "--report", rep, "-q")
+    assert p.returncode == 0, p.stderr
+    report = _report(rep)
+    assert report["metrics"]["operators"] == "intrinsic" and report["params"]["laplacian"] == "intrinsic-delaunay"

@@ -170,3 +170,15 @@ def test_naive_reports_no_fit_parameters(cli, inputs, tmp_path):
     params = json.loads(rep.read_text())["params"]
     assert params["method"] == "naive"
     assert all(params[k] is None for k in ("kernels", "fit_walks", "fit_points", "ridge"))
+
+
+def test_capped_kernels_and_fit_points_are_noted(cli, inputs, tmp_path):
+    rep = tmp_path / "r.json"
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "2", "--grid", "8", "--fit-walks", "2",
+            "--method", "cv-angle", "--kernels", "500", "--fit-points", "5000", "-o", tmp_path / "u.exr",
+            "--report", rep)
+    assert p.returncode == 0, p.stderr
+    m = json.loads(rep.read_text())["metrics"]
+    assert m["kernels_used"] == 128 and m["fit_points"] < 5000
+    assert "note: 128 kernels used, not 500: cv-angle puts at most one on each boundary segment" in p.stderr
+    assert f"note: {m['fit_points']} fit points used, not 5000" in p.stderr
