@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from geoproc.geodesic.cocircular import canonical_cocircular_diagonals, cocircular_edges
 from geoproc.mesh.topology import face_areas
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
@@ -109,6 +110,10 @@ def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
 def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
     """libigl's intrinsic Delaunay triangulation of an edge-manifold mesh with its operators.
 
+    Cocircular quads get the diagonal that holds their smallest vertex index
+    (:func:`geoproc.geodesic.cocircular.canonical_cocircular_diagonals`), so
+    that the triangulation does not depend on the coordinates' rounding.
+
     Returns
     -------
     (L, M, Fi, l) or None
@@ -124,11 +129,33 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
     import igl
 
     Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
+    # cocircular quads: the diagonal fixed by the numbering, not by rounding (the mass and the
+    # face operators would otherwise change with the mesh's scale and position)
+    Fi, l, flips = canonical_cocircular_diagonals(Fi, l)
+    zero = cocircular_edges(Fi, l)
+    if flips or len(zero):
+        Li = igl.cotmatrix_intrinsic(l, Fi)
+        Li.resize((len(V), len(V)))  # vertices after the last one a face uses
+        Li = _without_weights(sp.csr_matrix(Li), zero)  # zero in exact arithmetic
     L = _drop_rounding_negatives(sp.csr_matrix(Li))
     if negative_offdiagonal_count(L) or not np.isfinite(L.data).all():
         return None
     M = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
     return L, np.asarray(M.diagonal(), dtype=np.float64), np.asarray(Fi, dtype=np.int64), np.asarray(l)
+
+
+def _without_weights(L: sp.csr_matrix, E: np.ndarray) -> sp.csr_matrix:
+    """L with the weights of the edges E (k, 2) set to zero (rows still sum to zero)."""
+    if len(E) == 0:
+        return L
+    i, j = E[:, 0], E[:, 1]
+    v = np.asarray(L[i, j]).ravel()
+    n = L.shape[0]
+    fix = sp.coo_matrix((np.concatenate([-v, -v, v, v]),
+                         (np.concatenate([i, j, i, j]), np.concatenate([j, i, i, j]))), shape=(n, n))
+    L = (L + fix).tocsr()
+    L.eliminate_zeros()
+    return L
 
 
 def _drop_rounding_negatives(L: sp.csr_matrix) -> sp.csr_matrix:

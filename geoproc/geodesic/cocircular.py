@@ -1,0 +1,130 @@
+"""One intrinsic Delaunay triangulation where four vertices lie on a circle.
+
+Where a quad of two triangles is cocircular (a square of a grid, a regular
+tessellation), both of its diagonals are Delaunay, and libigl's edge flips
+pick one by rounding: the same mesh scaled or moved to other coordinates can
+come out with the other diagonal. The Laplacian does not notice (the diagonal's
+weight is zero either way), but the barycentric mass and the gradient and
+divergence on the triangles do, by up to a third of a vertex's mass on a grid.
+:func:`canonical_cocircular_diagonals` flips every such quad to the diagonal
+that holds the quad's smallest vertex index, which depends on the numbering
+alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+TOL = 1e-9
+"""Cotangent sums within this (relative) of zero are cocircular: translated
+coordinates leave ~1e-11 of rounding there, genuine non-cocircular quads far more."""
+
+
+def corner_cotangents(l: np.ndarray) -> np.ndarray:
+    """(m, 3) cotangent of the angle at each corner of triangles given by
+    their edge lengths ``l[f, c]`` (opposite corner c)."""
+    l2 = l**2
+    s = l.sum(axis=1) / 2
+    area = np.sqrt(np.maximum(s * (s - l[:, 0]) * (s - l[:, 1]) * (s - l[:, 2]), 0.0))
+    cot = np.stack([l2[:, 1] + l2[:, 2] - l2[:, 0],
+                    l2[:, 2] + l2[:, 0] - l2[:, 1],
+                    l2[:, 0] + l2[:, 1] - l2[:, 2]], axis=1)
+    return cot / (4.0 * np.maximum(area, 1e-300))[:, None]
+
+
+def _flip(Fi: np.ndarray, l: np.ndarray, f: int, c: int, g: int, d: int) -> None:
+    """Flip (in place) the edge opposite corner c of face f, which is the edge
+    opposite corner d of face g: triangles (a, b, p) and (b, a, q) become
+    (p, a, q) and (q, b, p)."""
+    a, b, p = Fi[f, (c + 1) % 3], Fi[f, (c + 2) % 3], Fi[f, c]
+    q = Fi[g, d]
+    ab, bp, pa = l[f, c], l[f, (c + 1) % 3], l[f, (c + 2) % 3]
+    aq, qb = l[g, (d + 1) % 3], l[g, (d + 2) % 3]
+    # the quad laid out flat: the angle at a is the sum of its angles in the two triangles
+    cos1 = np.clip((ab * ab + pa * pa - bp * bp) / (2 * ab * pa), -1.0, 1.0)
+    cos2 = np.clip((ab * ab + aq * aq - qb * qb) / (2 * ab * aq), -1.0, 1.0)
+    theta = np.arccos(cos1) + np.arccos(cos2)
+    pq = np.sqrt(max(pa * pa + aq * aq - 2 * pa * aq * np.cos(theta), 0.0))
+    Fi[f] = (p, a, q)
+    l[f] = (aq, pq, pa)
+    Fi[g] = (q, b, p)
+    l[g] = (bp, pq, qb)
+
+
+def _interior_edges(Fi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every interior edge once: its half-edge ids ``f * 3 + c`` in the two
+    triangles (``h``, with endpoints a < b, and its twin ``t``) and the endpoints."""
+    n = int(Fi.max()) + 1
+    a = Fi[:, [1, 2, 0]].ravel()  # half-edge f * 3 + c runs a -> b, opposite corner c
+    b = Fi[:, [2, 0, 1]].ravel()
+    key = a * n + b
+    order = np.argsort(key)
+    twin_key = b * n + a
+    pos = np.clip(np.searchsorted(key[order], twin_key), 0, len(key) - 1)
+    twin = order[pos]
+    h = np.flatnonzero((key[twin] == twin_key) & (a < b))
+    return h, twin[h], a[h], b[h]
+
+
+def _cocircular(cot: np.ndarray, h: np.ndarray, t: np.ndarray, tol: float) -> np.ndarray:
+    """Which of the edges (half-edges h, twins t) have opposite angles summing to pi within tol."""
+    w = cot[h] + cot[t]
+    return np.abs(w) <= tol * np.maximum(1.0, np.maximum(np.abs(cot[h]), np.abs(cot[t])))
+
+
+def cocircular_edges(Fi: np.ndarray, l: np.ndarray, tol: float = TOL) -> np.ndarray:
+    """(k, 2) vertex pairs of the interior edges whose two triangles are
+    cocircular (see :func:`canonical_cocircular_diagonals`): their cotangent
+    weight is zero, up to rounding."""
+    if len(Fi) == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    h, t, a, b = _interior_edges(Fi)
+    on = _cocircular(corner_cotangents(l).ravel(), h, t, tol)
+    return np.stack([a[on], b[on]], axis=1)
+
+
+def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = TOL,
+                                   max_passes: int = 64) -> tuple[np.ndarray, np.ndarray, int]:
+    """Flip every cocircular quad of an intrinsic Delaunay triangulation to the
+    diagonal that holds its smallest vertex index.
+
+    A quad is cocircular when the cotangents of its two angles opposite the
+    diagonal sum to zero, within ``tol`` times the larger of 1 and their sizes
+    (coordinates far from the origin leave about 1e-11 there). Each pass flips
+    quads that share no triangle; passes repeat until none is left to flip (at
+    most ``max_passes``: several cocircular quads in a row, as around a regular
+    polygon, need more than one).
+
+    Parameters
+    ----------
+    Fi : (m, 3) int64 triangles; l : (m, 3) float64 edge lengths, ``l[f, c]``
+        opposite corner c (libigl's ``intrinsic_delaunay_cotmatrix`` output).
+
+    Returns
+    -------
+    Fi, l : the triangulation after the flips (copies; the inputs when none);
+    flips : int, how many edges were flipped.
+    """
+    Fi = np.asarray(Fi, dtype=np.int64)
+    l = np.asarray(l, dtype=np.float64)
+    if len(Fi) == 0:
+        return Fi, l, 0
+    total = 0
+    for _ in range(max_passes):
+        h, t, a, b = _interior_edges(Fi)
+        p, q = Fi.ravel()[h], Fi.ravel()[t]
+        want = _cocircular(corner_cotangents(l).ravel(), h, t, tol) & (np.minimum(p, q) < np.minimum(a, b))
+        h, t = h[want], t[want]
+        if len(h) == 0:
+            break
+        if total == 0:
+            Fi, l = Fi.copy(), l.copy()
+        used = np.zeros(len(Fi), dtype=bool)
+        for he, tw in zip(h.tolist(), t.tolist(), strict=True):
+            f, g = he // 3, tw // 3
+            if used[f] or used[g]:
+                continue  # this pass already changed one of its triangles
+            used[f] = used[g] = True
+            _flip(Fi, l, f, he % 3, g, tw % 3)
+            total += 1
+    return Fi, l, total
