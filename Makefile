@@ -26,7 +26,7 @@ $(STAMP): pyproject.toml setup.py
 
 fixtures: $(FIXTURES)
 
-$(FIXTURES): fixtures/make_fixtures.py $(STAMP)
+$(FIXTURES): fixtures/make_fixtures.py $(wildcard geoproc/mesh/*.py) $(STAMP)
 	$(PY) fixtures/make_fixtures.py fixtures/data > /dev/null
 	touch $@
 

@@ -19,13 +19,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
+# single-threaded unless told otherwise, as the README's figures were measured (make bench sets nothing);
+# before numpy and numba load, and inherited by the worker processes
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 ARMADILLO = ROOT.parent / "shared" / "data" / "meshes" / "armadillo.obj"
