@@ -79,8 +79,9 @@ def wos_solve(
         "--fit-points", help="Fit points spread in the domain, 1 to 10^6, at most the grid points farther than "
         "2 x epsilon from the boundary [default: 8 x the kernels used].", min=1, max=10**6,
         show_default=False)] = None,
-    ridge: Annotated[float, typer.Option("--ridge", help="Ridge weight of the fit (on unit-RMS "
-                                         "kernel columns).")] = 0.1,
+    ridge: Annotated[float | None, typer.Option(
+        "--ridge", help="Ridge weight of the fit, on kernel columns centred and scaled to unit standard "
+        "deviation [default: 1 for cv-green and npass, 0.1 for cv-angle].", show_default=False)] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed, 0 to 2^64 - 1; same seed, same output bytes.",
                                       min=0, max=2**64 - 1)] = 0,
     exact: Annotated[bool, typer.Option(
@@ -131,6 +132,10 @@ def wos_solve(
             require_input_file(domain, "domain file")
         from geoproc.wos import load_domain, solve_laplace
         from geoproc.wos.images import exr_bytes, png_bytes
+        from geoproc.wos.solve import default_ridge
+
+        if fitted and ridge is None:  # the report names the weight used
+            run.params["ridge"] = default_ridge(method.value)
 
         with run.timer("load"):
             dom = run.read_input(domain, load_domain, "domain file")

@@ -112,7 +112,13 @@ def spread_points(candidates: np.ndarray, n: int, start: int = 0) -> np.ndarray:
 
 def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | None = None,
               flux: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
-    """Ridge least squares with unit-RMS columns and a free (unpenalized) constant.
+    """Ridge least squares on columns scaled to unit standard deviation, with a
+    free (unpenalized) constant.
+
+    The constant absorbs each column's mean, so only the spread of a column
+    sets its penalty: a Green kernel ``-log|x - y| / 2 pi`` gains the constant
+    ``-log s / 2 pi`` when the domain is measured in another unit (scaled by
+    s), which changes its RMS but not its spread, and the fit stays the same.
 
     Parameters
     ----------
@@ -121,7 +127,7 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
     u : (N,) float64
         Estimates of u there.
     alpha : float
-        Ridge weight (on the unit-RMS scaled coefficients).
+        Ridge weight (on the coefficients of the scaled columns).
     dPhi : (K, M) float64, optional
         Extra rows: kernels' (weighted) normal derivatives at Neumann boundary samples.
     flux : (K,) float64, optional
@@ -134,12 +140,13 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
     b : float
         Constant term.
     scale : (M,) float64
-        Column RMS values used.
+        Column standard deviations used (1 for a constant column).
     """
-    scale = np.sqrt((Phi**2).mean(axis=0))
-    scale[scale == 0] = 1.0
+    mean = Phi.mean(axis=0)
+    scale = Phi.std(axis=0)
+    scale[~(scale > 0)] = 1.0
     M = Phi.shape[1]
-    D = np.hstack([Phi / scale, np.ones((len(Phi), 1))])
+    D = np.hstack([(Phi - mean) / scale, np.ones((len(Phi), 1))])  # centred: the constant takes the means
     y = np.asarray(u, dtype=np.float64)
     if dPhi is not None and len(dPhi):
         D = np.vstack([D, np.hstack([dPhi / scale, np.zeros((len(dPhi), 1))])])
@@ -148,9 +155,10 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
     pen[-1] = 0.0
     if alpha > 0:
         x = np.linalg.solve(D.T @ D + np.diag(pen), D.T @ y)
-    else:  # no ridge: least squares, the minimum-norm fit when the rows do not determine it
+    else:  # no ridge: least squares, the minimum-norm fit (centred, scaled columns) when rows do not determine it
         x = np.linalg.lstsq(D, y, rcond=None)[0]
-    return x[:M] / scale, float(x[M]), scale
+    sigma = x[:M] / scale
+    return sigma, float(x[M] - sigma @ mean), scale
 
 
 def neumann_samples(domain: Domain, m: int) -> tuple[np.ndarray, np.ndarray]:

@@ -3,7 +3,10 @@
 Starting from the ridge fit, each step draws a batch of points, estimates the
 residual ``r = u - c`` there by walks that use the current ``c`` as control
 variate (so the gradient's noise shrinks as ``c`` improves), and takes an Adam
-step on the loss ``mean r^2`` in the unit-RMS coefficient scale:
+step on the loss ``mean r^2`` in the coefficient scale of the fit (columns
+centred on their mean over the candidate points and divided by the fit's
+standard deviations, so that a constant added to every kernel, as a change of
+length unit adds to the Green kernels, changes nothing):
 ``grad_s = -2 mean_j r_j Phi_n(x_j)``, ``grad_b = -2 mean_j r_j``.
 """
 
@@ -45,7 +48,8 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
     b : float
     walks_total, steps_total : int
     """
-    s = np.append(sigma * scale, b)
+    mu = kernel_matrix(candidates, kernels).mean(axis=0)
+    s = np.append(sigma * scale, b + sigma @ mu)  # b: the constant of the centred columns
     m1 = np.zeros_like(s)
     m2 = np.zeros_like(s)
     beta1, beta2, tiny = 0.9, 0.999, 1e-8
@@ -56,7 +60,7 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
         X = candidates[pick]
         cur = s[:-1] / scale
         est, _, st = problem.estimate(X, walks, seed, 0, kernels, cur)
-        Phi_n = kernel_matrix(X, kernels) / scale
+        Phi_n = (kernel_matrix(X, kernels) - mu) / scale
         r = est - Phi_n @ s[:-1] - s[-1]
         grad = np.append(-2.0 * (r[:, None] * Phi_n).mean(axis=0), -2.0 * r.mean())
         if dPhi is not None and len(dPhi):
@@ -71,4 +75,5 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
         steps_total += int(st.sum())
         if progress is not None:
             progress((it + 1) / steps)
-    return s[:-1] / scale, float(s[-1]), walks_total, steps_total
+    sigma = s[:-1] / scale
+    return sigma, float(s[-1] - sigma @ mu), walks_total, steps_total

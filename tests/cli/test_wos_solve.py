@@ -179,6 +179,7 @@ def test_capped_kernels_and_fit_points_are_noted(cli, inputs, tmp_path):
             "--report", rep)
     assert p.returncode == 0, p.stderr
     m = json.loads(rep.read_text())["metrics"]
+    assert json.loads(rep.read_text())["params"]["ridge"] == 0.1  # cv-angle's default, as used
     assert m["kernels_used"] == 128 and m["fit_points"] < 5000
     assert "note: 128 kernels used, not 500: cv-angle puts at most one on each boundary segment" in p.stderr
     assert f"note: {m['fit_points']} fit points used, not 5000" in p.stderr

@@ -133,6 +133,21 @@ def test_ridge_fit_without_ridge_on_too_few_rows_is_the_minimum_norm_fit():
     Phi, u = rng.random((2, 5)), np.array([1.0, 3.0])  # 2 rows, 5 kernels + a constant: singular normal matrix
     sigma, b, scale = ridge_fit(Phi, u, 0.0)
     assert np.allclose(Phi @ sigma + b, u, atol=1e-10)  # interpolates the rows
-    D = np.hstack([Phi / scale, np.ones((2, 1))])
+    mean = Phi.mean(axis=0)
+    D = np.hstack([(Phi - mean) / scale, np.ones((2, 1))])  # the fit's centred, scaled columns
     x_min = np.linalg.pinv(D) @ u  # the minimum-norm solution, independently
-    assert np.allclose(np.append(sigma * scale, b), x_min, atol=1e-10)
+    assert np.allclose(np.append(sigma * scale, b + sigma @ mean), x_min, atol=1e-10)
+
+
+def test_ridge_fit_does_not_depend_on_the_length_unit():
+    from geoproc.wos.fit import ridge_fit
+
+    # Green kernels -log|x - c| / 2 pi measured in another unit (x 1000) differ by a constant
+    rng = np.random.default_rng(1)
+    X, C = rng.uniform(-0.6, 0.6, (300, 2)), 1.5 * np.exp(1j * np.linspace(0, 2 * np.pi, 40, endpoint=False))
+    Phi = -np.log(np.abs(X[:, :1] + 1j * X[:, 1:] - C[None, :])) / (2 * np.pi)
+    u = X[:, 0] ** 3 - 3 * X[:, 0] * X[:, 1] ** 2
+    shifted = Phi - np.log(1000.0) / (2 * np.pi)
+    a, b = ridge_fit(Phi, u, 0.1), ridge_fit(shifted, u, 0.1)
+    np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-9 * np.abs(a[0]).max())
+    np.testing.assert_allclose(Phi @ a[0] + a[1], shifted @ b[0] + b[1], rtol=0, atol=1e-9)
