@@ -119,7 +119,7 @@ def _npz_arrays(raw: bytes, name: str) -> dict[str, np.ndarray]:
         raise InputError(name, "not a .npz archive (a single array; an animation needs 'vertices' and 'faces')")
     data = {}
     with z:
-        for key in ("vertices", "faces"):
+        for key in GEOMETRY_KEYS:
             if key not in z.files:
                 raise InputError(name, f"missing array '{key}' (an animation needs 'vertices' (frames, n, 3) "
                                        "and 'faces')")
@@ -136,7 +136,7 @@ def _npz_arrays(raw: bytes, name: str) -> dict[str, np.ndarray]:
                 why = "not a .npy array"
             if isinstance(arr, np.ndarray):
                 data[key] = arr
-            elif key in ("vertices", "faces"):
+            elif key in GEOMETRY_KEYS:
                 raise InputError(name, f"'{key}' is {why}; an animation's '{key}' is a numeric array")
     return data
 
