@@ -149,7 +149,12 @@ def _without_weights(L: sp.csr_matrix, E: np.ndarray) -> sp.csr_matrix:
     if len(E) == 0:
         return L
     i, j = E[:, 0], E[:, 1]
-    v = np.asarray(L[i, j]).ravel()
+    return _moved_to_diagonal(L, i, j, np.asarray(L[i, j]).ravel())
+
+
+def _moved_to_diagonal(L: sp.csr_matrix, i: np.ndarray, j: np.ndarray, v: np.ndarray) -> sp.csr_matrix:
+    """L without the symmetric weights v at (i, j) and (j, i), moved onto the
+    diagonal so that rows still sum to zero; explicit zeros dropped."""
     n = L.shape[0]
     fix = sp.coo_matrix((np.concatenate([-v, -v, v, v]),
                          (np.concatenate([i, j, i, j]), np.concatenate([j, i, i, j]))), shape=(n, n))
@@ -163,11 +168,7 @@ def _drop_rounding_negatives(L: sp.csr_matrix) -> sp.csr_matrix:
     off = sp.triu(L, 1, format="coo")
     tiny = (off.data < 0) & (off.data > -1e-14 * max(1.0, float(np.abs(L.data).max())))
     if tiny.any():
-        i, j, v = off.row[tiny], off.col[tiny], off.data[tiny]
-        n = L.shape[0]
-        fix = sp.coo_matrix((np.concatenate([-v, -v, v, v]),
-                             (np.concatenate([i, j, i, j]), np.concatenate([j, i, i, j]))), shape=(n, n))
-        L = (L + fix).tocsr()
+        return _moved_to_diagonal(L, off.row[tiny], off.col[tiny], off.data[tiny])
     L.eliminate_zeros()
     return L
 
