@@ -150,7 +150,9 @@ def wos_solve(
         run.metrics.update(res.metrics)
         used = res.metrics.get("kernels_used")
         if used is not None and used < kernels:
-            run.note(f"{used} kernels used, not {kernels}: cv-angle puts at most one on each boundary segment")
+            why = ("cv-angle puts at most one on each boundary segment" if method == Method.cv_angle
+                   else "the kernel placement gave fewer")
+            run.note(f"{used} kernels used, not {kernels}: {why}")
         if fit_points is not None and res.metrics.get("fit_points", fit_points) < fit_points:
             run.note(f"{res.metrics['fit_points']} fit points used, not {fit_points}: every grid point farther "
                      "than 2 x epsilon from the boundary (raise --grid for more)")
