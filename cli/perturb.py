@@ -8,7 +8,7 @@ import numpy as np
 import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
-from geoproc.errors import InputError, UsageError
+from geoproc.errors import InputError, UsageError, frame_error
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import NoiseSpec, noise_scale, outlier_flags, perturb_positions
 from geoproc_cli.common import (
@@ -100,9 +100,7 @@ def perturb(
                         scales.append(noise_scale(anim.V[t], anim.F))
                         Vt, ot = perturb_positions(anim.V[t], anim.F, spec, rng, input, scale=scales[-1])
                     except InputError as exc:  # say which frame
-                        if anim.frame_files:
-                            raise InputError(anim.frame_files[t], exc.problem) from None
-                        raise InputError(exc.path, f"frame {t}: {exc.problem}") from None
+                        raise frame_error(exc.path, t, exc.problem, anim.frame_files) from None
                     frames.append(Vt)
                     flags.append(ot)
                 fields = dict(anim.fields)

@@ -33,5 +33,14 @@ class InputError(GeoprocError):
         return self.problem if self.path is None else f"{self.path}: {self.problem}"
 
 
+def frame_error(path: str | None, t: int, problem: str, frame_files: list[str] | None = None) -> InputError:
+    """The :class:`InputError` for a problem in frame ``t`` of an animation: named
+    by the frame's own file when it was read from a folder (``frame_files``, one
+    per frame), else ``path: frame t: problem``."""
+    if frame_files:
+        return InputError(frame_files[t], problem)
+    return InputError(path, f"frame {t}: {problem}")
+
+
 class UsageError(GeoprocError):
     """Bad parameters or option values (exit code 2)."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoproc.errors import InputError
+from geoproc.errors import InputError, frame_error
 from geoproc.mesh.mesh import Mesh
 
 
@@ -93,9 +93,7 @@ def require_triangle_frames(V: np.ndarray, F: np.ndarray, path: str | None,
         raise InputError(path, "has no faces; this method needs a triangle mesh")
     for t in range(len(V)):
         if not (face_areas(V[t], F) > 0).any():
-            if frame_files:
-                raise InputError(frame_files[t], "degenerate mesh: every face has zero area")
-            raise InputError(path, f"frame {t}: degenerate mesh: every face has zero area")
+            raise frame_error(path, t, "degenerate mesh: every face has zero area", frame_files)
 
 
 def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geoproc.errors import InputError, UsageError
+from geoproc.errors import InputError, UsageError, frame_error
 from geoproc.mesh.clean import unique_rows
 from geoproc.mesh.read import MAX_COORDINATE
 from geoproc.mesh.validate import mesh_arrays
@@ -207,9 +207,6 @@ def outlier_flags(values: np.ndarray, shape: tuple[int, ...], path: str | None =
     if not np.isfinite(flags).all():
         what = "'outlier' property has non-finite values (0 marks an inlier, 1 an outlier)"
         if flags.ndim == 2:  # an animation: name the first frame that has one
-            t = int(np.flatnonzero(~np.isfinite(flags).all(axis=1))[0])
-            if frame_files:
-                raise InputError(frame_files[t], what)
-            raise InputError(path, f"frame {t}: {what}")
+            raise frame_error(path, int(np.flatnonzero(~np.isfinite(flags).all(axis=1))[0]), what, frame_files)
         raise InputError(path, what)
     return flags > 0.5
