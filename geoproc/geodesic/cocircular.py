@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from geoproc.mesh.topology import halfedges
+
 TOL = 1e-9
 """Cotangent sums within this (relative) of zero are cocircular: translated
 coordinates leave ~1e-11 of rounding there, genuine non-cocircular quads far more."""
@@ -55,8 +57,7 @@ def _interior_edges(Fi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     """Every interior edge once: its half-edge ids ``f * 3 + c`` in the two
     triangles (``h``, with endpoints a < b, and its twin ``t``) and the endpoints."""
     n = int(Fi.max()) + 1
-    a = Fi[:, [1, 2, 0]].ravel()  # half-edge f * 3 + c runs a -> b, opposite corner c
-    b = Fi[:, [2, 0, 1]].ravel()
+    a, b = halfedges(np.roll(Fi, -1, axis=1)).T  # half-edge f * 3 + c runs a -> b, opposite corner c
     key = a * n + b
     order = np.argsort(key)
     twin_key = b * n + a
