@@ -85,7 +85,7 @@ def cocircular_edges(Fi: np.ndarray, l: np.ndarray, tol: float = TOL) -> np.ndar
 
 
 def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = TOL,
-                                   max_passes: int = 64) -> tuple[np.ndarray, np.ndarray, int]:
+                                   max_passes: int = 64) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """Flip every cocircular quad of an intrinsic Delaunay triangulation to the
     diagonal that holds its smallest vertex index.
 
@@ -104,20 +104,22 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
     Returns
     -------
     Fi, l : the triangulation after the flips (copies; the inputs when none);
-    flips : int, how many edges were flipped.
+    flips : int, how many edges were flipped;
+    edges : (k, 2) its cocircular edges (:func:`cocircular_edges`), found on the way.
     """
     Fi = np.asarray(Fi, dtype=np.int64)
     l = np.asarray(l, dtype=np.float64)
     if len(Fi) == 0:
-        return Fi, l, 0
+        return Fi, l, 0, np.zeros((0, 2), dtype=np.int64)
     total = 0
     for _ in range(max_passes):
         h, t, a, b = _interior_edges(Fi)
         p, q = Fi.ravel()[h], Fi.ravel()[t]
-        want = _cocircular(corner_cotangents(l).ravel(), h, t, tol) & (np.minimum(p, q) < np.minimum(a, b))
+        on = _cocircular(corner_cotangents(l).ravel(), h, t, tol)
+        want = on & (np.minimum(p, q) < np.minimum(a, b))
         h, t = h[want], t[want]
         if len(h) == 0:
-            break
+            return Fi, l, total, np.stack([a[on], b[on]], axis=1)
         if total == 0:
             Fi, l = Fi.copy(), l.copy()
         used = np.zeros(len(Fi), dtype=bool)
@@ -128,4 +130,4 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
             used[f] = used[g] = True
             _flip(Fi, l, f, he % 3, g, tw % 3)
             total += 1
-    return Fi, l, total
+    return Fi, l, total, cocircular_edges(Fi, l, tol)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.geodesic.cocircular import canonical_cocircular_diagonals, cocircular_edges
+from geoproc.geodesic.cocircular import canonical_cocircular_diagonals
 from geoproc.mesh.topology import face_areas
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
@@ -131,8 +131,7 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
     Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
     # cocircular quads: the diagonal fixed by the numbering, not by rounding (the mass and the
     # face operators would otherwise change with the mesh's scale and position)
-    Fi, l, flips = canonical_cocircular_diagonals(Fi, l)
-    zero = cocircular_edges(Fi, l)
+    Fi, l, flips, zero = canonical_cocircular_diagonals(Fi, l)
     if flips or len(zero):
         Li = igl.cotmatrix_intrinsic(l, Fi)
         Li.resize((len(V), len(V)))  # vertices after the last one a face uses

@@ -612,7 +612,7 @@ def test_cocircular_quads_take_the_diagonal_of_their_smallest_vertex(fixture_dir
     out = []
     for V in (m.V, m.V * 1000.0, m.V + [1e4, -3e4, 2e4]):
         _, l, Fi = igl.intrinsic_delaunay_cotmatrix(V, m.F)
-        Fi, l, _ = canonical_cocircular_diagonals(Fi, l)
+        Fi, l, _, _ = canonical_cocircular_diagonals(Fi, l)
         out.append(Fi)
         E = cocircular_edges(Fi, l)
         assert len(E) > 0  # the grid's diagonals
