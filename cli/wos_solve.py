@@ -150,8 +150,8 @@ def wos_solve(
         run.metrics.update(res.metrics)
         used = res.metrics.get("kernels_used")
         if used is not None and used < kernels:
-            why = ("cv-angle puts at most one on each boundary segment" if method == Method.cv_angle
-                   else "the kernel placement gave fewer")
+            capped = method == Method.cv_angle and used == dom.n_segments
+            why = "cv-angle puts at most one on each boundary segment" if capped else "the kernel placement gave fewer"
             run.note(f"{used} kernels used, not {kernels}: {why}")
         if fit_points is not None and res.metrics.get("fit_points", fit_points) < fit_points:
             run.note(f"{res.metrics['fit_points']} fit points used, not {fit_points}: every grid point farther "
