@@ -194,6 +194,14 @@ class Run:
             self.note(f"{log.path}: not carried (only scalar PLY properties travel): "
                       + ", ".join(log.unread_properties))
 
+    def note_replaced(self, kind: str, names, existing) -> None:
+        """Note the input's ``kind`` ("vertex" or "face") properties among ``names``
+        (those found in ``existing``) that the output replaces."""
+        clobbered = [k for k in names if k in existing]
+        if clobbered:
+            self.note(f"replacing the input's {kind} propert" + ("y " if len(clobbered) == 1 else "ies ")
+                      + ", ".join(f"'{k}'" for k in clobbered))
+
     def note(self, text: str) -> None:
         """A one-line remark for stderr (silenced by --quiet), shown when the run
         ends without an error, so that a failed run prints its error line alone."""

@@ -247,7 +247,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     with run.timer("denoise"), run.progress(f"denoise ({method})") as update, _naming_the_input(path or input):
         res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
     out = Mesh(res.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields))
-    _note_replaced(run, "face", ["feature"], out.face_fields)
+    run.note_replaced("face", ["feature"], out.face_fields)
     out.face_fields["feature"] = res.feature
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
                         "feature_faces": int(res.feature.sum())})
@@ -321,7 +321,7 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
                          "inlier to write (raise --threshold, or --keep-all writes every point with its score)")
     if keep_all:
         out = Mesh(P, np.zeros((0, 3), dtype=np.int64), dict(cloud.vertex_fields))
-        _note_replaced(run, "vertex", SCORE_FIELDS, out.vertex_fields)
+        run.note_replaced("vertex", SCORE_FIELDS, out.vertex_fields)
         out.vertex_fields["outlier_score"] = res.score
         out.vertex_fields["outlier_detected"] = res.outlier.astype(np.float64)
     else:
@@ -332,15 +332,6 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
 
 
 SCORE_FIELDS = ("outlier_score", "outlier_detected")
-
-
-def _note_replaced(run, kind: str, names, existing: dict) -> None:
-    """Note on stderr the input's ``kind`` ("vertex" or "face") properties among
-    ``names`` that the output replaces."""
-    clobbered = [k for k in names if k in existing]
-    if clobbered:
-        run.note(f"replacing the input's {kind} propert" + ("y " if len(clobbered) == 1 else "ies ")
-                 + ", ".join(f"'{k}'" for k in clobbered))
 
 
 def _animation_outliers(run, input, output, threshold_set, threshold, refined) -> None:
@@ -359,7 +350,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
         run.metrics["true_outliers"] = int(truth.sum())
         run.metrics.update(detection_scores(res.outlier, truth))
     fields = dict(anim.fields)
-    _note_replaced(run, "vertex", SCORE_FIELDS, fields)
+    run.note_replaced("vertex", SCORE_FIELDS, fields)
     fields["outlier_score"] = res.score
     fields["outlier_detected"] = res.outlier.astype(np.float64)
     V = res.refined if refined else anim.V

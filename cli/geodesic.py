@@ -200,8 +200,7 @@ def geodesic(
             cmp = compare_to_reference(d, ref)
             run.metrics.update(cmp)
         out = m.copy()
-        if field_name in out.vertex_fields:
-            run.note(f"replacing the input's vertex property '{field_name}'")
+        run.note_replaced("vertex", [field_name], out.vertex_fields)
         out.vertex_fields[field_name] = d
         run.write_mesh(output, out)
         if render is not None:

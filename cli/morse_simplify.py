@@ -153,10 +153,7 @@ def morse_simplify(
         if npy is not None:
             run.add_input(field, npy)
         name = field_name(field)
-        clobbered = [k for k in (name, f"{name}_original") if k in m.vertex_fields and k != field]
-        if clobbered:
-            run.note("replacing the input's vertex propert" + ("y " if len(clobbered) == 1 else "ies ")
-                     + ", ".join(f"'{k}'" for k in clobbered))
+        run.note_replaced("vertex", [k for k in (name, f"{name}_original") if k != field], m.vertex_fields)
         span = float(f.max() - f.min()) if len(f) else 0.0
         threshold = float(persistence) * span if relative else float(persistence)
         if not np.isfinite(threshold):
