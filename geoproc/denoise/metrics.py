@@ -6,7 +6,7 @@ import igl
 import numpy as np
 
 from geoproc.denoise.face_geometry import face_normals_and_areas
-from geoproc.mesh.topology import mean_edge_length
+from geoproc.mesh.topology import mean_edge_length, referenced_vertices
 
 
 def normal_angles_deg(N: np.ndarray, N_ref: np.ndarray) -> np.ndarray:
@@ -55,19 +55,12 @@ def reference_metrics(V: np.ndarray, V_input: np.ndarray, F: np.ndarray, V_ref: 
             "new_flipped_faces": new_flipped_faces(V, F, V_ref, before)}
 
 
-def used_vertices(F: np.ndarray, n: int) -> np.ndarray:
-    """(n,) bool: the vertices some face of F uses (the surface's own points)."""
-    used = np.zeros(n, dtype=bool)
-    used[np.asarray(F, dtype=np.int64).ravel()] = True
-    return used
-
-
 def two_sided_hausdorff(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray, F_ref: np.ndarray) -> float:
     """Two-sided Hausdorff distance between two surfaces, from vertices to surfaces
     (the largest vertex-to-surface distance either way), in length units.
     Vertices no face uses are not points of either surface and are left out."""
-    d1, _, _ = igl.point_mesh_squared_distance(V[used_vertices(F, len(V))], V_ref, F_ref)
-    d2, _, _ = igl.point_mesh_squared_distance(V_ref[used_vertices(F_ref, len(V_ref))], V, F)
+    d1, _, _ = igl.point_mesh_squared_distance(V[referenced_vertices(F, len(V))], V_ref, F_ref)
+    d2, _, _ = igl.point_mesh_squared_distance(V_ref[referenced_vertices(F_ref, len(V_ref))], V, F)
     return float(np.sqrt(max(d1.max(), d2.max())))
 
 
@@ -92,7 +85,7 @@ def denoise_errors(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> dict:
     N, _ = face_normals_and_areas(V, F)
     N_ref, _ = face_normals_and_areas(V_ref, F)
     ang = normal_angles_deg(N, N_ref)
-    used = used_vertices(F, len(V))
+    used = referenced_vertices(F, len(V))
     on = V_ref[used]
     diag = float(np.linalg.norm(on.max(axis=0) - on.min(axis=0)))
     le = mean_edge_length(V_ref, F)

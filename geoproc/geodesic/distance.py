@@ -12,7 +12,7 @@ from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.log_ode import UnweightedVertexError
 from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, LAPLACIANS, METHODS, OPERATORS, SOLVERS
 from geoproc.geodesic.operators import laplacian_and_mass
-from geoproc.mesh.topology import face_areas, mean_edge_length, vertex_components
+from geoproc.mesh.topology import face_areas, mean_edge_length, referenced_vertices, vertex_components
 from geoproc.mesh.validate import mesh_arrays, require_edge_manifold, require_manifold
 
 #: Smallest face angle (radians) below which a mesh is refused, by what the
@@ -117,9 +117,7 @@ def check_sources(sources, n: int, F: np.ndarray, path: str | None) -> np.ndarra
         raise InputError(path, f"source vertex {bad[0]} is out of range "
                                f"(the mesh has {n} vertices, numbered from 0)")
     src = np.unique(np.asarray(raw, dtype=np.int64))
-    used = np.zeros(n, dtype=bool)
-    used[F.reshape(-1)] = True
-    iso = src[~used[src]]
+    iso = src[~referenced_vertices(F, n)[src]]
     if len(iso):
         raise InputError(path, f"source vertex {int(iso[0])} is isolated (no face uses it)")
     return src

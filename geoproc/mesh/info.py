@@ -11,6 +11,7 @@ from geoproc.mesh.topology import (
     degenerate_faces,
     nonmanifold_vertices,
     orientation_status,
+    referenced_vertices,
     unique_edges,
     vertex_components,
 )
@@ -64,9 +65,7 @@ def mesh_info(mesh: Mesh) -> dict:
         return info
     edges = unique_edges(F)
     E, _, count = edges
-    used = np.zeros(n, dtype=bool)
-    used[F.reshape(-1)] = True
-    n_used = int(used.sum())
+    n_used = int(referenced_vertices(F, n).sum())
     n_comp, _ = vertex_components(F, n)
     nm_e = int((count > 2).sum())
     nm_v = len(nonmanifold_vertices(F, n))

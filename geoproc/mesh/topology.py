@@ -15,6 +15,13 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 
+def referenced_vertices(F: np.ndarray, n: int) -> np.ndarray:
+    """(n,) bool: the vertices some face of F (m, 3) uses."""
+    used = np.zeros(n, dtype=bool)
+    used[np.asarray(F, dtype=np.int64).reshape(-1)] = True
+    return used
+
+
 def halfedges(F: np.ndarray) -> np.ndarray:
     """(3m, 2) array of directed half-edges (tail, head) in face order."""
     return np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)
@@ -86,8 +93,7 @@ def vertex_components(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:
     H = halfedges(F)
     A = sp.coo_matrix((np.ones(len(H)), (H[:, 0], H[:, 1])), shape=(n, n))
     _, labels = connected_components(A, directed=False)
-    used = np.zeros(n, dtype=bool)
-    used[F.reshape(-1)] = True
+    used = referenced_vertices(F, n)
     labels = np.where(used, labels, -1)
     uniq, labels_used = np.unique(labels[used], return_inverse=True)
     labels[used] = labels_used
