@@ -87,5 +87,5 @@ lint: $(STAMP)
 	$(PY) -m ruff check geoproc cli tests fixtures bench
 
 clean:
-	rm -rf out fixtures/data .pytest_cache .ruff_cache .benchmarks build *.egg-info
+	rm -rf out fixtures/data .pytest_cache .ruff_cache build *.egg-info
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -113,6 +113,10 @@ class WalkProblem:
                  kernels: KernelSet | None = None, sigma: np.ndarray | None = None):
         """Estimate u at X (n, 2): (mean (n,), var (n,), steps (n,) int64).
 
+        Every point of X must lie in the domain (or on its Dirichlet boundary):
+        a walk started outside does not estimate anything. ``solve_laplace``
+        keeps the grid points that :meth:`Domain.contains` accepts.
+
         With ``kernels`` and ``sigma`` the control variate ``sum sigma_j phi_j`` is used.
         """
         X = np.ascontiguousarray(X, dtype=np.float64)
