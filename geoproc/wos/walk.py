@@ -38,6 +38,29 @@ def boundary_value(seg, t, qx, qy, bkind, code, consts, V):
 
 
 @numba.njit(cache=True, nogil=True)
+def walk_score(score, px, py, seg, t, A, B, bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX):
+    """``score`` plus the boundary data at the walk's end (the point ``t`` of segment
+    ``seg``, closest to its last position ``(px, py)``), less the control variate there."""
+    qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
+    qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
+    score += boundary_value(seg, t, qx, qy, bkind, code, consts, V)
+    if ckind != 0:
+        score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
+    return score
+
+
+@numba.njit(cache=True, nogil=True)
+def walk_mean_variance(s1, s2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX):
+    """(mean + c(x0), unbiased sample variance) of ``walks`` scores with sum ``s1`` and
+    sum of squares ``s2``."""
+    m = s1 / walks
+    var = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
+    if ckind != 0:
+        m += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+    return m, var
+
+
+@numba.njit(cache=True, nogil=True)
 def wos_point(x0, y0, state, walks, eps, eps_hi, max_steps, A, B, grid,
               bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX):
     """Walks from one point: (mean score + c(x0), sample variance, steps)."""
@@ -64,17 +87,10 @@ def wos_point(x0, y0, state, walks, eps, eps_hi, max_steps, A, B, grid,
             py += d * math.sin(th)
             taken += 1
         nsteps += taken
-        qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
-        qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
-        score = boundary_value(seg, t, qx, qy, bkind, code, consts, V)
-        if ckind != 0:
-            score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
+        score = walk_score(0.0, px, py, seg, t, A, B, bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX)
         s1 += score
         s2 += score * score
-    m = s1 / walks
-    var = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
-    if ckind != 0:
-        m += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+    m, var = walk_mean_variance(s1, s2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX)
     return m, var, nsteps
 
 

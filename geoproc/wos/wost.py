@@ -27,10 +27,10 @@ import numpy as np
 from numba import prange
 
 from geoproc.wos.closest import closest_point, point_segment_d2
-from geoproc.wos.kernels import cv_gradient, cv_value
+from geoproc.wos.kernels import cv_gradient
 from geoproc.wos.program import eval_program
 from geoproc.wos.rng import next_uniform, stream_state
-from geoproc.wos.walk import boundary_value
+from geoproc.wos.walk import walk_mean_variance, walk_score
 
 TWO_PI = 2.0 * math.pi
 
@@ -290,17 +290,10 @@ def wost_point(x0, y0, state, walks, eps, tiny, max_steps, A, B, dgrid, nseg, U,
                 on_seg = -1
             taken += 1
         nsteps += taken
-        qx = A[seg, 0] + t * (B[seg, 0] - A[seg, 0])
-        qy = A[seg, 1] + t * (B[seg, 1] - A[seg, 1])
-        score += boundary_value(seg, t, qx, qy, bkind, code, consts, Vals)
-        if ckind != 0:
-            score -= cv_value(px, py, ckind, KP, KQ, W, ARC, BOX)
+        score = walk_score(score, px, py, seg, t, A, B, bkind, code, consts, Vals, ckind, KP, KQ, W, ARC, BOX)
         s1 += score
         s2 += score * score
-    m = s1 / walks
-    var = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
-    if ckind != 0:
-        m += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
+    m, var = walk_mean_variance(s1, s2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX)
     return m, var, nsteps
 
 
