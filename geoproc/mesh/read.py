@@ -501,12 +501,13 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     return Mesh(V, F), 0
 
 
-# an OFF keyword: [ST][C][N][4][n]OFF (texture, colour, normals, homogeneous, dimension)
-_OFF_KEYWORD = re.compile(rb"(ST)?(C)?(N)?(4)?(n)?OFF")
+# an OFF keyword: [ST][C][N][4][n]OFF (texture, colour, normals, homogeneous, dimension);
+# MeshLab writes NCOFF for a mesh with normals and colours, so N may come before C
+_OFF_KEYWORD = re.compile(rb"(?P<st>ST)?(?P<cn>C|N|CN|NC)?(?P<w>4)?(?P<n>n)?OFF")
 
 
 def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
-    """Parse an ASCII OFF file: any keyword ``[ST][C][N][4][n]OFF`` (texture
+    """Parse an ASCII OFF file: any keyword ``[ST][C][N][4][n]OFF`` or MeshLab's ``NCOFF`` (texture
     coordinates, normals and colours after the position are ignored; 4OFF
     positions are divided by w; nOFF must be 3-D), or none (a first line of
     counts); polygons are split into fans.
@@ -537,10 +538,10 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
                                    "is neither an OFF keyword nor the vertex and face counts")
         counts, start, homogeneous = head, 1, False
     else:
-        rest, start, homogeneous = head[1:], 1, kind.group(4) is not None
+        rest, start, homogeneous = head[1:], 1, kind.group("w") is not None
         if any(t.upper() == b"BINARY" for t in rest):
             raise InputError(path, "binary OFF is not supported (write it as ASCII OFF, PLY, OBJ or STL)")
-        if kind.group(5) is not None:  # nOFF: the dimension comes first
+        if kind.group("n") is not None:  # nOFF: the dimension comes first
             if not rest and len(lines) > 1:
                 rest, start = lines[1].split(), 2
             dim = rest[0] if rest else b"?"
@@ -560,11 +561,11 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
     try:
         return _off_by_lines(lines[start:], nv, nf, path, homogeneous)
     except InputError:
-        if kind is not None and kind.group(2) is not None:  # colours: their count ends with the line
+        if kind is not None and b"C" in (kind.group("cn") or b""):  # colours: their count ends with the line
             raise
         per_vertex = 3 + homogeneous  # x y z [w], then the normal and texture coordinates the keyword names
         if kind is not None:
-            per_vertex += 3 * (kind.group(3) is not None) + 2 * (kind.group(1) is not None)
+            per_vertex += 3 * (b"N" in (kind.group("cn") or b"")) + 2 * (kind.group("st") is not None)
         lead = [b" ".join(counts[3:])] if len(counts) > 3 else []  # values after NVERTICES NFACES NEDGES
         free = _off_free_form(lead + lines[start:], nv, nf, per_vertex, homogeneous)
         if free is None:
