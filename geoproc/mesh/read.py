@@ -498,6 +498,10 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     F = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
     if V.size == 0 and len(data.strip()) > 0:
         raise InputError(path, f"unparseable {fmt.upper()}: no vertices could be read")
+    if len(V) != 3 * len(F) and len(F) and F.min() >= 0 and F.max() < len(V):
+        # an ASCII STL of several solids comes back with each solid's corners merged:
+        # give the file's corners as stored, three per facet, as for a single solid
+        V, F = V[F].reshape(-1, 3), np.arange(3 * len(F), dtype=np.int64).reshape(-1, 3)
     return Mesh(V, F), 0
 
 

@@ -236,6 +236,21 @@ def test_sniffing_standard_input(sphere, fmt):
     assert len(m.F) == len(sphere.F)
 
 
+def test_ascii_stl_of_several_solids_keeps_its_corners_as_stored():
+    def solid(name, tris):
+        facets = "".join(" facet normal 0 0 1\n  outer loop\n" + "".join(f"   vertex {x} {y} {z}\n" for x, y, z in t)
+                         + "  endloop\n endfacet\n" for t in tris)
+        return f"solid {name}\n{facets}endsolid {name}\n"
+    a = [[(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(1, 0, 0), (1, 1, 0), (0, 1, 0)]]
+    b = [[(2, 0, 0), (3, 0, 0), (2, 1, 0)], [(3, 0, 0), (3, 1, 0), (2, 1, 0)]]
+    data = (solid("a", a) + solid("b", b)).encode()
+    m = read_mesh_bytes(data, "stl", "two.stl", clean=False)
+    # as stored: three corners per facet in file order (each solid's corners were merged before)
+    assert m.V.tolist() == [list(p) for t in a + b for p in t]
+    assert m.F.tolist() == [[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 11]]
+    assert len(read_mesh_bytes(data, "stl", "two.stl").V) == 8
+
+
 def test_binary_stl_whose_header_starts_with_digits_is_sniffed_as_stl(sphere):
     # the header is free text: '3 1' and a newline had read as an OFF without its keyword
     data = mesh_to_bytes(sphere, "stl")
