@@ -173,11 +173,11 @@ def morse_simplify(
                 cx_after = surface_complex(res.F, len(res.g))
                 after = lower_star_persistence(cx_after, res.g)
                 order_after, f_ref, g = None, res.f, res.g
-                max_change = res.max_abs_change
+                max_change, tie_slack = res.max_abs_change, res.tie_slack
             else:
                 cx_after, order_after, f_ref, g = res.cx, res.order, f, res.g
                 after = lower_star_persistence(cx_after, res.simplification.g)
-                max_change = res.simplification.max_abs_change
+                max_change, tie_slack = res.simplification.max_abs_change, res.simplification.tie_slack
         chi = cx.euler_characteristic
         c_before = critical_counts(before)
         c_after = critical_counts(after)
@@ -189,10 +189,11 @@ def morse_simplify(
             raise RuntimeError("gradient critical cells do not match the persistence pairs")
         pers = finite_persistence(before)
         # a move past P/2 by at most 64 units in the last place of the field's
-        # largest value is rounding of the assigned values, not a move beyond
-        # P/2; with P = 0 (nothing removed), --barycentric breaks the
-        # lower-star extension's ties by units in the last place
-        half_tol = half_bound_tolerance(f_ref, threshold / 2.0)
+        # largest value is rounding of the assigned values, and one unit per
+        # tied vertex is tie-breaking, not a move beyond P/2; with P = 0
+        # (nothing removed), --barycentric breaks the lower-star extension's
+        # ties by units in the last place
+        half_tol = half_bound_tolerance(f_ref, threshold / 2.0, tie_slack)
         beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol)) if threshold > 0 else 0
         b0, b1, b2 = before.betti
         run.metrics.update({

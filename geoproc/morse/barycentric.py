@@ -45,7 +45,7 @@ from geoproc.morse.dag import topological_order, values_in_box
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.order import vertex_order
 from geoproc.morse.persistence import PersistencePairs, lower_star_persistence
-from geoproc.morse.simplify import _make_strict
+from geoproc.morse.simplify import _make_strict, strictly_increasing
 
 
 @dataclass
@@ -77,6 +77,9 @@ class BarycentricSimplification:
         Finite persistence pairs with persistence < P (cancelled) and >= P.
     max_abs_change : float
         ``max |f - g|`` over all cells.
+    tie_slack : float
+        The largest rise that breaking g's ties gave a value
+        (:func:`geoproc.morse.simplify.strictly_increasing`).
     order, cx, gradient, pairs
         As in :class:`geoproc.morse.MorseSimplification`: the vertex order,
         and the complex, gradient and persistence pairs of f on the
@@ -98,6 +101,7 @@ class BarycentricSimplification:
     cx: SurfaceComplex
     gradient: DiscreteGradient
     pairs: PersistencePairs
+    tie_slack: float = 0.0
 
 
 @numba.njit(cache=True)
@@ -360,8 +364,9 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
             raise RuntimeError("the cancelled gradient has a closed path")
         if (g >= fc - half).all():
             break
+    slack = 0.0
     if P > 0.0:
-        g = _make_strict(g, np.lexsort((np.arange(len(g)), g)))
+        g, slack = strictly_increasing(g)
     critical = np.concatenate([np.flatnonzero(v_e < 0), n + np.flatnonzero((e_v < 0) & (e_t < 0)),
                                n + k + np.flatnonzero(t_e < 0)])
     # back to the input's vertex numbering (edges and triangles keep theirs)
@@ -378,5 +383,5 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
         critical=np.sort(to_input[critical]), pairs_removed=int(len(cut0) + len(cut1)),
         pairs_kept=int(len(p0) + len(p1) - len(cut0) - len(cut1)),
         max_abs_change=float(np.max(np.abs(g - fc))) if len(g) else 0.0,
-        order=order, cx=cx, gradient=grad, pairs=pp,
+        order=order, cx=cx, gradient=grad, pairs=pp, tie_slack=slack,
     )

@@ -132,11 +132,16 @@ class Simplification:
     max_abs_change : float
         ``max |f - g|``.
     widened_vertices : int64 array
-        Vertices with |f - g| > P/2 past rounding (:func:`geoproc.morse.window_repair.half_bound_tolerance`;
-        see step 4 of the module docstring).
+        Vertices with |f - g| > P/2 past rounding (:func:`geoproc.morse.window_repair.half_bound_tolerance`
+        with ``tie_slack``; see step 4 of the module docstring).
     repaired_vertices : int
         Value changes made by the repair sweeps of step 5 (0 when the
         cancellation relation alone gave the right extrema).
+    tie_slack : float
+        The largest rise that breaking ties gave a value (step 8, and before
+        the windows of step 7): one unit in the last place per tied vertex, so
+        a plateau of k vertices at f + P/2 ends up to k units beyond it. Moves
+        past P/2 within it are tie-breaking, not counted in ``widened_vertices``.
     """
 
     g: np.ndarray
@@ -148,6 +153,7 @@ class Simplification:
     max_abs_change: float
     widened_vertices: np.ndarray
     repaired_vertices: int
+    tie_slack: float = 0.0
 
 
 @numba.njit(cache=True)
@@ -281,6 +287,13 @@ def _wrong_extrema(g, keep_min, keep_max, boundary, adj_ptr, adj_nbr):
         if adj_ptr[v + 1] > adj_ptr[v] and not boundary[v] and higher == keep_max[v]:
             bad += 1
     return bad
+
+
+def strictly_increasing(g: np.ndarray) -> tuple[np.ndarray, float]:
+    """g (n,) with its ties broken upwards in (value, index) order (step 8), and
+    the largest rise that gave a value (0 without ties)."""
+    out = _make_strict(g, np.lexsort((np.arange(len(g)), g)))
+    return out, float(np.max(out - g, initial=0.0))
 
 
 @numba.njit(cache=True)
@@ -454,6 +467,7 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
     keep_min = down == -1
     keep_max = (up_f[:n] == -1) & ~cx.boundary & (degree > 0)
     repaired = 0
+    slack = 0.0
     if P == 0.0:
         g = f.copy()
     else:
@@ -477,11 +491,12 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
         vf_ptr, vf_tri = vertex_faces(cx.F, n)
         refine_types(g, f, P / 2.0, want, cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary, 100 * n)
         if exact_windows:
-            g = _make_strict(g, np.lexsort((np.arange(n), g)))  # no ties: the windows' values fit between
-            repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, exact_windows)
+            g, slack = strictly_increasing(g)  # no ties: the windows' values fit between
+            repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, exact_windows, slack=slack)
             for radius in () if exact_windows >= 0 else (2, 4):  # all: the 8 farthest again, wider
-                repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, 8, radius, 120, 50)
-        g = _make_strict(g, np.lexsort((np.arange(n), g)))
+                repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, 8, radius, 120, 50, slack=slack)
+        g, rise = strictly_increasing(g)
+        slack += rise
     return Simplification(
         g=g,
         threshold=P,
@@ -490,6 +505,7 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
         pairs_removed=removed,
         pairs_kept=int(len(pers) - removed),
         max_abs_change=float(np.max(np.abs(g - f))) if n else 0.0,
-        widened_vertices=np.flatnonzero(np.abs(g - f) > half_bound_tolerance(f, P / 2.0)),
+        widened_vertices=np.flatnonzero(np.abs(g - f) > half_bound_tolerance(f, P / 2.0, slack)),
         repaired_vertices=repaired,
+        tie_slack=slack,
     )

@@ -273,15 +273,18 @@ def _values_from_order(W, g, f, T, below):
     return x
 
 
-def half_bound_tolerance(f: np.ndarray, half: float) -> float:
+def half_bound_tolerance(f: np.ndarray, half: float, tie_slack: float = 0.0) -> float:
     """Largest |g - f| that still counts as within ``half`` (P/2).
 
     Values placed at f +- P/2 carry the rounding of numbers of f's size, which
     exceeds P/2 * 1e-12 when f sits far from 0 (``--field y`` on a mesh moved
     by 1000 units): the tolerance is ``half (1 + 1e-12) + 64 eps max|f|``, so
-    that the test does not depend on the field's offset.
+    that the test does not depend on the field's offset, plus ``tie_slack``,
+    the largest rise that breaking ties gave a value
+    (:func:`geoproc.morse.simplify.strictly_increasing`: a plateau of k
+    vertices rises by up to k units in the last place).
     """
-    return half * (1 + 1e-12) + 64 * np.finfo(np.float64).eps * float(np.abs(f).max(initial=0.0))
+    return half * (1 + 1e-12) + 64 * np.finfo(np.float64).eps * float(np.abs(f).max(initial=0.0)) + tie_slack
 
 
 def _window_score(W, C, g, f, tol, need, cx, vf_ptr, vf_tri):
@@ -292,7 +295,7 @@ def _window_score(W, C, g, f, tol, need, cx, vf_ptr, vf_tri):
 
 
 def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, radius: int = 1,
-                   max_window: int = 300, node_limit: int = 200) -> tuple[int, int]:
+                   max_window: int = 300, node_limit: int = 200, slack: float = 0.0) -> tuple[int, int]:
     """Re-solve (in place) the windows around the vertices of g beyond f +- P/2
     or of the wrong type, the farthest from f first.
 
@@ -321,6 +324,8 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
     node_limit : int
         Branch-and-bound nodes per window (HiGHS); the best order found by
         then is used.
+    slack : float
+        Tie-breaking rise allowed past P/2 (see :func:`half_bound_tolerance`).
 
     Returns
     -------
@@ -328,7 +333,7 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
         Windows solved and windows written back.
     """
     half = P / 2.0
-    tol = half_bound_tolerance(f, half)
+    tol = half_bound_tolerance(f, half, slack)
     kw = (cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary)
     bad = np.abs(g - f) > tol
     windows = [W for W in _windows(bad, cx.adj_ptr, cx.adj_nbr, radius) if len(W) <= max_window]

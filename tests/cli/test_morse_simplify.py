@@ -253,3 +253,24 @@ def test_rounding_past_half_threshold_is_not_counted(cli, make_fixtures, tmp_pat
     f, g = m.vertex_fields["gaussian_curvature_original"], m.vertex_fields["gaussian_curvature"]
     past = np.abs(g - f) - metrics(rep)["threshold"] / 2
     assert past.max() <= 64 * np.finfo(np.float64).eps * np.abs(f).max()
+
+
+def test_tie_breaking_past_half_threshold_is_not_counted(cli, fixture_dir, tmp_path):
+    # a field with plateaus (height + noise rounded to 0.1): breaking the ties of a plateau
+    # raises its vertices by one unit in the last place each, up to ~450 units beyond P/2;
+    # 393 such vertices were counted beyond P/2 (the 64-unit allowance is for rounding)
+    import igl
+
+    mesh = load_mesh(fixture_dir / "torus.ply")
+    V, F = igl.loop(*igl.loop(mesh.V, mesh.F))
+    y = (V[:, 1] - V[:, 1].min()) / np.ptp(V[:, 1])
+    f = np.round(y + 0.05 * np.random.default_rng(0).standard_normal(len(V)), 1)
+    src, npy, out, rep = tmp_path / "t.ply", tmp_path / "plateau.npy", tmp_path / "o.ply", tmp_path / "r.json"
+    save_mesh(src, Mesh(V, F))
+    np.save(npy, f)
+    p = cli("morse-simplify", src, "-f", npy, "-p", "0.1", "-o", out, "--report", rep,
+            "--check", "vertices_beyond_half_threshold==0", "-q")
+    assert p.returncode == 0, p.stderr
+    g = load_mesh(out).vertex_fields["plateau"]
+    past = np.abs(g - f) - 0.05
+    assert 64 * np.finfo(np.float64).eps < past.max() < 1e-12  # beyond 64 units, yet only tie-breaking
