@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoproc.errors import InputError, UsageError
+from geoproc.geodesic.intrinsic import POISSON_NEEDLE_ANGLE
 from geoproc.geodesic.log_ode import UnweightedVertexError
 from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, LAPLACIANS, METHODS, OPERATORS, SOLVERS
 from geoproc.geodesic.operators import laplacian_and_mass
@@ -27,7 +28,7 @@ from geoproc.mesh.validate import mesh_arrays, require_edge_manifold, require_ma
 #: (and a strip of 38 needles of 1e-9 rad in a 722-face grid), but no
 #: triangulation removes the needles of a surface that is itself a thin
 #: strip, and on one (every angle 3.5e-9 rad) libigl's flips did not return.
-NEEDLE_ANGLE = {"exact": 1e-4, "poisson": 1e-6, "cotan": 1e-7, "intrinsic": 1e-7}
+NEEDLE_ANGLE = {"exact": 1e-4, "poisson": POISSON_NEEDLE_ANGLE, "cotan": 1e-7, "intrinsic": 1e-7}
 NEEDLE_SURFACE_FRACTION = 0.5
 #: Below this angle (radians) a face is degenerate within rounding: the intrinsic
 #: Delaunay test on it is decided by rounding, and libigl's flips did not return
@@ -230,6 +231,10 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
     except UnweightedVertexError as exc:  # numbered in the part connected to a source: say which input vertex
         raise UnweightedVertexError(int(keep[exc.vertex]), path) from None
+    except InputError as exc:  # raised by a solver, which does not know the file
+        if exc.path is None and path:
+            raise InputError(path, exc.problem) from None
+        raise
     timings.setdefault("solve", _now() - t0 - timings.get("setup", 0.0))
     if method in POISSON_METHODS:
         # the Poisson step fixes one constant, the mean over the sources: with several
@@ -277,6 +282,15 @@ def _refuse_needles(V, F, method, lap, ops, path) -> None:
                                f"(smallest: face {k}, {angle[k]:.2g} rad); {what}")
 
 
+def _refuse_needles_if_extrinsic(V, F, method, lap, asked, ran, path) -> None:
+    """The needle check of the extrinsic operators (:func:`_refuse_needles`) when
+    they ran although ``asked`` was ``intrinsic`` or ``auto``: ``auto`` keeps them on
+    a mesh with few slivers, and the intrinsic triangulation does not apply to
+    every mesh (not edge-manifold, or a negative weight left on an interior edge)."""
+    if ran == "extrinsic" and asked != "extrinsic":
+        _refuse_needles(V, F, method, lap, "extrinsic", path)
+
+
 def _now() -> float:
     return time.perf_counter()
 
@@ -294,6 +308,7 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         hs = HeatMethodSolver(V, F, t, lap, ops)
         timings["setup"] = _now() - a
         stats["operators"] = hs.operators
+        _refuse_needles_if_extrinsic(V, F, method, lap, ops, hs.operators, path)
         a = _now()
         d, u = hs.solve(src)
         timings["solve"] = _now() - a
@@ -307,6 +322,7 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         ls = LogHeatSolver(V, F, t, steps, lap, operators=ops)
         timings["setup"] = _now() - a
         stats["operators"] = ls.operators
+        _refuse_needles_if_extrinsic(V, F, method, lap, ops, ls.operators, path)
         a = _now()
         d, w = ls.solve(src)
         timings["solve"] = _now() - a

@@ -17,12 +17,16 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoproc.geodesic.names import OPERATORS
-from geoproc.geodesic.operators import intrinsic_delaunay_mesh, stack_gradient_coefficients
+from geoproc.geodesic.operators import intrinsic_delaunay_mesh, smallest_angles, stack_gradient_coefficients
 
 SLIVER_ANGLE_DEG = 5.0
 """A face with a corner angle below this (degrees) counts as a sliver."""
 SLIVER_SHARE = 0.005
 """``operators="auto"`` goes intrinsic when at least this share of faces are slivers."""
+POISSON_NEEDLE_ANGLE = 1e-6
+"""Below this corner angle (radians) the extrinsic Poisson step loses its accuracy
+(:data:`geoproc.geodesic.distance.NEEDLE_ANGLE`): ``auto`` goes intrinsic on a mesh
+with such a face, however few."""
 
 
 def sliver_share(V: np.ndarray, F: np.ndarray, angle_deg: float = SLIVER_ANGLE_DEG) -> float:
@@ -74,17 +78,19 @@ def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str):
-    """The intrinsic Delaunay mesh (:func:`geoproc.geodesic.operators.intrinsic_delaunay_mesh`;
-    None where it does not apply, callers then keep extrinsic operators) when ``operators``
-    asks for it, else None.
+    """The intrinsic Delaunay mesh (:func:`geoproc.geodesic.operators.intrinsic_delaunay_mesh`,
+    negative weights allowed on boundary edges; None where it does not apply, callers
+    then keep extrinsic operators) when ``operators`` asks for it, else None.
 
     ``operators``: ``"extrinsic"`` (None), ``"intrinsic"``, or ``"auto"``
-    (intrinsic when at least :data:`SLIVER_SHARE` of the faces are slivers).
+    (intrinsic when at least :data:`SLIVER_SHARE` of the faces are slivers, or
+    a face has an angle below :data:`POISSON_NEEDLE_ANGLE`).
     """
     if operators not in OPERATORS:
         raise ValueError(f"unknown operators {operators!r}")
-    if operators == "intrinsic" or (operators == "auto" and sliver_share(V, F) >= SLIVER_SHARE):
-        return intrinsic_delaunay_mesh(V, F)
+    if operators == "intrinsic" or (operators == "auto" and (
+            sliver_share(V, F) >= SLIVER_SHARE or smallest_angles(V, F).min(initial=np.pi) < POISSON_NEEDLE_ANGLE)):
+        return intrinsic_delaunay_mesh(V, F, boundary_negatives=True)
     return None
 
 

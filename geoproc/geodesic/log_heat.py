@@ -30,9 +30,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from geoproc.errors import InputError
 from geoproc.geodesic.heat_operators import heat_operators
-from geoproc.geodesic.log_ode import LogODESolver, off_diagonal_weights
-from geoproc.geodesic.operators import flat_within_rounding
+from geoproc.geodesic.log_ode import LogODESolver, negative_weight_problem, off_diagonal_weights
+from geoproc.geodesic.operators import flat_within_rounding, intrinsic_delaunay_laplacian, negative_offdiagonal_count
 from geoproc.mesh.topology import boundary_vertices
 
 
@@ -82,7 +83,10 @@ class LogHeatSolver:
         Where the gradient, divergence and Poisson Laplacian live: on the mesh
         itself, or on its intrinsic Delaunay triangulation
         (:mod:`geoproc.geodesic.intrinsic`; its Laplacian then serves the
-        Poisson step). ``auto``: intrinsic when at least
+        Poisson step and the heat step, except where an obtuse angle faces a
+        boundary edge: the heat step then takes
+        :func:`~geoproc.geodesic.operators.intrinsic_delaunay_laplacian`,
+        whose weights are non-negative). ``auto``: intrinsic when at least
         :data:`~geoproc.geodesic.intrinsic.SLIVER_SHARE` of the faces have a
         corner angle below :data:`~geoproc.geodesic.intrinsic.SLIVER_ANGLE_DEG`.
         The choice made is in ``self.operators``.
@@ -93,6 +97,13 @@ class LogHeatSolver:
                  boundary: str = "average", poisson: str = "cotan", operators: str = "auto"):
         ops = heat_operators(V, F, laplacian, operators, poisson)
         L, M = ops.L, ops.M
+        if negative_offdiagonal_count(L) and ops.kind == "intrinsic":
+            # obtuse angles facing boundary edges: the log-ODE needs non-negative weights,
+            # which robust-laplacian's tufted cover gives (its boundary edges are interior)
+            L, M = intrinsic_delaunay_laplacian(V, F)
+        problem = negative_weight_problem(L, cotan=laplacian == "cotan" and ops.kind == "extrinsic")
+        if problem:  # an InputError without the path: geodesic_distance names the mesh
+            raise InputError(None, problem)
         self.M = M
         self.n, self.steps, self.direction = len(V), steps, direction
         self.operators, self.F, self.coef = ops.kind, ops.F, ops.coef

@@ -34,13 +34,17 @@ from geoproc.geodesic.log_lu import LogMMatrixSolver
 from geoproc.geodesic.operators import factor_sparse_lu, negative_offdiagonal_count
 
 
-def negative_weight_problem(L: sp.spmatrix) -> str | None:
-    """Why the log-ODE cannot run on ``L`` (edges with negative weights), or None."""
+def negative_weight_problem(L: sp.spmatrix, cotan: bool = True) -> str | None:
+    """Why the log-ODE cannot run on ``L`` (edges with negative weights), or None;
+    ``cotan``: L is the mesh's cotan Laplacian (the message then points to the
+    intrinsic Delaunay one)."""
     negative = negative_offdiagonal_count(L)
     if not negative:
         return None
-    return (f"{negative} edges have negative cotangent weights, and the log-ODE needs non-negative ones; "
-            "use --laplacian intrinsic-delaunay")
+    if cotan:
+        return (f"{negative} edges have negative cotangent weights, and the log-ODE needs non-negative ones; "
+                "use --laplacian intrinsic-delaunay")
+    return f"{negative} edges have negative Laplacian weights, and the log-ODE needs non-negative ones"
 
 
 def off_diagonal_weights(L: sp.spmatrix) -> sp.csr_matrix:

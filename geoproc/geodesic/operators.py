@@ -13,8 +13,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoproc.geodesic.cocircular import canonical_cocircular_diagonals
-from geoproc.mesh.topology import face_areas
+from geoproc.mesh.topology import boundary_edges, face_areas
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
+
+# robust-laplacian's weights that are zero in exact arithmetic come out negative by
+# up to this fraction of the largest weight on meshes with needles (cancelling
+# cotangents of 1e7); a weight that small changes the solution by as little
+ROBUST_ROUNDING = 1e-10
 
 
 def cotan_laplacian(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
@@ -84,11 +89,15 @@ def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
     On an edge-manifold mesh without zero-area faces: libigl's
     ``intrinsic_delaunay_cotmatrix`` (edge flips on intrinsic lengths) and the
     barycentric mass of that triangulation (``massmatrix_intrinsic``).
-    Otherwise, or if that gives a negative weight: ``robust_laplacian.mesh_laplacian``
+    Otherwise, or if that gives a negative weight (an obtuse angle facing a
+    boundary edge, which no flip removes): ``robust_laplacian.mesh_laplacian``
     (Sharp & Crane 2020: tufted cover and mollification, for non-manifold and
-    degenerate input), whose L is positive semi-definite and is negated here.
-    Both agree to rounding on ordinary meshes. Off-diagonal weights are
-    non-negative (rounding noise below 1e-14 of the largest weight is set to zero).
+    degenerate input, where boundary edges are interior edges of the cover), whose L
+    is positive semi-definite and is negated here. Both agree to rounding on
+    ordinary meshes. Off-diagonal weights are non-negative: rounding noise below
+    1e-14 of the largest weight is set to zero, and below :data:`ROBUST_ROUNDING`
+    of it for robust-laplacian (with needles of 1e-7 rad its weights of zero came
+    out at -5e-12 of the largest).
 
     Returns
     -------
@@ -104,15 +113,21 @@ def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
 
     Lp, Mp = robust_laplacian.mesh_laplacian(np.ascontiguousarray(V), np.ascontiguousarray(F),
                                              mollify_factor=mollify_factor)
-    return _drop_rounding_negatives(-sp.csr_matrix(Lp)), np.asarray(Mp.diagonal(), dtype=np.float64)
+    L = _drop_rounding_negatives(-sp.csr_matrix(Lp), ROBUST_ROUNDING)
+    return L, np.asarray(Mp.diagonal(), dtype=np.float64)
 
 
-def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
+def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bool = False):
     """libigl's intrinsic Delaunay triangulation of an edge-manifold mesh with its operators.
 
     Cocircular quads get the diagonal that holds their smallest vertex index
     (:func:`geoproc.geodesic.cocircular.canonical_cocircular_diagonals`), so
     that the triangulation does not depend on the coordinates' rounding.
+
+    ``boundary_negatives``: also return the triangulation when its only
+    negative weights are on boundary edges (an obtuse angle facing one, which
+    no flip removes). The heat method's linear solves and its gradient and
+    divergence do not need non-negative weights; the log-ODE does.
 
     Returns
     -------
@@ -122,7 +137,8 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
         unit), ``Fi`` (m, 3) its faces on the same vertices and ``l`` (m, 3)
         their edge lengths, ``l[f, c]`` opposite corner c (length unit).
         None when the mesh is not edge-manifold, has zero-area faces, or the
-        flips leave a negative weight.
+        flips leave a negative weight (on an interior edge, with
+        ``boundary_negatives``).
     """
     if not is_edge_manifold_nondegenerate(V, F):
         return None
@@ -137,10 +153,24 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray):
         Li.resize((len(V), len(V)))  # vertices after the last one a face uses
         Li = _without_weights(sp.csr_matrix(Li), zero)  # zero in exact arithmetic
     L = _drop_rounding_negatives(sp.csr_matrix(Li))
-    if negative_offdiagonal_count(L) or not np.isfinite(L.data).all():
+    if not np.isfinite(L.data).all():
+        return None
+    off = sp.triu(L, 1, format="coo")
+    negative = off.data < 0
+    if negative.any() and not (boundary_negatives and _all_boundary_edges(off.row[negative], off.col[negative], Fi)):
         return None
     M = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
     return L, np.asarray(M.diagonal(), dtype=np.float64), np.asarray(Fi, dtype=np.int64), np.asarray(l)
+
+
+def _all_boundary_edges(i: np.ndarray, j: np.ndarray, F: np.ndarray) -> bool:
+    """Whether every edge (i[k], j[k]) is a boundary edge of the faces F."""
+    B = boundary_edges(F)
+    if len(B) == 0:
+        return False
+    n = int(max(F.max(), i.max(), j.max())) + 1
+    key = np.minimum(B[:, 0], B[:, 1]) * n + np.maximum(B[:, 0], B[:, 1])
+    return bool(np.isin(np.minimum(i, j) * n + np.maximum(i, j), key).all())
 
 
 def _without_weights(L: sp.csr_matrix, E: np.ndarray) -> sp.csr_matrix:
@@ -162,10 +192,10 @@ def _moved_to_diagonal(L: sp.csr_matrix, i: np.ndarray, j: np.ndarray, v: np.nda
     return L
 
 
-def _drop_rounding_negatives(L: sp.csr_matrix) -> sp.csr_matrix:
-    """Zero off-diagonal weights in (-1e-14 max|L|, 0), moving them onto the diagonal."""
+def _drop_rounding_negatives(L: sp.csr_matrix, rounding: float = 1e-14) -> sp.csr_matrix:
+    """Zero off-diagonal weights in (-rounding max|L|, 0), moving them onto the diagonal."""
     off = sp.triu(L, 1, format="coo")
-    tiny = (off.data < 0) & (off.data > -1e-14 * max(1.0, float(np.abs(L.data).max())))
+    tiny = (off.data < 0) & (off.data > -rounding * max(1.0, float(np.abs(L.data).max())))
     if tiny.any():
         return _moved_to_diagonal(L, off.row[tiny], off.col[tiny], off.data[tiny])
     L.eliminate_zeros()

@@ -260,6 +260,13 @@ def test_log_ode_with_negative_cotan_weights_exits_2(cli, make_fixtures, tmp_pat
         f"error: {path}: {negative} edges have negative cotangent weights, and the log-ODE needs "
         "non-negative ones; use --laplacian intrinsic-delaunay"]
     assert not out.exists()
+    # log-heat's heat step is a log-ODE too: the same line, naming the file (it named none)
+    p = cli("geodesic", path, "-s", "0", "-m", "log-heat", "--laplacian", "cotan", "--operators", "extrinsic",
+            "-o", out)
+    assert p.returncode == 2 and p.stderr.strip().splitlines() == [
+        f"error: {path}: {negative} edges have negative cotangent weights, and the log-ODE needs "
+        "non-negative ones; use --laplacian intrinsic-delaunay"]
+    assert not out.exists()
 
 
 def test_non_ply_output_is_refused(cli, fixture_dir, tmp_path):
