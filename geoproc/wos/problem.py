@@ -48,7 +48,8 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
 
 def pass_seed(seed: int, tag: int) -> np.uint64:
     """Seed of the random streams of one pass (``tag``) of a run seeded with ``seed``."""
-    return np.uint64(stream_state(np.uint64(seed % (1 << 64)), np.uint64(tag)))
+    # int(): a numpy integer's remainder by 2^64 does not fit its own type
+    return np.uint64(stream_state(np.uint64(int(seed) % (1 << 64)), np.uint64(int(tag))))
 
 
 class WalkProblem:

@@ -86,6 +86,12 @@ def test_seeds_a_half_range_apart_give_other_streams():
     assert len({int(pass_seed(s, 0)) for s in seeds}) == len(seeds)
 
 
+@pytest.mark.parametrize("seed", [np.int64(3), np.int32(3), np.uint64(3)])
+def test_numpy_integer_seeds_are_their_value(seed):
+    # a seed drawn by rng.integers() is a numpy integer: its remainder by 2**64 overflowed
+    assert pass_seed(seed, 7) == pass_seed(3, 7)
+
+
 def test_same_seed_same_numbers_any_thread_count():
     pb = WalkProblem(build_domain(wf.glyph("a", 128)["loops"]), RE_Z3, None, 1e-3)
     from geoproc.wos.solve import grid_over
