@@ -57,7 +57,7 @@ def _interior_edges(Fi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     """Every interior edge once: its half-edge ids ``f * 3 + c`` in the two
     triangles (``h``, with endpoints a < b, and its twin ``t``) and the endpoints."""
     n = int(Fi.max()) + 1
-    a, b = halfedges(np.roll(Fi, -1, axis=1)).T  # half-edge f * 3 + c runs a -> b, opposite corner c
+    a, b = halfedges(np.roll(np.asarray(Fi, dtype=np.int64), -1, axis=1)).T  # f * 3 + c runs a -> b, opposite c
     key = a * n + b
     order = np.argsort(key)
     twin_key = b * n + a

@@ -24,7 +24,9 @@ def exact_geodesic_distance(V: np.ndarray, F: np.ndarray, sources: np.ndarray) -
     """
     import igl
 
-    VS = np.ascontiguousarray(sources, dtype=np.int64)
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)  # libigl takes native int64 (not big-endian)
+    VS = np.atleast_1d(np.ascontiguousarray(sources, dtype=np.int64))
     VT = np.arange(len(V), dtype=np.int64)
     empty = np.zeros(0, dtype=np.int64)
     lo = V.min(axis=0)

@@ -169,6 +169,7 @@ def _all_boundary_edges(i: np.ndarray, j: np.ndarray, F: np.ndarray) -> bool:
     if len(B) == 0:
         return False
     n = int(max(F.max(), i.max(), j.max())) + 1
+    i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)  # keys up to n^2
     key = np.minimum(B[:, 0], B[:, 1]) * n + np.maximum(B[:, 0], B[:, 1])
     return bool(np.isin(np.minimum(i, j) * n + np.maximum(i, j), key).all())
 

@@ -38,6 +38,8 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
     """
     import matplotlib
 
+    V, F, d = np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64), np.asarray(d, dtype=np.float64)
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection, PolyCollection
@@ -80,7 +82,7 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
             keep = _seen(ax, front, F, segs.mean(axis=1), F[shown[seg_face]])
             ax.add_collection(LineCollection(segs[keep], colors="black", linewidths=0.6))
     if sources is not None:
-        s = np.asarray(sources, dtype=np.int64)
+        s = np.atleast_1d(np.asarray(sources, dtype=np.int64))
         s = s[_seen(ax, front, F, P[s], s[:, None])] if len(s) else s
         ax.plot(P[s, 0], P[s, 1], "o", color="red", markersize=4)
     if title:

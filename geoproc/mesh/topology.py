@@ -41,7 +41,7 @@ def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         Number of faces incident to each edge (2 inside a manifold, 1 on the
         boundary, more on a non-manifold edge).
     """
-    H = np.sort(halfedges(F), axis=1)
+    H = np.sort(halfedges(np.asarray(F, dtype=np.int64)), axis=1)  # keys up to n^2: int32 faces overflowed
     n = int(F.max()) + 1 if F.size else 1
     keys, inverse, counts = np.unique(H[:, 0] * n + H[:, 1], return_inverse=True, return_counts=True)
     E = np.column_stack([keys // n, keys % n])

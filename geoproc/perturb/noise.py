@@ -68,6 +68,8 @@ def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
     from geoproc.mesh.orientation import consistent_orientation
 
+    V = np.ascontiguousarray(V, dtype=np.float64)  # libigl takes native float64 (not lists, not big-endian)
+    F = np.ascontiguousarray(F, dtype=np.int64)
     N = igl.per_vertex_normals(V, consistent_orientation(F)[0], igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)
     N = np.asarray(N, dtype=np.float64)
     bad = ~np.isfinite(N).all(axis=1) | (np.linalg.norm(N, axis=1) < 0.5)

@@ -30,6 +30,8 @@ def test_exact_on_flat_grid_is_euclidean(make_fixtures, source):
     d = _exact(V, F, source)
     # a flat convex patch: the geodesic is the straight segment
     assert np.abs(d - np.linalg.norm(V - V[source], axis=1)).max() < 1e-12
+    # a list of positions and big-endian faces (libigl refused both), one source as a plain index
+    assert np.array_equal(gd.exact_geodesic_distance(V.tolist(), F.astype(">i8"), source), d)
 
 
 @pytest.mark.parametrize("scale", [1e-30, 1e40])
@@ -587,6 +589,8 @@ def test_render_hides_what_is_behind_the_surface(make_fixtures):
     red = lambda img: ((img[..., 0] > 0.8) & (img[..., 1] < 0.3)).sum()  # noqa: E731
     assert dark(alone) > 0.001 and dark(stacked) == 0.0
     assert red(stacked) == 0
+    # one source as a plain index, the distances as a list: the same picture
+    assert render_distance_png(V, F, d[:len(V)].tolist(), src[0]) == render_distance_png(V, F, d[:len(V)], src)
 
 
 @pytest.mark.parametrize("method,options", [

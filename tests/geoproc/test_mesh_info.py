@@ -237,3 +237,18 @@ def test_face_list_renumbering_pairs_unused_vertices_in_order():
     assert np.array_equal(r, [3, 2, 0, 1, 4])
     # two input vertices onto one reference vertex: not one-to-one
     assert face_list_renumbering(np.array([[0, 1, 2], [0, 2, 3]]), 4, np.array([[0, 1, 2], [0, 2, 1]]), 4) is None
+
+
+@pytest.mark.parametrize("dtype", [np.int16, np.int32, np.uint32])
+def test_edges_do_not_depend_on_the_faces_integer_type(make_fixtures, dtype):
+    # edge keys i * n + j were formed in the faces' own type: int32 overflowed past 46,341
+    # vertices (mean edge length 0.0 on one triangle numbered from 50,000), int16 past 181
+    from geoproc.mesh.topology import mean_edge_length
+
+    n = 50_003 if dtype != np.int16 else 3_000
+    V = np.zeros((n, 3))
+    V[-3:] = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    F = np.array([[n - 3, n - 2, n - 1]])
+    assert mean_edge_length(V, F.astype(dtype)) == mean_edge_length(V, F) == pytest.approx((2 + np.sqrt(2)) / 3)
+    E, _, count = unique_edges(F.astype(dtype))
+    assert sorted(map(tuple, E.tolist())) == [(n - 3, n - 2), (n - 3, n - 1), (n - 2, n - 1)]

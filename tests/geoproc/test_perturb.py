@@ -114,6 +114,10 @@ def test_point_cloud_stored_twice_has_the_spacing_and_normals_of_one_copy(make_f
 def test_vertex_normals_of_sphere_are_radial(make_fixtures):
     V, F = make_fixtures.icosphere(3)
     assert np.einsum("ij,ij->i", vertex_normals(V, F), V).min() > 0.999
+    # lists and big-endian arrays (as a file's bytes give them) are what libigl refused
+    N = vertex_normals(V, F)
+    assert np.array_equal(vertex_normals(V.tolist(), F.tolist()), N)
+    assert np.array_equal(vertex_normals(V.astype(">f8"), F.astype(">i8")), N)
 
 
 def test_unknown_direction_is_refused(sphere):
