@@ -33,8 +33,9 @@ class LoadLog:
     unread_properties : list of str
         PLY properties stored in the file but not read into fields, as
         ``"vertex nbrs"`` or ``"face texcoord"``: list properties (other than
-        the face's vertex indices), and face properties when the file also
-        holds triangle strips. Only scalar properties travel.
+        the face's vertex indices), face properties when the file also
+        holds triangle strips, and other elements than vertex, face and
+        tristrips with rows (``"element edge"``). Only scalar properties travel.
     """
 
     path: str = ""

@@ -267,6 +267,8 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
         F = np.concatenate([F, _strip_triangles(flat, counts)])
         unread += [f"face {n}" for n in ffields]
         ffields = {}  # per-face properties belong to the face element alone
+    unread += [f"element {name}" for name, rows in elements.items()
+               if name not in ("vertex", "face", "tristrips") and len(rows)]
     return Mesh(V, F, vfields, ffields), polys, unread
 
 

@@ -509,6 +509,10 @@ def test_ply_list_properties_are_named_as_unread():
     assert m.log.unread_properties == ["vertex nbrs", "face texcoord"]
     assert read_mesh_bytes(_PLY_HEAD.format(el="face", n=1, prop="property list uchar int vertex_indices").encode()
                            + b"3 0 1 2\n", "ply", "t.ply").log.unread_properties == []
+    # another element (MeshLab and Open3D write 'edge'): dropped, so named too
+    with_edges = data.replace("end_header", "element edge 2\nproperty int vertex1\nproperty int vertex2\nend_header")
+    m = read_mesh_bytes((with_edges + "0 1\n1 2\n").encode(), "ply", "e.ply", clean=False)
+    assert m.log.unread_properties == ["vertex nbrs", "face texcoord", "element edge"] and len(m.F) == 1
 
 
 def test_float32_property_beyond_its_range_reads_as_inf_without_a_warning():
