@@ -18,7 +18,7 @@ from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part o
 
 # robust-laplacian's weights that are zero in exact arithmetic come out negative by
 # up to this fraction of the largest weight on meshes with needles (cancelling
-# cotangents of 1e7); a weight that small changes the solution by as little
+# cotangents of 1e7); clearing a weight that small changes the solution by about as little
 ROBUST_ROUNDING = 1e-10
 
 
@@ -133,9 +133,9 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bo
     -------
     (L, M, Fi, l) or None
         ``L`` (n, n) its Laplacian (negative semi-definite, non-negative
-        off-diagonal weights), ``M`` (n,) its barycentric lumped mass (area
-        unit), ``Fi`` (m, 3) its faces on the same vertices and ``l`` (m, 3)
-        their edge lengths, ``l[f, c]`` opposite corner c (length unit).
+        off-diagonal weights but on boundary edges with ``boundary_negatives``),
+        ``M`` (n,) its barycentric lumped mass (area unit), ``Fi`` (m, 3) its
+        faces on the same vertices and ``l`` (m, 3) their edge lengths, ``l[f, c]`` opposite corner c (length unit).
         None when the mesh is not edge-manifold, has zero-area faces, or the
         flips leave a negative weight (on an interior edge, with
         ``boundary_negatives``).
