@@ -40,6 +40,10 @@ class Domain:
         Where the domain came from (file name), for messages.
     traced : bool
         True when the loops were traced from a mask image (pixel units).
+    part_of : (L,) int64
+        Connected part of the domain each loop bounds, named by the index of
+        its outer loop (an outer loop is its own; a hole belongs to the loop
+        right around it; an island in a hole starts a part of its own).
     """
 
     loops: list[np.ndarray]
@@ -50,6 +54,7 @@ class Domain:
     values: np.ndarray | None = None
     source: str = "<domain>"
     traced: bool = False
+    part_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     _paths: list = field(default_factory=list, repr=False)
 
     @property
@@ -159,11 +164,11 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
     _check_simple(clean, source)
     # orientation: depth = number of other loops containing the loop; even -> CCW
     firsts = np.array([L[0] for L in clean])
-    depth = np.zeros(len(clean), dtype=np.int64)
+    around = np.zeros((len(clean), len(clean)), dtype=bool)  # around[j, k]: loop j encloses loop k
     for j, L in enumerate(clean):  # one call per loop, all first vertices at once
-        inside = MplPath(L).contains_points(firsts)
-        inside[j] = False
-        depth += inside
+        around[j] = MplPath(L).contains_points(firsts)
+        around[j, j] = False
+    depth = around.sum(axis=0)
     for k, L in enumerate(clean):
         ccw = loop_signed_area(L) > 0
         if ccw != (depth[k] % 2 == 0):
@@ -188,7 +193,16 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         vb = np.concatenate([np.roll(v, -1) for v in vals])
         seg_vals = np.ascontiguousarray(np.stack([va, vb], axis=1))
     return Domain(clean, np.ascontiguousarray(A), np.ascontiguousarray(B), loop_of,
-                  np.concatenate(flags), seg_vals, source)
+                  np.concatenate(flags), seg_vals, source, part_of=_parts(around, depth))
+
+
+def _parts(around: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """(L,) the outer loop of each loop's connected part: itself at even depth,
+    else the loop right around it (the one enclosing it one level up)."""
+    part = np.arange(len(depth), dtype=np.int64)
+    for k in np.flatnonzero(depth % 2 == 1):
+        part[k] = int(np.flatnonzero(around[:, k] & (depth == depth[k] - 1))[0])
+    return part
 
 
 MAX_COORDINATE = 1e15  # the closest-point scan squares distances in float32 (overflow near 1.8e19)

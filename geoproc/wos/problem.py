@@ -46,6 +46,19 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
                              f"(first at x = {x:.6g}, y = {y:.6g})")
 
 
+def require_dirichlet_in_every_part(domain: Domain) -> None:
+    """InputError naming a connected part of the domain whose whole boundary is
+    Neumann: u is not unique there, and its walks would never stop (they ran to
+    the step cap and scored a Dirichlet segment of another part)."""
+    part = domain.part_of[domain.loop_of]
+    for p in np.unique(part):
+        if domain.neumann[part == p].all():
+            loops = np.flatnonzero(domain.part_of == p).tolist()
+            which = f"loop {loops[0]}" if len(loops) == 1 else "loops " + ", ".join(map(str, loops))
+            raise InputError(domain.source, f"the part of the domain bounded by {which} has only Neumann "
+                             "segments; each connected part needs a Dirichlet segment for a unique solution")
+
+
 def pass_seed(seed: int, tag: int) -> np.uint64:
     """Seed of the random streams of one pass (``tag``) of a run seeded with ``seed``."""
     # int(): a numpy integer's remainder by 2^64 does not fit its own type
@@ -78,6 +91,7 @@ class WalkProblem:
         if domain.neumann.all():
             raise InputError(domain.source, "every boundary segment is Neumann; at least one "
                              "Dirichlet segment is needed for a unique solution")
+        require_dirichlet_in_every_part(domain)
         require_finite_boundary_data(domain, boundary, flux)
         self.domain = domain
         self.eps = float(eps)

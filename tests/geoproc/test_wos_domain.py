@@ -159,3 +159,13 @@ def test_files_that_are_neither_json_nor_an_image(tmp_path):
     with pytest.raises(InputError) as err:
         load_domain(str(bad))
     assert err.value.problem.startswith("cannot read image: ") and str(bad) not in err.value.problem
+
+
+def test_parts_of_nested_and_separate_loops():
+    sq = lambda c, r: [[c[0] - r, c[1] - r], [c[0] + r, c[1] - r], [c[0] + r, c[1] + r], [c[0] - r, c[1] + r]]  # noqa: E731
+    # outer, its hole, an island in the hole, the island's hole, a second component
+    loops = [sq((0, 0), 4), sq((0, 0), 3), sq((0, 0), 2), sq((0, 0), 1), sq((10, 0), 1)]
+    order = [3, 0, 4, 2, 1]  # any order of the loops
+    d = build_domain([np.array(loops[k], float) for k in order])
+    outer = {k: i for i, k in enumerate(order)}
+    assert d.part_of.tolist() == [outer[{3: 2, 0: 0, 4: 4, 2: 2, 1: 0}[k]] for k in order]

@@ -271,3 +271,24 @@ def test_cv_green_beats_naive_on_every_generated_domain():
         naive = solve_laplace(d, g, **kw).metrics["rmse"]
         green = solve_laplace(d, g, method="cv-green", **kw).metrics["rmse"]
         assert green < 0.5 * naive, (name, green, naive)
+
+
+@pytest.mark.parametrize("loops, neumann", [
+    # a Neumann island inside a hole of a Dirichlet square
+    ([[[0, 0], [1, 0], [1, 1], [0, 1]], [[0.2, 0.2], [0.8, 0.2], [0.8, 0.8], [0.2, 0.8]],
+      [[0.35, 0.35], [0.65, 0.35], [0.65, 0.65], [0.35, 0.65]]], 2),
+    # a second component, all Neumann
+    ([[[0, 0], [0.4, 0], [0.4, 1], [0, 1]], [[0.6, 0], [1, 0], [1, 1], [0.6, 1]]], 1),
+])
+def test_a_part_with_only_neumann_segments_is_refused(loops, neumann):
+    # u is not unique there; its walks ran to the step cap and scored another part's Dirichlet data
+    from geoproc.errors import InputError
+
+    flags = [np.full(len(L), k == neumann) for k, L in enumerate(loops)]
+    d = build_domain([np.array(L, float) for L in loops], flags)
+    with pytest.raises(InputError, match=f"bounded by loop {neumann} has only Neumann segments"):
+        WalkProblem(d, parse_expression("x"), None, 1e-3)
+    # with the Neumann data on the hole instead, every part keeps a Dirichlet segment
+    flags = [np.full(len(L), k == 1) for k, L in enumerate(loops)]
+    if len(loops) == 3:
+        WalkProblem(build_domain([np.array(L, float) for L in loops], flags), parse_expression("x"), None, 1e-3)
