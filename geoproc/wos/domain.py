@@ -163,12 +163,8 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         vals.append(v)
     _check_simple(clean, source)
     # orientation: depth = number of other loops containing the loop; even -> CCW
-    firsts = np.array([L[0] for L in clean])
-    around = np.zeros((len(clean), len(clean)), dtype=bool)  # around[j, k]: loop j encloses loop k
-    for j, L in enumerate(clean):  # one call per loop, all first vertices at once
-        around[j] = MplPath(L).contains_points(firsts)
-        around[j, j] = False
-    depth = around.sum(axis=0)
+    outer, inner = _enclosing_pairs(clean)  # loop outer[i] encloses loop inner[i]
+    depth = np.bincount(inner, minlength=len(clean))
     for k, L in enumerate(clean):
         ccw = loop_signed_area(L) > 0
         if ccw != (depth[k] % 2 == 0):
@@ -193,15 +189,38 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         vb = np.concatenate([np.roll(v, -1) for v in vals])
         seg_vals = np.ascontiguousarray(np.stack([va, vb], axis=1))
     return Domain(clean, np.ascontiguousarray(A), np.ascontiguousarray(B), loop_of,
-                  np.concatenate(flags), seg_vals, source, part_of=_parts(around, depth))
+                  np.concatenate(flags), seg_vals, source, part_of=_parts(outer, inner, depth))
 
 
-def _parts(around: np.ndarray, depth: np.ndarray) -> np.ndarray:
+def _enclosing_pairs(loops: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair (j, k) of loops with loop k's first vertex inside loop j (the
+    loops do not cross, so then all of loop k is), as two (p,) arrays. Only
+    the first vertices inside loop j's bounding box are tested against it, so
+    tens of thousands of small holes cost a test each, not one per pair."""
+    firsts = np.array([L[0] for L in loops])
+    order = np.argsort(firsts[:, 0], kind="stable")
+    xs = firsts[order, 0]
+    outer, inner = [], []
+    for j, L in enumerate(loops):
+        lo, hi = L.min(axis=0), L.max(axis=0)
+        cand = order[np.searchsorted(xs, lo[0], "left"): np.searchsorted(xs, hi[0], "right")]
+        cand = cand[(firsts[cand, 1] >= lo[1]) & (firsts[cand, 1] <= hi[1]) & (cand != j)]
+        if len(cand):
+            k = cand[MplPath(L).contains_points(firsts[cand])]
+            outer.append(np.full(len(k), j, dtype=np.int64))
+            inner.append(k.astype(np.int64))
+    if not outer:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return np.concatenate(outer), np.concatenate(inner)
+
+
+def _parts(outer: np.ndarray, inner: np.ndarray, depth: np.ndarray) -> np.ndarray:
     """(L,) the outer loop of each loop's connected part: itself at even depth,
     else the loop right around it (the one enclosing it one level up)."""
     part = np.arange(len(depth), dtype=np.int64)
-    for k in np.flatnonzero(depth % 2 == 1):
-        part[k] = int(np.flatnonzero(around[:, k] & (depth == depth[k] - 1))[0])
+    odd = depth[inner] % 2 == 1
+    parent = odd & (depth[outer] == depth[inner] - 1)
+    part[inner[parent]] = outer[parent]
     return part
 
 
