@@ -10,10 +10,13 @@ every segment.
 
 A single-precision copy of the candidates (relative to the grid origin) serves
 :func:`distance_lower_bound`, the cheap query walks use for steps that do not
-end the walk.
+end the walk. A cell with more than :data:`FAR_CELL_CANDIDATES` candidates
+(the middle of a disk bounded by 100,000 segments has them all) also keeps
+``d*``: from a point p well inside it, ``d* - |p - c|`` bounds the distance
+from below at once (distance to a set is 1-Lipschitz).
 
 The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids,
-coords32, margin)``
+coords32, margin, far)``
 accepted by :func:`closest_point`; ``coords`` (k, 5) repeats each candidate's
 start, direction and inverse squared length (``ax, ay, ex, ey, 1/|e|^2``) so a
 query reads one contiguous block and divides nothing.
@@ -46,8 +49,12 @@ def point_segment_d2(px, py, ax, ay, bx, by):
     return dx * dx + dy * dy, t
 
 
+FAR_CELL_CANDIDATES = 512
+"""Cells with more candidates keep their ``d*`` for :func:`distance_lower_bound`."""
+
+
 @numba.njit(cache=True, parallel=True)
-def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items):
+def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items, dstar):
     half = 0.5 * cs * math.sqrt(2.0)
     n_cells = nx * ny
     counts = np.zeros(n_cells, dtype=np.int64)
@@ -64,6 +71,7 @@ def _cell_candidates(A, B, seg_ids, ox, oy, cs, nx, ny, count_only, start, items
             d[k] = math.sqrt(d2)
             if d[k] < best:
                 best = d[k]
+        dstar[c] = best
         lim = best + 2.0 * half + 1e-12 * (1.0 + best)
         n = 0
         for k in range(seg_ids.shape[0]):
@@ -91,7 +99,7 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     Returns
     -------
     tuple
-        ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin)`` for
+        ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin, far)`` for
         :func:`closest_point` and :func:`distance_lower_bound`.
     """
     A = np.ascontiguousarray(A, dtype=np.float64)
@@ -109,11 +117,13 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     nx = max(1, int(np.ceil((hi[0] - lo[0]) / cs + 1e-9)))
     ny = max(1, int(np.ceil((hi[1] - lo[1]) / cs + 1e-9)))
     empty = np.zeros(1, dtype=np.int64)
-    counts = _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, True, empty, empty)
+    dstar = np.empty(nx * ny)
+    counts = _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, True, empty, empty, dstar)
     start = np.zeros(nx * ny + 1, dtype=np.int64)
     np.cumsum(counts, out=start[1:])
     items = np.empty(int(start[-1]), dtype=np.int64)
-    _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, False, start, items)
+    _cell_candidates(A, B, seg_ids, lo[0], lo[1], cs, nx, ny, False, start, items, dstar)
+    far = np.where(counts > FAR_CELL_CANDIDATES, dstar, -1.0)
     E = B[items] - A[items]
     ee = (E**2).sum(axis=1)
     inv = np.divide(1.0, ee, out=np.zeros_like(ee), where=ee > 0)
@@ -124,7 +134,7 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     coords32 = np.ascontiguousarray(rel.astype(np.float32))
     margin = 1e-6 * (span + float(np.abs(lo).max()) * 1e-3)
     return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, seg_ids, coords32,
-            margin)
+            margin, far)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -140,7 +150,7 @@ def closest_point(px, py, A, B, grid):
     t : float
         Parameter of the closest point on the segment, in [0, 1].
     """
-    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin = grid
+    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin, far = grid
     fi = (px - ox) * inv_cs
     fj = (py - oy) * inv_cs
     best = np.inf
@@ -179,16 +189,24 @@ def distance_lower_bound(px, py, grid):
 
     Scans the cell's candidates in single precision (coordinates relative to the
     grid origin) and subtracts ``margin``, which exceeds the rounding error, so
-    the disk (p, result) is free of segments. Returns -1 outside the grid. Walks
+    the disk (p, result) is free of segments; in a cell that keeps ``d*`` (see
+    the module docstring) a point farther than ``d*/2`` from every segment
+    gets ``d* - |p - c| - margin`` without a scan. Returns -1 outside the grid. Walks
     use it for every step that does not end the walk; :func:`closest_point` gives
     the exact (double precision) closest point.
     """
-    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin = grid
+    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin, far = grid
     fi = (px - ox) * inv_cs
     fj = (py - oy) * inv_cs
     if not (0.0 <= fi < nx and 0.0 <= fj < ny):
         return -1.0
-    c = int(fj) * nx + int(fi)
+    i = int(fi)
+    j = int(fj)
+    c = j * nx + i
+    if far[c] > 0.0:  # many candidates: d* - |p - c| when p is well inside the cell's free disk
+        r = far[c] - math.hypot(px - (ox + (i + 0.5) / inv_cs), py - (oy + (j + 0.5) / inv_cs))
+        if r > 0.5 * far[c]:
+            return r - margin
     x = np.float32(px - ox)
     y = np.float32(py - oy)
     zero = np.float32(0.0)

@@ -23,6 +23,29 @@ DISK = build_domain(wf.disk(256)["loops"])
 POINTS = np.array([[0.0, 0.0], [0.5, 0.2], [-0.3, -0.6], [0.85, -0.1], [-0.2, 0.93]])
 
 
+def test_distance_lower_bound_in_cells_with_many_candidates():
+    # a disk of 20,000 segments: the middle cells hold more than FAR_CELL_CANDIDATES segments
+    # and answer d* - |p - c| without a scan, which must stay a lower bound of the distance
+    import numba
+
+    from geoproc.wos.closest import FAR_CELL_CANDIDATES, distance_lower_bound
+
+    d = build_domain(wf.disk(20_000)["loops"])
+    grid = build_segment_grid(d.A, d.B)
+    assert (np.diff(grid[5]) > FAR_CELL_CANDIDATES).any()
+    P = np.random.default_rng(1).uniform(-0.99, 0.99, (4000, 2))
+    P = P[np.linalg.norm(P, axis=1) < 0.99]
+    exact = closest_points(P, d.A, d.B, grid)[0]
+    lower = numba.njit(lambda P, grid: [distance_lower_bound(p[0], p[1], grid) for p in P])(P, grid)
+    lower = np.array(lower)
+    assert (lower <= exact).all()
+    # the bound loses at most the point's offset from its cell's centre (and the margin)
+    half = np.sqrt(0.5) / grid[2]
+    assert (lower >= exact - 2 * half - 2 * grid[10]).all()
+    far = np.linalg.norm(P, axis=1) < 0.5
+    assert (exact[far] - lower[far] > 10 * grid[10]).mean() > 0.5  # most of the middle took the bound, not a scan
+
+
 def test_closest_points_match_brute_force():
     d = build_domain(wf.square_with_holes(200)["loops"])
     rng = np.random.default_rng(0)
