@@ -190,7 +190,7 @@ def distance_lower_bound(px, py, grid):
     Scans the cell's candidates in single precision (coordinates relative to the
     grid origin) and subtracts ``margin``, which exceeds the rounding error, so
     the disk (p, result) is free of segments; in a cell that keeps ``d*`` (see
-    the module docstring) a point farther than ``d*/2`` from every segment
+    the module docstring) a point within ``d*/2`` of the cell's centre ``c``
     gets ``d* - |p - c| - margin`` without a scan. Returns -1 outside the grid. Walks
     use it for every step that does not end the walk; :func:`closest_point` gives
     the exact (double precision) closest point.
