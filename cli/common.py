@@ -83,6 +83,18 @@ LOAD_METRICS = ("input_vertices", "input_faces", "triangulated_polygons", "merge
 what loading changed (:meth:`Run.note_load`)."""
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` was caused by Ctrl-C: numba's compiled functions re-raise a
+    KeyboardInterrupt that arrives while they run as a SystemError caused by it."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def metrics_epilog(names: Sequence[str], text: Sequence[str] = ()) -> str:
     """The closing paragraph of a subcommand's ``--help``: the metric names
     ``--check`` accepts, then those of ``names`` that are ``text`` (reported, not checked)."""
@@ -447,6 +459,8 @@ def command_run(
         detail = str(exc).strip().splitlines()[0] if str(exc).strip() else "the request is too large"
         raise _fail(f"out of memory: {detail}", EXIT_BAD_INPUT) from None
     except Exception as exc:  # a bug: keep the one-line contract, offer the traceback
+        if _interrupted(exc):  # Ctrl-C inside a compiled kernel comes back as a SystemError
+            raise _fail("interrupted", 130) from None
         if debug:
             traceback.print_exc()
         line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""

@@ -265,7 +265,7 @@ def _toy_app() -> typer.Typer:
 
     @toy.command()
     def flip(mesh: str, output: str = typer.Option(..., "-o"), fail: bool = False, huge: bool = False,
-             report: ReportOpt = None, check: CheckOpt = None) -> None:
+             interrupt: bool = False, report: ReportOpt = None, check: CheckOpt = None) -> None:
         with command_run("flip", {"fail": fail}, report=report, checks=check) as run:
             m = run.load_mesh(mesh)
             run.write_mesh(output, Mesh(m.V, m.F[:, ::-1], {"one": m.V[:, 0] * 0 + 1}))
@@ -274,6 +274,12 @@ def _toy_app() -> typer.Typer:
                 raise InputError(mesh, "refused after writing")
             if huge:
                 raise MemoryError("Unable to allocate 74.5 GiB for an array")
+            if interrupt:  # Ctrl-C inside a numba kernel reaches Python as a SystemError caused by it
+                try:
+                    raise KeyboardInterrupt
+                except KeyboardInterrupt as exc:
+                    raise SystemError("CPUDispatcher(<function wos_dirichlet>) returned a result with an "
+                                      "exception set") from exc
 
     return toy
 
@@ -287,6 +293,13 @@ def test_outputs_are_written_only_when_the_run_succeeds(fixture_dir, tmp_path):
     assert res.exit_code == 2 and not out.exists()
     res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(out)])
     assert res.exit_code == 0 and load_mesh(out).vertex_fields["one"].sum() == 1152
+
+
+def test_ctrl_c_inside_a_compiled_kernel_is_an_interruption(fixture_dir, tmp_path):
+    # it was reported as "internal error: SystemError ..." with exit 3
+    out = tmp_path / "o.ply"
+    res = CliRunner().invoke(_toy_app(), [str(fixture_dir / "torus.ply"), "-o", str(out), "--interrupt"])
+    assert res.exit_code == 130 and res.stderr.strip() == "error: interrupted" and not out.exists()
 
 
 def test_dash_output_is_binary_ply_on_stdout(fixture_dir):
