@@ -53,7 +53,7 @@ def info(
     """
     params = {"mesh": mesh, "clean": not no_clean}
     with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     inputs=[mesh], metrics=METRICS) as run:
+                     outputs=["-"], inputs=[mesh], metrics=METRICS) as run:  # the summary goes to stdout
         m = run.load_mesh(mesh, clean=not no_clean)
         from geoproc.mesh.info import mesh_info  # the topology kernels load once the mesh is read
 

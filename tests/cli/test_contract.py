@@ -393,6 +393,9 @@ def test_report_dash_goes_to_stdout_alone(cli, fixture_dir, tmp_path):
         assert p.returncode == 2 and p.stdout == b"" and list(tmp_path.iterdir()) == []
         lines = p.stderr.splitlines()
         assert len(lines) == 1 and lines[0].startswith("error: --report -") and "standard output" in lines[0]
+    # refused before the input is read, as for the other commands (info read it and did the work first)
+    p = cli("info", tmp_path / "missing.ply", "--report", "-")
+    assert p.returncode == 2 and p.stderr.strip().startswith("error: --report - and another output")
 
 
 def test_stdout_failures_same_paths_and_early_stdout_leave_nothing(fixture_dir, tmp_path):
