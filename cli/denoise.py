@@ -146,7 +146,7 @@ def denoise(
     from geoproc.denoise.params import DenoiseParams
 
     coherence_used = coherence if coherence is not None or not dynamic else COHERENCE[0]
-    params = {"input": input, "method": method, "reference": reference, "rounds": rounds,
+    params = {"input": input, "output": output, "method": method, "reference": reference, "rounds": rounds,
               "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
               "fidelity": fidelity,
               "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "features": features,

@@ -128,7 +128,9 @@ def geodesic(
     m_name = method.value
     params = {
         "mesh": mesh, "output": output, "sources": list(source or []), "sources_file": sources_file,
-        "method": m_name, "time_factor": time_factor, "time": time, "steps": steps,
+        # the options that apply: --time replaces -c, and heat and exact take no --steps
+        "method": m_name, "time_factor": None if time is not None or m_name == "exact" else time_factor,
+        "time": time, "steps": None if m_name in ("exact", "heat") else steps,
         "laplacian": laplacian.value if laplacian else DEFAULT_LAPLACIAN.get(m_name),
         "operators": operators.value if operators else DEFAULT_OPERATORS.get(m_name),
         "solver": solver.value if m_name == "log-ode" else None,  # the only method that solves with it

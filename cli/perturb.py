@@ -65,7 +65,7 @@ def perturb(
 
     Example: geoproc perturb bunny.off --noise 0.3 --seed 1 -o noisy.ply
     """
-    params = {"input": input, "noise": noise, "direction": direction, "impulsive": impulsive,
+    params = {"input": input, "output": output, "noise": noise, "direction": direction, "impulsive": impulsive,
               "outliers": outliers, "outlier_range": outlier_range, "seed": seed, "clean": not no_clean}
     with command_run("perturb", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output], inputs=[input], metrics=METRICS) as run:

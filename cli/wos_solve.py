@@ -107,7 +107,8 @@ def wos_solve(
     metrics for --check, e.g. --check 'rmse<=0.01'.
     """
     fitted = method != Method.naive  # the control-variate fit's options (refused with naive)
-    params = {"domain": domain, "boundary": boundary, "neumann": neumann, "method": method.value,
+    params = {"domain": domain, "output": output, "image": image, "error_image": error_image,
+              "boundary": boundary, "neumann": neumann, "method": method.value,
               "walks": walks, "grid": grid, "epsilon": epsilon, "kernels": kernels if fitted else None,
               "fit_walks": fit_walks if fitted else None, "fit_points": fit_points if fitted else None,
               "ridge": ridge if fitted else None, "seed": seed, "exact": exact}

@@ -525,3 +525,17 @@ def test_stl_output_beyond_float32_is_refused(cli, fixture_dir, tmp_path):
     assert "STL stores 32-bit floats" in _one_error_line(p.stderr, str(out))
     p = cli("denoise", path, "--rounds", "0", "-o", tmp_path / "m.off")
     assert p.returncode == 0, p.stderr
+
+
+def test_report_params_are_the_options_that_applied(cli, fixture_dir, tmp_path):
+    # geodesic recorded -c 1 under --time and steps 1 for heat; perturb, denoise and wos-solve left out -o
+    rep = tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-t", "0.05", "-o", tmp_path / "d.ply", "--report", rep)
+    assert p.returncode == 0, p.stderr
+    params = json.loads(rep.read_text())["params"]
+    assert params["time"] == 0.05 and params["time_factor"] is None and params["steps"] is None
+    out = tmp_path / "n.ply"
+    p = cli("perturb", fixture_dir / "cube.ply", "--seed", "1", "-o", out, "--report", rep)
+    assert p.returncode == 0 and json.loads(rep.read_text())["params"]["output"] == str(out)
+    p = cli("denoise", out, "-o", tmp_path / "c.ply", "--report", rep)
+    assert p.returncode == 0 and json.loads(rep.read_text())["params"]["output"] == str(tmp_path / "c.ply")
