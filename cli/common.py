@@ -184,6 +184,9 @@ class Run:
             if anim.frame_files:  # the frames in the order read, each checkable with sha256sum
                 self.inputs[-1]["frames"] = [{"path": f, "sha256": h}
                                              for f, h in zip(anim.frame_files, anim.frame_sha256, strict=True)]
+        if anim.unread:
+            self.note(f"{name}: not carried (only numeric arrays shaped (frames, n) travel): "
+                      + ", ".join(anim.unread))
         return anim
 
     def note_load(self, mesh: Mesh) -> None:

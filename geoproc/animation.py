@@ -44,6 +44,9 @@ class Animation:
         its frame files sorted by name, each as its name, NUL and its hex
         SHA-256 (empty when not read from disk).
     frame_sha256 : list of str, for a folder the hex SHA-256 of each frame file, as ``frame_files``.
+    unread : list of str
+        Arrays of a ``.npz`` not carried (not numeric, or not shaped (frames, n)),
+        each as its name and shape.
     """
 
     V: np.ndarray
@@ -53,6 +56,7 @@ class Animation:
     frame_files: list[str] = field(default_factory=list)
     sha256: str = ""
     frame_sha256: list[str] = field(default_factory=list)
+    unread: list[str] = field(default_factory=list)
 
     @property
     def n_frames(self) -> int:
@@ -79,7 +83,7 @@ def load_animation(path: str | os.PathLike) -> Animation:
     raw = read_input_bytes(name, "animation file")
     if not raw:
         raise InputError(name, "file is empty")
-    data = _npz_arrays(raw, name)
+    data, skipped = _npz_arrays(raw, name)
     V = data.pop("vertices")
     if V.dtype.kind not in "fiu":
         raise InputError(name, f"'vertices' must hold real numbers, got dtype {V.dtype}")
@@ -95,21 +99,23 @@ def load_animation(path: str | os.PathLike) -> Animation:
     if F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer):
         raise InputError(name, f"'faces' has shape {F.shape} ({F.dtype}); expected (m, 3) integers")
     _validate(V, F, name)
-    fields = {}
-    for k, v in data.items():  # per-vertex numeric arrays travel as fields; others are ignored
+    fields, unread = {}, skipped
+    for k, v in data.items():  # per-vertex numeric arrays travel as fields; others are named as unread
         if k == "outlier" and v.shape != V.shape[:2]:  # the flags denoise --outliers scores against
             raise InputError(name, f"'outlier' has shape {v.shape}; expected (frames, n) = {V.shape[:2]}")
         if v.dtype.kind in "fiub" and v.shape == V.shape[:2]:
             fields[k] = np.asarray(v, dtype=np.float64)
-    return Animation(V, F.astype(np.int64), fields, name, sha256=sha256_bytes(raw))
+        else:
+            unread.append(f"{k} {tuple(v.shape)}")
+    return Animation(V, F.astype(np.int64), fields, name, sha256=sha256_bytes(raw), unread=unread)
 
 
-def _npz_arrays(raw: bytes, name: str) -> dict[str, np.ndarray]:
-    """The arrays of a ``.npz`` file's bytes, by name.
+def _npz_arrays(raw: bytes, name: str) -> tuple[dict[str, np.ndarray], list[str]]:
+    """The arrays of a ``.npz`` file's bytes, by name, and the members left out.
 
     ``vertices`` and ``faces`` must be numeric ``.npy`` members (InputError
     otherwise); any other member that is not one (a text file, an object array,
-    which would need unpickling) is left out, as non-numeric arrays are.
+    which would need unpickling) is left out, named with the reason.
     """
     try:
         z = np.load(io.BytesIO(raw), allow_pickle=False)
@@ -117,7 +123,7 @@ def _npz_arrays(raw: bytes, name: str) -> dict[str, np.ndarray]:
         raise InputError(name, f"not a readable .npz animation ({type(exc).__name__})") from None
     if not isinstance(z, np.lib.npyio.NpzFile):  # a lone .npy array
         raise InputError(name, "not a .npz archive (a single array; an animation needs 'vertices' and 'faces')")
-    data = {}
+    data, skipped = {}, []
     with z:
         for key in GEOMETRY_KEYS:
             if key not in z.files:
@@ -138,7 +144,9 @@ def _npz_arrays(raw: bytes, name: str) -> dict[str, np.ndarray]:
                 data[key] = arr
             elif key in GEOMETRY_KEYS:
                 raise InputError(name, f"'{key}' is {why}; an animation's '{key}' is a numeric array")
-    return data
+            else:
+                skipped.append(f"{key} ({why})")
+    return data, skipped
 
 
 def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:

@@ -232,3 +232,14 @@ def test_fractions_that_round_to_no_vertex_are_noted(cli, fixture_dir, tmp_path)
     assert p.returncode == 0 and "note: --outliers 1e-09 of 1152 vertices rounds to none" in p.stderr
     p = cli("perturb", fixture_dir / "torus.ply", "--impulsive", "0.1", "--seed", "1", "-o", out)
     assert p.returncode == 0 and "rounds to none" not in p.stderr
+
+
+def test_npz_members_not_carried_are_noted(cli, tmp_path):
+    # arrays that are not (frames, n) numbers were dropped from the output without a word
+    V = np.random.default_rng(0).random((3, 4, 3))
+    src, out = tmp_path / "a.npz", tmp_path / "b.npz"
+    np.savez(src, vertices=V, faces=np.array([[0, 1, 2], [0, 2, 3]]), scale=np.arange(3.0), tag=np.ones((3, 4)))
+    p = cli("perturb", src, "--noise", "0.1", "--seed", "1", "-o", out)
+    assert p.returncode == 0, p.stderr
+    assert f"note: {src}: not carried (only numeric arrays shaped (frames, n) travel): scale (3,)" in p.stderr
+    assert sorted(np.load(out).files) == ["faces", "tag", "vertices"]

@@ -35,6 +35,10 @@ def test_members_that_are_not_numeric_arrays_are_left_out(wave, tmp_path):
              meta=np.array([{"units": "m"}], dtype=object), tag=np.ones(V.shape[:2]))
     anim = load_animation(p)
     assert np.array_equal(anim.V, V) and np.array_equal(anim.F, F) and sorted(anim.fields) == ["tag"]
+    # what is left out is named (it was dropped without a word), so the command line can say so
+    assert sorted(anim.unread) == ["README.txt (not a .npy array)", "meta (an object array (pickled Python objects))"]
+    p = _npz(tmp_path / "b.npz", vertices=V, faces=F, scale=np.arange(3.0), names=np.array(["a", "b"]))
+    assert sorted(load_animation(p).unread) == ["names (2,)", "scale (3,)"]
 
 
 @pytest.mark.parametrize("case,message", [
