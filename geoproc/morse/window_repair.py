@@ -359,10 +359,10 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
             g[W] = x
             after = _window_score(W, C, g, f, tol, want, cx, vf_ptr, vf_tri)
             ok = all(vertex_type(c, g, *kw) == need[c] for c in C.tolist())
-            tol = 1e-9 * P
+            close = 1e-9 * P  # max |f - g| values this near count as equal
             better = after[0] < before[0] or (after[0] == before[0] and (
-                after[1] < before[1] - tol or (after[1] <= before[1] + tol and after[2] < before[2])))
-            if ok and after[0] <= before[0] and after[1] <= before[1] + tol and better:
+                after[1] < before[1] - close or (after[1] <= before[1] + close and after[2] < before[2])))
+            if ok and after[0] <= before[0] and after[1] <= before[1] + close and better:
                 done += 1
                 break
             g[W] = old
