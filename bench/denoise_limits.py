@@ -68,6 +68,8 @@ def best_peer_theta(Vn: np.ndarray, F: np.ndarray, V: np.ndarray) -> float:
 
     Nc, _ = face_normals_and_areas(V, F)
     return min(normal_angles_deg(face_normals_and_areas(fn(Vn, F), F)[0], Nc).mean() for fn in peers().values())
+
+
 SCHEDULES = ((3, 5, 0.3), (5, 5, 0.3), (3, 3, 0.5))  # rounds, passes per round, sigma_r
 
 
