@@ -10,7 +10,6 @@ import numpy as np
 
 from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.intrinsic import POISSON_NEEDLE_ANGLE
-from geoproc.geodesic.log_ode import UnweightedVertexError
 from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, LAPLACIANS, METHODS, OPERATORS, SOLVERS
 from geoproc.geodesic.operators import laplacian_and_mass
 from geoproc.mesh.topology import face_areas, mean_edge_length, referenced_vertices, vertex_components
@@ -229,9 +228,9 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     t0 = _now()
     try:
         d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
-    except UnweightedVertexError as exc:  # numbered in the part connected to a source: say which input vertex
-        raise UnweightedVertexError(int(keep[exc.vertex]), path) from None
     except InputError as exc:  # raised by a solver, which does not know the file
+        if getattr(exc, "vertex", None) is not None:  # log_ode.UnweightedVertexError, numbered in the
+            raise type(exc)(int(keep[exc.vertex]), path) from None  # part connected to a source: the input's
         if exc.path is None and path:
             raise InputError(path, exc.problem) from None
         raise

@@ -28,7 +28,6 @@ floating point and the window gets closer to f.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import Bounds, LinearConstraint, milp
 from scipy.sparse import coo_matrix
 
 from geoproc.morse.refine import vertex_type, vertex_types
@@ -215,6 +214,8 @@ def _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri, node_limit=200):
                 entries.append((p, -1.0))
         row(entries, tc + 1 - const, tc + 1 - const)
     n = ncol[0]
+    from scipy.optimize import Bounds, LinearConstraint, milp  # only where a window needs it (slow to import)
+
     A = coo_matrix((vals, (rows, cols)), shape=(len(rlo), n)).tocsr()
     cost = np.zeros(n)
     cost[k] = 1.0

@@ -15,7 +15,7 @@ import sys
 
 import pytest
 
-HEAVY = ("scipy", "numba", "igl", "trimesh", "pymeshlab", "matplotlib", "cvxpy")
+HEAVY = ("scipy", "scipy.optimize", "numba", "igl", "trimesh", "pymeshlab", "matplotlib", "cvxpy")
 
 _PROBE = """
 import atexit, sys
@@ -82,3 +82,21 @@ def test_info_on_a_small_mesh_runs_without_numba(fixture_dir):
     code, loaded, err = heavy_modules_loaded("info", fixture_dir / "torus.ply", "-q")
     assert code == 0, err
     assert "scipy" in loaded and "numba" not in loaded, loaded
+
+
+def test_heat_geodesics_run_without_numba(fixture_dir, tmp_path):
+    # numba (about 0.25 s to import) serves the log methods only; heat loaded it
+    # through an exception class imported from the log-ODE module
+    code, loaded, err = heavy_modules_loaded("geodesic", fixture_dir / "torus.ply", "-s", "0",
+                                             "-o", tmp_path / "d.ply", "-q")
+    assert code == 0, err
+    assert "scipy" in loaded and "numba" not in loaded, loaded
+
+
+def test_morse_simplify_loads_the_milp_solver_only_for_a_window(fixture_dir, tmp_path):
+    # scipy.optimize (about 0.45 s to import) serves the exact windows, which a
+    # smooth field on the torus does not need
+    code, loaded, err = heavy_modules_loaded("morse-simplify", fixture_dir / "torus.ply", "-f", "z", "-p", "0.1",
+                                             "--relative", "-o", tmp_path / "m.ply", "-q")
+    assert code == 0, err
+    assert "numba" in loaded and "scipy.optimize" not in loaded, loaded
