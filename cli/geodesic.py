@@ -102,7 +102,7 @@ def geodesic(
                          "divergence and Poisson Laplacian on the mesh (extrinsic), on its intrinsic Delaunay "
                          "triangulation (intrinsic: no sliver triangles; the heat step then uses its Laplacian "
                          "too), or auto: intrinsic when at least 0.5% of the faces have an angle below 5 "
-                         "degrees. Default: extrinsic for heat, auto for log-heat.",
+                         "degrees or any face an angle below 1e-6 rad. Default: auto.",
                          show_default=False)] = None,
     solver: Annotated[Solver, typer.Option("--solver", help="log-ode solver: lu (log-space LU, fast), "
                       "newton, or cvxpy (Clarabel; reference, slow).")] = Solver.lu,

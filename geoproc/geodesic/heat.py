@@ -32,15 +32,16 @@ class HeatMethodSolver:
     laplacian : {"cotan", "intrinsic-delaunay"}
         Laplacian of the heat step; with extrinsic operators the Poisson step
         uses the cotan Laplacian, the one consistent with the face gradient.
-    operators : {"extrinsic", "intrinsic", "auto"}
+    operators : {"auto", "extrinsic", "intrinsic"}
         Gradient, divergence and Poisson Laplacian on the mesh (the paper's
-        method) or on its intrinsic Delaunay triangulation, as in
-        :class:`geoproc.geodesic.log_heat.LogHeatSolver` (``auto``: intrinsic
-        on meshes with slivers). The choice made is in ``self.operators``.
+        operators) or on its intrinsic Delaunay triangulation, as in
+        :class:`geoproc.geodesic.log_heat.LogHeatSolver`; ``auto`` (default)
+        goes intrinsic on meshes with slivers. The choice made is in
+        ``self.operators``.
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, t: float, laplacian: str = "cotan",
-                 operators: str = "extrinsic"):
+                 operators: str = "auto"):
         self.n = len(V)
         ops = heat_operators(V, F, laplacian, operators)
         self.operators, self.axes = ops.kind, len(ops.coef)
@@ -92,6 +93,6 @@ class HeatMethodSolver:
 
 
 def heat_method_distance(V: np.ndarray, F: np.ndarray, sources: np.ndarray, t: float,
-                         laplacian: str = "cotan", operators: str = "extrinsic") -> np.ndarray:
+                         laplacian: str = "cotan", operators: str = "auto") -> np.ndarray:
     """(n,) heat-method distance from ``sources`` (see :class:`HeatMethodSolver`)."""
     return HeatMethodSolver(V, F, t, laplacian, operators).solve(sources)[0]

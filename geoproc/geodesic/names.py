@@ -22,6 +22,6 @@ DEFAULT_LAPLACIAN = {
     "log-heat": "intrinsic-delaunay",
 }
 #: Where heat and log-heat take gradient, divergence and the Poisson Laplacian
-#: unless told otherwise: the paper's extrinsic operators for heat; for
-#: log-heat, intrinsic on meshes with slivers (geoproc.geodesic.intrinsic).
-DEFAULT_OPERATORS = {"heat": "extrinsic", "log-heat": "auto"}
+#: unless told otherwise: on the mesh itself, or on its intrinsic Delaunay
+#: triangulation where the mesh has slivers (geoproc.geodesic.intrinsic).
+DEFAULT_OPERATORS = {"heat": "auto", "log-heat": "auto"}
