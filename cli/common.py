@@ -46,7 +46,17 @@ EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 T = TypeVar("T")
 ONE_STDIN = "standard input can feed only one input; give the others as files"
 
-stderr = Console(stderr=True, highlight=False, soft_wrap=True)
+
+
+class _StderrConsole(Console):
+    """The stderr console. On a closed pipe rich exits 1 (and sends stdout to
+    /dev/null); here the lines are dropped and the run keeps its exit code."""
+
+    def on_broken_pipe(self) -> None:
+        self.quiet = True
+
+
+stderr = _StderrConsole(stderr=True, highlight=False, soft_wrap=True)
 stdout = Console(highlight=False, soft_wrap=True)
 
 ReportOpt = Annotated[
@@ -69,11 +79,21 @@ NoCleanOpt = Annotated[
 ]
 
 
+def say(line: str) -> None:
+    """Print one line on stderr. A stderr that cannot be written (a closed pipe,
+    a full disk) loses the line but not the exit code: the run's outcome is its
+    outputs and its status, and a write error here would turn both into exit 1."""
+    try:
+        stderr.print(line, markup=False)
+    except OSError:
+        pass
+
+
 def _fail(message: str, code: int) -> typer.Exit:
     """Print ``error: <message>`` as one line (control characters and undecodable
     bytes, e.g. in file names, escaped as \\n, \\udcff) and return the exit."""
     line = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in message)
-    stderr.print(f"error: {line}", markup=False)
+    say(f"error: {line}")
     return typer.Exit(code)
 
 
@@ -225,7 +245,7 @@ class Run:
 
     def _flush_notes(self) -> None:
         for text in self._notes:
-            stderr.print(f"note: {text}", markup=False)
+            say(f"note: {text}")
         self._notes.clear()
 
     # ---- timing and progress -------------------------------------------
@@ -471,5 +491,5 @@ def command_run(
                     EXIT_INTERNAL) from None
     if failures:
         for line in failures:
-            stderr.print(line, markup=False)
+            say(line)
         raise typer.Exit(EXIT_CHECK_FAILED)

@@ -9,7 +9,7 @@ import typer
 
 import geoproc
 from geoproc_cli import denoise, geodesic, info, morse_simplify, perturb, wos_solve
-from geoproc_cli.common import EXIT_BAD_INPUT
+from geoproc_cli.common import EXIT_BAD_INPUT, say
 
 app = typer.Typer(
     name="geoproc",
@@ -53,13 +53,13 @@ def main() -> None:
     with exit code 2, like the errors of the subcommands themselves.
     """
     if len(sys.argv) == 1:  # bare `geoproc`: a usage error like any other
-        print("error: missing command: info, geodesic, wos-solve, morse-simplify, denoise or perturb "
-              "(see 'geoproc --help')", file=sys.stderr)
+        say("error: missing command: info, geodesic, wos-solve, morse-simplify, denoise or perturb "
+            "(see 'geoproc --help')")
         sys.exit(EXIT_BAD_INPUT)
     try:
         code = app(standalone_mode=False)
     except typer.Abort:
-        print("error: aborted", file=sys.stderr)
+        say("error: aborted")
         sys.exit(EXIT_BAD_INPUT)
     except Exception as exc:  # the parser's usage errors (click's ClickException family)
         if not callable(getattr(exc, "format_message", None)):
@@ -67,7 +67,7 @@ def main() -> None:
         ctx = getattr(exc, "ctx", None)
         hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
         message = " ".join(exc.format_message().split())
-        print(f"error: {message}{hint}", file=sys.stderr)
+        say(f"error: {message}{hint}")
         sys.exit(EXIT_BAD_INPUT)
     sys.exit(code if isinstance(code, int) else 0)
 

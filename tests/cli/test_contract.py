@@ -539,3 +539,33 @@ def test_report_params_are_the_options_that_applied(cli, fixture_dir, tmp_path):
     assert p.returncode == 0 and json.loads(rep.read_text())["params"]["output"] == str(out)
     p = cli("denoise", out, "-o", tmp_path / "c.ply", "--report", rep)
     assert p.returncode == 0 and json.loads(rep.read_text())["params"]["output"] == str(tmp_path / "c.ply")
+
+
+@pytest.mark.parametrize("sink", ["closed pipe", "/dev/full"])
+def test_an_unwritable_stderr_keeps_the_exit_code(sink, fixture_dir, tmp_path):
+    # rich exited 1 on a closed pipe, and a full device raised from the error
+    # printer: a bad input read as a failed --check, and a finished run as one
+    import subprocess
+    import sys
+
+    if sink == "/dev/full" and not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full here")
+
+    def status(*args):
+        if sink == "closed pipe":
+            r, w = os.pipe()
+            os.close(r)
+        else:
+            w = os.open("/dev/full", os.O_WRONLY)
+        try:
+            return subprocess.run([sys.executable, "-m", "geoproc_cli.main", *map(str, args)],
+                                  stdout=subprocess.DEVNULL, stderr=w, timeout=300).returncode
+        finally:
+            os.close(w)
+
+    assert status("info", tmp_path / "missing.ply") == 2
+    assert status("info", "--bogus") == 2
+    assert status("info", fixture_dir / "torus.ply", "--check", "genus==5") == 1
+    out = tmp_path / "p.ply"
+    # a run with a note for stderr (the quad's polygons are split into triangles)
+    assert status("perturb", fixture_dir / "quad.obj", "--seed", "1", "-o", out) == 0 and out.exists()
