@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Annotated
 
 import numpy as np
@@ -80,6 +81,9 @@ def perturb(
             refuse_options(ctx, ("direction", "impulsive"), "not used with --noise 0")
         if outliers == 0:
             refuse_options(ctx, ("outlier_range",), "only with --outliers FRACTION > 0")
+        elif output != "-" and os.path.splitext(output)[1].lower() not in (".ply", ".npz"):
+            raise UsageError(f"{output}: the outliers are flagged in a vertex property, which only PLY keeps; "
+                             "use a .ply output")
         if not outlier_range > 0:  # reached only with --outliers > 0 (refused above otherwise)
             raise UsageError(f"--outlier-range {outlier_range}: must be > 0 (0 would move no outlier)")
         spec = NoiseSpec(sigma=noise, direction=direction, impulsive=impulsive, outliers=outliers,

@@ -243,3 +243,23 @@ def test_npz_members_not_carried_are_noted(cli, tmp_path):
     assert p.returncode == 0, p.stderr
     assert f"note: {src}: not carried (only numeric arrays shaped (frames, n) travel): scale (3,)" in p.stderr
     assert sorted(np.load(out).files) == ["faces", "tag", "vertices"]
+
+
+def test_outlier_flags_need_a_ply_output(cli, fixture_dir, tmp_path):
+    # an .off output kept the moved vertices but not their flags, with exit 0 and a
+    # report counting the outliers
+    out = tmp_path / "p.off"
+    p = cli("perturb", fixture_dir / "torus.ply", "--outliers", "0.1", "--outlier-range", "0.01", "--seed", "1",
+            "-o", out)
+    assert p.returncode == 2 and "only PLY keeps" in p.stderr and p.stderr.count("\n") == 1
+    assert not list(tmp_path.iterdir())
+
+
+def test_properties_a_geometry_format_drops_are_noted(cli, fixture_dir, tmp_path):
+    src = tmp_path / "g.ply"
+    assert cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", src, "-q").returncode == 0
+    p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "p.obj")
+    assert p.returncode == 0
+    assert "note: " + str(tmp_path / "p.obj") + ": .obj keeps geometry only; not written: distance" in p.stderr
+    p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "p.ply")
+    assert p.returncode == 0 and "keeps geometry only" not in p.stderr
