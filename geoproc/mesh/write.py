@@ -37,6 +37,9 @@ def write_format(path: str | os.PathLike) -> str:
     """The mesh format to write ``path`` in, from its extension (one of
     :data:`WRITE_FORMATS`); UsageError for any other extension."""
     ext = file_extension(path)
+    if not ext:
+        raise UsageError(f"{os.fspath(path)}: no file extension to choose the format by; use .ply, .obj, .off "
+                         "or .stl")
     if ext not in WRITE_FORMATS:
         raise UsageError(f"{os.fspath(path)}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
     return ext

@@ -585,3 +585,13 @@ def test_unique_rows_match_numpy():
     assert np.array_equal(U, Un) and np.array_equal(inverse, inv_n.ravel())
     assert np.array_equal(U[inverse], P)
     assert unique_rows(np.zeros((0, 3)))[0].shape == (0, 3)
+
+
+def test_an_output_without_extension_says_so():
+    # 'out' was refused as "cannot write '.'"
+    from geoproc.errors import UsageError
+    from geoproc.mesh.write import write_format
+
+    with pytest.raises(UsageError, match="out: no file extension to choose the format by"):
+        write_format("folder.d/out")
+    assert write_format("a.b/out.PLY") == "ply"

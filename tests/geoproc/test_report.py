@@ -83,6 +83,13 @@ def test_a_check_without_a_number_names_its_operator(op):
     assert str(err.value) == f"--check 'x{op}': no number after '{op}'"
 
 
+@pytest.mark.parametrize("text,op", [("genus<>1", "<>"), ("genus<=>1", "<=>"), ("x>=<2", ">=<"), ("x==!1", "==!")])
+def test_an_unknown_operator_is_named(text, op):
+    # 'genus<>1' read as 'genus' < '>1' and blamed '>1' for not being a number
+    with pytest.raises(UsageError, match=f"unknown operator '{op}'"):
+        parse_check(text)
+
+
 def test_unknown_metric_is_a_usage_error_listing_names():
     with pytest.raises(UsageError, match="unknown metric 'nope'.*rmse"):
         evaluate_checks([parse_check("nope<1")], {"rmse": 0.1})
