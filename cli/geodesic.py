@@ -139,7 +139,7 @@ def geodesic(
     }
     with command_run("geodesic", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, render], inputs=[mesh, sources_file], metrics=METRICS, text_metrics=TEXT_METRICS,
-                     needs={"--reference": REFERENCE_METRICS} if reference is None else None) as run:
+                     needs=_metric_needs(m_name, reference)) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
         if output != "-" and not output.lower().endswith(".ply"):
@@ -172,14 +172,16 @@ def geodesic(
         fin = np.isfinite(d)
         run.metrics.update({
             "method": m_name, "vertices": m.n_vertices, "faces": m.n_faces,
-            "sources": len(set(srcs)), "mean_edge_length": res.h, "t": res.t,
-            "t_over_h2": None if res.t is None else res.t / res.h**2,
-            "steps": steps if m_name not in ("exact", "heat") else None,
+            "sources": len(set(srcs)), "mean_edge_length": res.h,
             "reachable_vertices": int(m.n_vertices - res.stats["unreachable_vertices"]),
             "nonfinite_distance_vertices": int((~fin).sum() - res.stats["unreachable_vertices"]),
             "max_distance": float(d[fin].max()) if fin.any() else None,
             "mean_distance": float(d[fin].mean()) if fin.any() else None,
         })
+        if res.t is not None:  # exact has no diffusion time, heat and exact no time steps: not reported
+            run.metrics.update({"t": res.t, "t_over_h2": res.t / res.h**2})
+        if m_name not in ("exact", "heat"):
+            run.metrics["steps"] = steps
         run.metrics.update(res.stats)
         if res.stats.get("operators") == "intrinsic":  # the heat step used the intrinsic Laplacian too
             run.params["laplacian"] = "intrinsic-delaunay"
@@ -211,6 +213,19 @@ def geodesic(
             with run.timer("render"):
                 title = f"{os.path.basename(mesh)}: {m_name}"
                 run.write_bytes(render, render_distance_png(m.V, m.F, d, sorted(set(srcs)), title=title))
+
+
+def _metric_needs(method: str, reference) -> dict[str, tuple[str, ...]]:
+    """The metrics this run will not report, by what would report them (for
+    ``command_run``'s ``needs``: a --check on them is refused before the work)."""
+    needs: dict[str, tuple[str, ...]] = {}
+    if reference is None:
+        needs["--reference"] = REFERENCE_METRICS
+    if method == "exact":
+        needs["a diffusion method (not -m exact)"] = ("t", "t_over_h2")
+    if method in ("exact", "heat"):
+        needs["-m varadhan, log-splitting, log-ode or log-heat (time steps)"] = ("steps",)
+    return needs
 
 
 def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | None) -> None:

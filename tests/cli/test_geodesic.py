@@ -396,3 +396,18 @@ def test_report_names_the_laplacian_the_intrinsic_operators_used(cli, fixture_di
     assert p.returncode == 0, p.stderr
     report = _report(rep)
     assert report["metrics"]["operators"] == "intrinsic" and report["params"]["laplacian"] == "intrinsic-delaunay"
+
+
+@pytest.mark.parametrize("method,metric", [("heat", "steps"), ("exact", "steps"), ("exact", "t"),
+                                           ("exact", "t_over_h2")])
+def test_a_check_on_a_metric_the_method_has_not_is_refused_before_the_work(cli, fixture_dir, tmp_path, method,
+                                                                           metric):
+    # heat has no time steps and exact no diffusion time: they were reported as
+    # null, so the check "failed" with exit 1 after the run, as if measured
+    out = tmp_path / "d.ply"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-m", method, "-o", out, "--check", f"{metric}<=5")
+    assert p.returncode == 2 and f"reports '{metric}' only with" in p.stderr and not out.exists()
+    rep = tmp_path / "r.json"
+    assert cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-m", method, "-o", out, "--report", rep,
+               "-q").returncode == 0
+    assert metric not in json.loads(rep.read_text())["metrics"]
