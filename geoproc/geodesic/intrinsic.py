@@ -30,17 +30,13 @@ with such a face, however few."""
 
 
 def sliver_share(V: np.ndarray, F: np.ndarray, angle_deg: float = SLIVER_ANGLE_DEG) -> float:
-    """Share of faces (0..1) whose smallest corner angle is below ``angle_deg`` degrees.
+    """Share of faces (0..1) whose smallest corner angle is below ``angle_deg``
+    degrees (degenerate faces count)."""
+    return _sliver_share(smallest_angles(V, F), angle_deg)
 
-    The smallest angle is opposite the shortest edge: ``sin(a_min) = 2 A / (l_max l_mid)``.
-    """
-    X = V[F]
-    e = np.linalg.norm(X[:, [1, 2, 0]] - X[:, [2, 0, 1]], axis=2)  # (m, 3) edge lengths
-    e.sort(axis=1)
-    dbl = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = dbl / (e[:, 2] * e[:, 1])
-    return float(np.mean(~(s >= np.sin(np.radians(angle_deg)))))
+
+def _sliver_share(angle: np.ndarray, angle_deg: float = SLIVER_ANGLE_DEG) -> float:
+    return float(np.mean(~(angle >= np.radians(angle_deg))))
 
 
 def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,8 +84,11 @@ def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str):
     """
     if operators not in OPERATORS:
         raise ValueError(f"unknown operators {operators!r}")
-    if operators == "intrinsic" or (operators == "auto" and (
-            sliver_share(V, F) >= SLIVER_SHARE or smallest_angles(V, F).min(initial=np.pi) < POISSON_NEEDLE_ANGLE)):
+    if operators == "auto":
+        angle = smallest_angles(V, F)
+        if not (_sliver_share(angle) >= SLIVER_SHARE or angle.min(initial=np.pi) < POISSON_NEEDLE_ANGLE):
+            return None
+    if operators in ("auto", "intrinsic"):
         return intrinsic_delaunay_mesh(V, F, boundary_negatives=True)
     return None
 

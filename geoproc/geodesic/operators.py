@@ -155,9 +155,9 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bo
     L = _drop_rounding_negatives(sp.csr_matrix(Li))
     if not np.isfinite(L.data).all():
         return None
-    off = sp.triu(L, 1, format="coo")
-    negative = off.data < 0
-    if negative.any() and not (boundary_negatives and _all_boundary_edges(off.row[negative], off.col[negative], Fi)):
+    row, col, w = upper_entries(L)
+    negative = w < 0
+    if negative.any() and not (boundary_negatives and _all_boundary_edges(row[negative], col[negative], Fi)):
         return None
     M = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
     return L, np.asarray(M.diagonal(), dtype=np.float64), np.asarray(Fi, dtype=np.int64), np.asarray(l)
@@ -195,10 +195,10 @@ def _moved_to_diagonal(L: sp.csr_matrix, i: np.ndarray, j: np.ndarray, v: np.nda
 
 def _drop_rounding_negatives(L: sp.csr_matrix, rounding: float = 1e-14) -> sp.csr_matrix:
     """Zero off-diagonal weights in (-rounding max|L|, 0), moving them onto the diagonal."""
-    off = sp.triu(L, 1, format="coo")
-    tiny = (off.data < 0) & (off.data > -rounding * max(1.0, float(np.abs(L.data).max())))
+    row, col, w = upper_entries(L)
+    tiny = (w < 0) & (w > -rounding * max(1.0, float(np.abs(L.data).max())))
     if tiny.any():
-        return _moved_to_diagonal(L, off.row[tiny], off.col[tiny], off.data[tiny])
+        return _moved_to_diagonal(L, row[tiny], col[tiny], w[tiny])
     L.eliminate_zeros()
     return L
 
@@ -212,10 +212,18 @@ def laplacian_and_mass(V: np.ndarray, F: np.ndarray, kind: str) -> tuple[sp.csr_
     raise ValueError(f"unknown Laplacian {kind!r}")
 
 
+def upper_entries(L: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows, columns and values of the stored entries above the diagonal
+    (``sp.triu(L, 1)``'s, in the order ``coo_matrix(L)`` gives them, without
+    building that matrix); ``L`` sparse or dense."""
+    C = sp.coo_matrix(L)
+    above = C.row < C.col
+    return C.row[above], C.col[above], C.data[above]
+
+
 def negative_offdiagonal_count(L: sp.spmatrix) -> int:
     """Number of undirected edges whose Laplacian weight is negative."""
-    off = sp.triu(L, 1, format="coo")
-    return int((off.data < 0).sum())
+    return int((upper_entries(L)[2] < 0).sum())
 
 
 def face_gradient_matrix(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
