@@ -47,7 +47,6 @@ T = TypeVar("T")
 ONE_STDIN = "standard input can feed only one input; give the others as files"
 
 
-
 class _StderrConsole(Console):
     """The stderr console. On a closed pipe rich exits 1 (and sends stdout to
     /dev/null); here the lines are dropped and the run keeps its exit code."""

@@ -229,8 +229,10 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     try:
         d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
     except InputError as exc:  # raised by a solver, which does not know the file
-        if getattr(exc, "vertex", None) is not None:  # log_ode.UnweightedVertexError, numbered in the
-            raise type(exc)(int(keep[exc.vertex]), path) from None  # part connected to a source: the input's
+        if getattr(exc, "vertex", None) is not None:
+            # log_ode.UnweightedVertexError names a vertex of the part connected to a
+            # source; say which input vertex it is
+            raise type(exc)(int(keep[exc.vertex]), path) from None
         if exc.path is None and path:
             raise InputError(path, exc.problem) from None
         raise
