@@ -24,15 +24,16 @@ POINTS = np.array([[0.0, 0.0], [0.5, 0.2], [-0.3, -0.6], [0.85, -0.1], [-0.2, 0.
 
 
 def test_distance_lower_bound_in_cells_with_many_candidates():
-    # a disk of 20,000 segments: the middle cells hold more than FAR_CELL_CANDIDATES segments
-    # and answer d* - |p - c| without a scan, which must stay a lower bound of the distance
+    # a disk of 20,000 segments: the middle cells are crowded (more than BVH_ABOVE
+    # candidates) and answer d* - |p - c| without a query, which must stay a lower
+    # bound of the distance
     import numba
 
-    from geoproc.wos.closest import FAR_CELL_CANDIDATES, distance_lower_bound
+    from geoproc.wos.closest import distance_lower_bound
 
     d = build_domain(wf.disk(20_000)["loops"])
     grid = build_segment_grid(d.A, d.B)
-    assert (np.diff(grid[5]) > FAR_CELL_CANDIDATES).any()
+    assert (grid[11] >= 0).any()
     P = np.random.default_rng(1).uniform(-0.99, 0.99, (4000, 2))
     P = P[np.linalg.norm(P, axis=1) < 0.99]
     exact = closest_points(P, d.A, d.B, grid)[0]
