@@ -44,7 +44,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from geoproc.wos.segment_bvh import build_segment_bvh, bvh_closest_point, bvh_segments_within
+from geoproc.wos.segment_bvh import build_segment_bvh, bvh_closest_point, bvh_segments_within, offset_segment_d2
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -52,17 +52,7 @@ def point_segment_d2(px, py, ax, ay, bx, by):
     """Squared distance from p to segment [a, b] and the parameter t of the closest point."""
     ex = bx - ax
     ey = by - ay
-    wx = px - ax
-    wy = py - ay
-    ee = ex * ex + ey * ey
-    t = (wx * ex + wy * ey) / ee if ee > 0.0 else 0.0
-    if t < 0.0:
-        t = 0.0
-    elif t > 1.0:
-        t = 1.0
-    dx = wx - t * ex
-    dy = wy - t * ey
-    return dx * dx + dy * dy, t
+    return offset_segment_d2(px - ax, py - ay, ex, ey, ex * ex + ey * ey)
 
 
 BVH_ABOVE = 256

@@ -108,13 +108,16 @@ def _box_d2(px, py, nodes, m):
 
 @numba.njit(cache=True, nogil=True)
 def _segment_d2(px, py, leaf, r):
-    """Squared distance from p to leaf-ordered segment r and the parameter of
-    its closest point (the arithmetic of ``closest.point_segment_d2``)."""
-    ex = leaf[r, 2]
-    ey = leaf[r, 3]
-    wx = px - leaf[r, 0]
-    wy = py - leaf[r, 1]
-    ee = leaf[r, 4]
+    """Squared distance from p to leaf-ordered segment r and the parameter of its closest point."""
+    return offset_segment_d2(px - leaf[r, 0], py - leaf[r, 1], leaf[r, 2], leaf[r, 3], leaf[r, 4])
+
+
+@numba.njit(cache=True, nogil=True)
+def offset_segment_d2(wx, wy, ex, ey, ee):
+    """Squared distance from a point at offset ``(wx, wy)`` from a segment's
+    start to the segment of direction ``(ex, ey)`` and squared length ``ee``,
+    and the parameter t in [0, 1] of the closest point (the arithmetic every
+    exact query and the grid's lists share)."""
     t = (wx * ex + wy * ey) / ee if ee > 0.0 else 0.0
     if t < 0.0:
         t = 0.0
@@ -125,6 +128,11 @@ def _segment_d2(px, py, leaf, r):
     return dx * dx + dy * dy, t
 
 
+STACK = 128
+"""Traversal stack size: a depth-first walk of the tree holds at most its depth
+plus one nodes, and the tree over any int64 count of segments is shallower."""
+
+
 @numba.njit(cache=True, nogil=True)
 def bvh_closest_point(px, py, nodes, leaf):
     """Closest point on the tree's segments to ``(px, py)``: (squared distance,
@@ -133,7 +141,7 @@ def bvh_closest_point(px, py, nodes, leaf):
     best = np.inf
     best_s = -1
     best_t = 0.0
-    stack = np.empty(64, dtype=np.int64)
+    stack = np.empty(STACK, dtype=np.int64)
     stack[0] = 0
     top = 1
     while top > 0:
@@ -152,10 +160,6 @@ def bvh_closest_point(px, py, nodes, leaf):
                     best_s = s
                     best_t = t
             continue
-        if top + 2 > stack.shape[0]:
-            grown = np.empty(2 * stack.shape[0], dtype=np.int64)
-            grown[:top] = stack[:top]
-            stack = grown
         c = 2 * m + 1
         if _box_d2(px, py, nodes, c) <= _box_d2(px, py, nodes, c + 1):  # the nearer child is popped first
             stack[top] = c + 1
@@ -178,7 +182,7 @@ def bvh_segments_within(px, py, r, nodes, leaf, out, limit):
     """
     n = 0
     reach = r * r * (1.0 + 1e-9) + 1e-300  # boxes: a margin over the rounding of the segment test
-    stack = np.empty(64, dtype=np.int64)
+    stack = np.empty(STACK, dtype=np.int64)
     stack[0] = 0
     top = 1
     while top > 0:
@@ -197,10 +201,6 @@ def bvh_segments_within(px, py, r, nodes, leaf, out, limit):
                     if n > limit:
                         return n
             continue
-        if top + 2 > stack.shape[0]:
-            grown = np.empty(2 * stack.shape[0], dtype=np.int64)
-            grown[:top] = stack[:top]
-            stack = grown
         stack[top] = 2 * m + 1
         stack[top + 1] = 2 * m + 2
         top += 2
