@@ -22,7 +22,7 @@ A single-precision copy of the candidates (relative to the grid origin) serves
 :func:`distance_lower_bound`, the cheap query walks use for steps that do not
 end the walk.
 
-The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids,
+The grid is a tuple ``(ox, oy, inv_cs, nx, ny, start, items, coords,
 coords32, margin, far, nodes, leaf)`` accepted by :func:`closest_point`:
 ``far`` holds ``d*`` for crowded cells and -1 for the others, ``nodes`` and
 ``leaf`` are the hierarchy; ``coords`` (k, 5) repeats each candidate's start,
@@ -113,8 +113,8 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     Returns
     -------
     tuple
-        ``(ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin, far, nodes,
-        leaf)`` for :func:`closest_point` and :func:`distance_lower_bound`.
+        ``(ox, oy, inv_cs, nx, ny, start, items, coords, coords32, margin, far, nodes, leaf)``
+        for :func:`closest_point` and :func:`distance_lower_bound`.
     """
     A = np.ascontiguousarray(A, dtype=np.float64)
     B = np.ascontiguousarray(B, dtype=np.float64)
@@ -155,8 +155,8 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     rel[:, 1] -= lo[1]
     coords32 = np.ascontiguousarray(rel.astype(np.float32))
     margin = 1e-6 * (span + float(np.abs(lo).max()) * 1e-3)
-    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, seg_ids, coords32,
-            margin, far) + bvh
+    return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, coords32, margin,
+            far) + bvh
 
 
 @numba.njit(cache=True, nogil=True)
@@ -173,7 +173,7 @@ def closest_point(px, py, A, B, grid):
     t : float
         Parameter of the closest point on the segment, in [0, 1].
     """
-    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin, far, nodes, leaf = grid
+    ox, oy, inv_cs, nx, ny, start, items, coords, coords32, margin, far, nodes, leaf = grid
     fi = (px - ox) * inv_cs
     fj = (py - oy) * inv_cs
     if not (0.0 <= fi < nx and 0.0 <= fj < ny):
@@ -213,7 +213,7 @@ def distance_lower_bound(px, py, grid):
     use it for every step that does not end the walk; :func:`closest_point` gives
     the exact (double precision) closest point.
     """
-    ox, oy, inv_cs, nx, ny, start, items, coords, seg_ids, coords32, margin, far, nodes, leaf = grid
+    ox, oy, inv_cs, nx, ny, start, items, coords, coords32, margin, far, nodes, leaf = grid
     fi = (px - ox) * inv_cs
     fj = (py - oy) * inv_cs
     if not (0.0 <= fi < nx and 0.0 <= fj < ny):

@@ -132,7 +132,7 @@ def wos_dirichlet(X, index0, walks, eps, max_steps, stream_seed, A, B, grid,
     mean = np.empty(n)
     var = np.empty(n)
     steps = np.zeros(n, dtype=np.int64)
-    eps_hi = eps + 4.0 * grid[10]
+    eps_hi = eps + 4.0 * grid[9]  # the grid's margin
     for k in prange(n):
         mean[k], var[k], steps[k] = wos_point(
             X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, eps_hi, max_steps,
@@ -148,7 +148,7 @@ def wos_dirichlet_serial(X, index0, walks, eps, max_steps, stream_seed, A, B, gr
     mean = np.empty(n)
     var = np.empty(n)
     steps = np.zeros(n, dtype=np.int64)
-    eps_hi = eps + 4.0 * grid[10]
+    eps_hi = eps + 4.0 * grid[9]  # the grid's margin
     for k in range(n):
         mean[k], var[k], steps[k] = wos_point(
             X[k, 0], X[k, 1], stream_state(stream_seed, index0 + k), walks, eps, eps_hi, max_steps,

@@ -65,7 +65,7 @@ def test_grid_lists_are_those_of_testing_every_cell_against_every_segment():
     d = build_domain(wf.square_with_holes(200)["loops"])
     g = build_segment_grid(d.A, d.B)
     ox, oy, inv_cs, nx, ny, start, items = g[:7]
-    assert (g[11] < 0).all()  # nothing crowded here
+    assert (g[10] < 0).all()  # nothing crowded here
     cs = 1.0 / inv_cs
     c = np.arange(nx * ny)
     centres = np.column_stack([ox + (c % nx + 0.5) * cs, oy + (c // nx + 0.5) * cs])
@@ -82,7 +82,7 @@ def test_a_boundary_of_100000_segments_has_no_long_list_and_exact_queries():
     # 3 million with 1,000 segments); they now go to the hierarchy
     d = build_domain(wf.disk(100_000)["loops"])
     g = build_segment_grid(d.A, d.B)
-    assert np.diff(g[5]).max() <= BVH_ABOVE and (g[11] >= 0).any()
+    assert np.diff(g[5]).max() <= BVH_ABOVE and (g[10] >= 0).any()
     rng = np.random.default_rng(3)
     r, th = np.sqrt(rng.uniform(0, 1.2, 120)), rng.uniform(0, 2 * np.pi, 120)  # some outside the disk
     P = np.column_stack([r * np.cos(th), r * np.sin(th)])
