@@ -49,7 +49,11 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
 def require_dirichlet_in_every_part(domain: Domain) -> None:
     """InputError naming a connected part of the domain whose whole boundary is
     Neumann: u is not unique there, and its walks would never stop (they ran to
-    the step cap and scored a Dirichlet segment of another part)."""
+    the step cap and scored a Dirichlet segment of another part). A domain
+    with no Dirichlet segment at all is named as such."""
+    if domain.neumann.all():
+        raise InputError(domain.source, "every boundary segment is Neumann; at least one "
+                         "Dirichlet segment is needed for a unique solution")
     part = domain.part_of[domain.loop_of]
     for p in np.unique(part):
         if domain.neumann[part == p].all():
@@ -88,9 +92,6 @@ class WalkProblem:
         if flux is not None and not domain.has_neumann:
             raise UsageError(f"--neumann given but {domain.source} marks no Neumann loops "
                              "(add \"neumann\": [loop indices] to the JSON)")
-        if domain.neumann.all():
-            raise InputError(domain.source, "every boundary segment is Neumann; at least one "
-                             "Dirichlet segment is needed for a unique solution")
         require_dirichlet_in_every_part(domain)
         require_finite_boundary_data(domain, boundary, flux)
         self.domain = domain
