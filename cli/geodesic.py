@@ -43,6 +43,8 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
 """Every metric ``geodesic`` can report (which ones a run reports depends on its method and options)."""
 TEXT_METRICS = ("method", "operators")
 """The metrics among them that are text (names), which ``--check`` cannot compare."""
+UNSTEPPED = ("exact", "heat")
+"""Methods without time steps: --steps is refused, and neither params nor metrics hold steps."""
 
 
 Laplacian = StrEnum("Laplacian", {name.replace("-", "_"): name for name in LAPLACIANS})
@@ -130,7 +132,7 @@ def geodesic(
         "mesh": mesh, "output": output, "sources": list(source or []), "sources_file": sources_file,
         # the options that apply: --time replaces -c, and heat and exact take no --steps
         "method": m_name, "time_factor": None if time is not None or m_name == "exact" else time_factor,
-        "time": time, "steps": None if m_name in ("exact", "heat") else steps,
+        "time": time, "steps": None if m_name in UNSTEPPED else steps,
         "laplacian": laplacian.value if laplacian else DEFAULT_LAPLACIAN.get(m_name),
         "operators": operators.value if operators else DEFAULT_OPERATORS.get(m_name),
         "solver": solver.value if m_name == "log-ode" else None,  # the only method that solves with it
@@ -180,7 +182,7 @@ def geodesic(
         })
         if res.t is not None:  # exact has no diffusion time, heat and exact no time steps: not reported
             run.metrics.update({"t": res.t, "t_over_h2": res.t / res.h**2})
-        if m_name not in ("exact", "heat"):
+        if m_name not in UNSTEPPED:
             run.metrics["steps"] = steps
         run.metrics.update(res.stats)
         if res.stats.get("operators") == "intrinsic":  # the heat step used the intrinsic Laplacian too
@@ -215,6 +217,7 @@ def geodesic(
                 run.write_bytes(render, render_distance_png(m.V, m.F, d, sorted(set(srcs)), title=title))
 
 
+
 def _metric_needs(method: str, reference) -> dict[str, tuple[str, ...]]:
     """The metrics this run will not report, by what would report them (for
     ``command_run``'s ``needs``: a --check on them is refused before the work)."""
@@ -223,7 +226,7 @@ def _metric_needs(method: str, reference) -> dict[str, tuple[str, ...]]:
         needs["--reference"] = REFERENCE_METRICS
     if method == "exact":
         needs["a diffusion method (not -m exact)"] = ("t", "t_over_h2")
-    if method in ("exact", "heat"):
+    if method in UNSTEPPED:
         needs["-m varadhan, log-splitting, log-ode or log-heat (time steps)"] = ("steps",)
     return needs
 
@@ -234,7 +237,7 @@ def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | Non
         refuse_options(ctx, ("time_factor", "time", "laplacian"), "not used by -m exact (no diffusion)")
     if len(options_given(ctx, "time_factor", "time")) == 2:
         raise UsageError("--time-factor and --time: give one (--time is the absolute t, --time-factor t / h^2)")
-    if method in ("exact", "heat"):
+    if method in UNSTEPPED:
         refuse_options(ctx, ("steps",), f"not used by -m {method} (no time stepping)")
     if method != "log-ode":
         refuse_options(ctx, ("solver",), "only with -m log-ode")
