@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from typing import Annotated
 
 import numpy as np
@@ -10,6 +9,7 @@ import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.errors import InputError, UsageError, frame_error
+from geoproc.fileio import file_extension
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import NoiseSpec, noise_scale, outlier_flags, perturb_positions
 from geoproc_cli.common import (
@@ -81,7 +81,7 @@ def perturb(
             refuse_options(ctx, ("direction", "impulsive"), "not used with --noise 0")
         if outliers == 0:
             refuse_options(ctx, ("outlier_range",), "only with --outliers FRACTION > 0")
-        elif output != "-" and os.path.splitext(output)[1].lower() not in (".ply", ".npz"):
+        elif output != "-" and file_extension(output) not in ("ply", "npz"):
             raise UsageError(f"{output}: the outliers are flagged in a vertex property, which only PLY keeps; "
                              "use a .ply output")
         if not outlier_range > 0:  # reached only with --outliers > 0 (refused above otherwise)
