@@ -70,7 +70,7 @@ class Domain:
     @property
     def area(self) -> float:
         """Signed area sum of the oriented loops (= area of the domain)."""
-        return float(sum(loop_signed_area(L) for L in self.loops))
+        return float(loop_signed_areas(self.loops).sum())
 
     @property
     def perimeter(self) -> float:
@@ -101,7 +101,45 @@ def loop_signed_area(L: np.ndarray) -> float:
     (a unit square offset by 1e8) does not lose its area to cancellation.
     """
     x, y = L[:, 0] - L[0, 0], L[:, 1] - L[0, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    # the two terms of the closing segment hold x[0] = y[0] = 0
+    return 0.5 * float(np.dot(x[:-1], y[1:]) - np.dot(x[1:], y[:-1]))
+
+
+def loop_signed_areas(loops: list[np.ndarray]) -> np.ndarray:
+    """(L,) :func:`loop_signed_area` of every loop, in one pass over all their
+    vertices (equal to it up to the order of the summation)."""
+    P = np.concatenate(loops)
+    count = np.array([len(L) for L in loops], dtype=np.int64)
+    start, nxt = loop_offsets(count)
+    R = P - np.repeat(P[start], count, axis=0)
+    x, y = R[:, 0], R[:, 1]
+    return 0.5 * np.add.reduceat(x * y[nxt] - x[nxt] * y, start)
+
+
+def loop_offsets(count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(start, nxt)`` for loops of ``count`` (L,) vertices stored one after
+    another: (L,) the index of each loop's first vertex, and (S,) the index of
+    the vertex after each one in its own loop (the last wraps to the first)."""
+    count = np.asarray(count, dtype=np.int64)
+    start = np.zeros(len(count), dtype=np.int64)
+    np.cumsum(count[:-1], out=start[1:])
+    nxt = np.arange(1, int(count.sum()) + 1, dtype=np.int64)
+    nxt[start + count - 1] = start
+    return start, nxt
+
+
+def _collinear(C: np.ndarray, span: float) -> bool:
+    """Whether the centred points ``C`` (n, 2) lie on a line: their smaller
+    singular value is at most 1e-12 of ``span`` times sqrt(n).
+
+    The SVD is taken only when the smaller eigenvalue of ``C^T C``, in closed
+    form, is below 1e-8 of its trace: above that, rounding (1e-15 of the trace)
+    cannot hide a singular value of 1e-4 of the root trace, which is at least
+    the span over sqrt(8), far above the threshold."""
+    a, b, c = float(C[:, 0] @ C[:, 0]), float(C[:, 0] @ C[:, 1]), float(C[:, 1] @ C[:, 1])
+    if 0.5 * (a + c) - float(np.hypot(0.5 * (a - c), b)) > 1e-8 * (a + c):
+        return False
+    return bool(np.linalg.svd(C, compute_uv=False)[-1] <= 1e-12 * max(span, 1e-300) * np.sqrt(len(C)))
 
 
 def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
@@ -145,18 +183,18 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         # drop repeated consecutive vertices (zero-length segments); a kept
         # vertex takes the flag of the segment that leaves its last copy (the
         # one of non-zero length), not that of the zero-length one
-        keep = np.any(L != np.roll(L, 1, axis=0), axis=1) if len(L) > 1 else np.ones(len(L), bool)
-        if len(L) > 1 and not keep.any():
-            keep[0] = True
+        keep = np.ones(len(L), bool)
+        if len(L) > 1:  # a vertex equal to the one before it (cyclically) is a repeat
+            np.any(L[1:] != L[:-1], axis=1, out=keep[1:])
+            keep[0] = bool(np.any(L[0] != L[-1])) or not keep[1:].any()
         kept = np.flatnonzero(keep)
-        L, nf = L[kept], nf[(np.roll(kept, -1) - 1) % len(nf)]
-        v = None if v is None else v[keep]
+        if len(kept) < len(L):
+            L, nf = L[kept], nf[np.concatenate((kept[1:], kept[:1])) - 1]
+            v = None if v is None else v[keep]
         if len(L) < 3:
             raise InputError(source, f"loop {k} is open or degenerate: a closed loop needs at least "
                              f"3 distinct vertices, got {len(L)}")
-        span = float(np.linalg.norm(L.max(axis=0) - L.min(axis=0)))
-        C = L - L.mean(axis=0)
-        if np.linalg.svd(C, compute_uv=False)[-1] <= 1e-12 * max(span, 1e-300) * np.sqrt(len(L)):
+        if _collinear(L - L.mean(axis=0), float(np.linalg.norm(L.max(axis=0) - L.min(axis=0)))):
             raise InputError(source, f"loop {k} encloses zero area (its vertices are collinear)")
         clean.append(L)
         flags.append(nf)
@@ -165,15 +203,15 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
     # orientation: depth = number of other loops containing the loop; even -> CCW
     outer, inner = _enclosing_pairs(clean)  # loop outer[i] encloses loop inner[i]
     depth = np.bincount(inner, minlength=len(clean))
-    for k, L in enumerate(clean):
-        ccw = loop_signed_area(L) > 0
-        if ccw != (depth[k] % 2 == 0):
-            # reversing a loop: vertex order reverses, segment j (v_j -> v_j+1) becomes
-            # segment n-2-j in the new order; keep flags attached to the same edge
-            clean[k] = L[::-1].copy()
-            flags[k] = np.roll(flags[k][::-1], -1)
-            vals[k] = None if vals[k] is None else vals[k][::-1].copy()
-    area = sum(loop_signed_area(L) for L in clean)
+    signed = loop_signed_areas(clean)
+    flip = (signed > 0) != (depth % 2 == 0)
+    for k in np.flatnonzero(flip).tolist():
+        # reversing a loop: vertex order reverses, segment j (v_j -> v_j+1) becomes
+        # segment n-2-j in the new order; keep flags attached to the same edge
+        clean[k] = clean[k][::-1].copy()
+        flags[k] = np.roll(flags[k][::-1], -1)
+        vals[k] = None if vals[k] is None else vals[k][::-1].copy()
+    area = float(np.where(flip, -signed, signed).sum())
     lo = np.concatenate(clean).min(axis=0)
     hi = np.concatenate(clean).max(axis=0)
     diag = float(np.linalg.norm(hi - lo))
@@ -181,13 +219,14 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         raise InputError(source, f"domain has zero area (area {area:.3g}, at most 1e-12 times its "
                                  f"bounding-box diagonal {diag:.3g} squared)")
     A = np.concatenate(clean)
-    B = np.concatenate([np.roll(L, -1, axis=0) for L in clean])
-    loop_of = np.concatenate([np.full(len(L), k, dtype=np.int64) for k, L in enumerate(clean)])
+    count = np.array([len(L) for L in clean], dtype=np.int64)
+    _, nxt = loop_offsets(count)
+    B = A[nxt]
+    loop_of = np.repeat(np.arange(len(clean), dtype=np.int64), count)
     seg_vals = None
     if values is not None:
         va = np.concatenate(vals)
-        vb = np.concatenate([np.roll(v, -1) for v in vals])
-        seg_vals = np.ascontiguousarray(np.stack([va, vb], axis=1))
+        seg_vals = np.ascontiguousarray(np.stack([va, va[nxt]], axis=1))
     return Domain(clean, np.ascontiguousarray(A), np.ascontiguousarray(B), loop_of,
                   np.concatenate(flags), seg_vals, source, part_of=_parts(outer, inner, depth))
 
@@ -242,10 +281,10 @@ def _require_extent_in_range(L: np.ndarray, k: int, source: str) -> None:
 
 def _check_simple(loops: list[np.ndarray], source: str) -> None:
     A = np.concatenate(loops)
-    B = np.concatenate([np.roll(L, -1, axis=0) for L in loops])
-    loop_of = np.concatenate([np.full(len(L), k, dtype=np.int64) for k, L in enumerate(loops)])
-    start = np.concatenate([[0], np.cumsum([len(L) for L in loops])[:-1]]).astype(np.int64)
     count = np.array([len(L) for L in loops], dtype=np.int64)
+    start, nxt = loop_offsets(count)
+    B = A[nxt]
+    loop_of = np.repeat(np.arange(len(loops), dtype=np.int64), count)
     i, j = _first_crossing(A, B, loop_of, start, count)
     if i >= 0:
         li, lj = loop_of[i], loop_of[j]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from geoproc.errors import InputError
-from geoproc.wos.domain import build_domain, load_domain_json, loop_signed_area
+from geoproc.wos.domain import build_domain, load_domain_json, loop_offsets, loop_signed_area, loop_signed_areas
 from geoproc.wos.mask import load_domain_mask, read_mask, trace_mask
 from tests.conftest import load_fixture_module
 
@@ -64,6 +64,40 @@ def test_area_far_from_the_origin(offset):
     # and gave 2.7e8 at 1e12
     square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float) + offset
     assert build_domain([square]).area == pytest.approx(1.0, rel=1e-9)
+
+
+def _regular_polygon(n, r, centre, ccw=True):
+    t = 2 * np.pi * np.arange(n) / n * (1 if ccw else -1)
+    return np.stack([centre[0] + r * np.cos(t), centre[1] + r * np.sin(t)], axis=1)
+
+
+def test_loop_signed_areas_of_regular_polygons():
+    # the area of a regular n-gon of circumradius r is n r^2 sin(2 pi / n) / 2,
+    # negative when it runs clockwise; loops of 3 to 1000 vertices, far from the origin too
+    cases = [(3, 1.0, (0, 0), True), (4, 2.0, (1e6, -3e6), False), (7, 0.5, (-2, 5), True),
+             (1000, 3.0, (1e8, 1e8), False), (5, 1e-3, (0.25, 0.75), True)]
+    loops = [_regular_polygon(n, r, c, ccw) for n, r, c, ccw in cases]
+    exact = np.array([(1 if ccw else -1) * n * r * r * np.sin(2 * np.pi / n) / 2 for n, r, _, ccw in cases])
+    np.testing.assert_allclose(loop_signed_areas(loops), exact, rtol=1e-9)
+    np.testing.assert_allclose([loop_signed_area(L) for L in loops], exact, rtol=1e-9)
+
+
+def test_loop_offsets():
+    start, nxt = loop_offsets(np.array([3, 1, 4]))
+    assert start.tolist() == [0, 3, 4]
+    assert nxt.tolist() == [1, 2, 0, 3, 5, 6, 7, 4]
+
+
+@pytest.mark.parametrize("height,collinear", [(1e-3, False), (1e-9, False), (1e-13, True), (0.0, True)])
+def test_thin_triangles_against_the_collinearity_threshold(height, collinear):
+    # a triangle of base 1 and height h: its centred vertices have a smaller singular
+    # value of h / sqrt(6) ~ 0.41 h, against the threshold 1e-12 * span * sqrt(3) ~ 1.7e-12
+    tri = [[0.0, 0.0], [1.0, 0.0], [0.5, height]]
+    if collinear:
+        with pytest.raises(InputError, match="collinear"):
+            build_domain([tri])
+    else:
+        assert build_domain([tri]).area == pytest.approx(height / 2, rel=1e-6)
 
 
 def test_many_nested_loops_are_oriented_by_depth():
