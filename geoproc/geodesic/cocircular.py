@@ -54,17 +54,19 @@ def _flip(Fi: np.ndarray, l: np.ndarray, f: int, c: int, g: int, d: int) -> None
 
 
 def _interior_edges(Fi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Every interior edge once: its half-edge ids ``f * 3 + c`` in the two
+    """Every interior edge of edge-manifold triangles once: its half-edge ids ``f * 3 + c`` in the two
     triangles (``h``, with endpoints a < b, and its twin ``t``) and the endpoints."""
     n = int(Fi.max()) + 1
     a, b = halfedges(np.roll(np.asarray(Fi, dtype=np.int64), -1, axis=1)).T  # f * 3 + c runs a -> b, opposite c
-    key = a * n + b
-    order = np.argsort(key)
-    twin_key = b * n + a
-    pos = np.clip(np.searchsorted(key[order], twin_key), 0, len(key) - 1)
-    twin = order[pos]
-    h = np.flatnonzero((key[twin] == twin_key) & (a < b))
-    return h, twin[h], a[h], b[h]
+    order = np.argsort(np.minimum(a, b) * n + np.maximum(a, b), kind="stable")
+    key = (np.minimum(a, b) * n + np.maximum(a, b))[order]
+    first = np.flatnonzero(key[1:] == key[:-1])  # the two half-edges of an edge sort side by side
+    p, q = order[first], order[first + 1]
+    p, q = p[a[p] == b[q]], q[a[p] == b[q]]  # opposite directions: an interior edge
+    h = np.where(a[p] < b[p], p, q)
+    t = np.where(a[p] < b[p], q, p)
+    s = np.argsort(h)
+    return h[s], t[s], a[h[s]], b[h[s]]
 
 
 def _cocircular(cot: np.ndarray, h: np.ndarray, t: np.ndarray, tol: float) -> np.ndarray:
