@@ -7,14 +7,15 @@ passes it to every frame, whose faces are the same.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
-from geoproc.denoise.face_geometry import face_edge_neighbors, face_ring_csr
+from geoproc.denoise.face_geometry import face_centroids, face_edge_neighbors, face_ring_csr
 from geoproc.denoise.guidance import patch_interior_edges
 from geoproc.denoise.validate import require_denoisable
+from geoproc.mesh.locality import inverse_permutation, morton_order
 from geoproc.mesh.orientation import consistent_orientation
 
 
@@ -41,12 +42,33 @@ class FaceConnectivity:
     flip: np.ndarray
     edge_nb: np.ndarray
     ring: tuple[np.ndarray, np.ndarray]
+    _work: tuple | None = field(default=None, repr=False)
 
     @cached_property
     def inside(self) -> tuple[np.ndarray, np.ndarray]:
         """The edges inside every ring patch
         (:func:`geoproc.denoise.guidance.patch_interior_edges`), built on first use."""
         return patch_interior_edges(self.ring, self.edge_nb)
+
+    def renumbered(self, vertex_order: np.ndarray, face_order: np.ndarray) -> FaceConnectivity:
+        """The same connectivity with vertex ``vertex_order[i]`` as vertex i and
+        face ``face_order[k]`` as face k (both (n,) and (m,) permutations)."""
+        inv = inverse_permutation(vertex_order)
+        F = inv[self.F[face_order]]
+        return FaceConnectivity(faces=inv[self.faces[face_order]], n=self.n, F=F, flip=self.flip[face_order],
+                                edge_nb=face_edge_neighbors(F), ring=face_ring_csr(F, self.n, 1))
+
+    def work_order(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray, FaceConnectivity]:
+        """``(vertex_order, face_order, renumbered)``: vertices and faces along a
+        Z-order curve (:func:`geoproc.mesh.locality.morton_order`) of the
+        positions ``V`` (n, 3), and :meth:`renumbered` in that order, where the
+        filters run with their neighbours close in memory. Computed from the
+        first positions given and kept: the frames of an animation share it."""
+        if self._work is None:
+            vo = morton_order(V)
+            fo = morton_order(face_centroids(V, self.F))
+            self._work = (vo, fo, self.renumbered(vo, fo))
+        return self._work
 
     def matches(self, F: np.ndarray, n: int) -> bool:
         """Whether this was built from faces ``F`` over ``n`` vertices."""

@@ -48,6 +48,7 @@ from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import unfold_faces, update_vertices
 from geoproc.errors import InputError, UsageError
+from geoproc.mesh.locality import inverse_permutation
 from geoproc.mesh.topology import boundary_vertices
 from geoproc.mesh.validate import mesh_arrays
 
@@ -349,7 +350,14 @@ def denoise_mesh(
         spatial_scale=sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale,
         guidance_mix=sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0,
         strong=strong, fine=strong and sched["coarse_weight"] < 0.5)
-    res = filter_and_fit(V, conn, method, p, plan, progress, initial_normals)
+    # the rounds run with faces and vertices renumbered along a space-filling curve
+    # (their neighbours close in memory), the result is put back in the input's order
+    vo, fo, work = conn.work_order(V)
+    res = filter_and_fit(V[vo], work, method, p, plan, progress,
+                         None if initial_normals is None else np.asarray(initial_normals)[fo])
+    res.V = res.V[inverse_permutation(vo)]
+    inv_fo = inverse_permutation(fo)
+    res.normals, res.feature = res.normals[inv_fo], res.feature[inv_fo]
     res.info = {"noise_median_dihedral_deg": noise_deg, "noise_roughness": rough, "coarseness_deg": coarse,
                 "dihedral_tail_ratio": tail if np.isfinite(tail) else None, "reoriented_faces": int(flip.sum()),
                 **res.info}
