@@ -257,6 +257,10 @@ def test_metrics_against_analytic_values(make_fixtures):
     assert e["hausdorff"] <= 0.01 / diag + 1e-12
     assert e["hausdorff"] > 0.5 * 0.01 / diag
     assert two_sided_hausdorff(V, F, V * 1.1, F) == pytest.approx(0.1, rel=1e-9)
+    # every vertex moved by 0.01: vertex_rmse is 0.01 over the reference's mean edge length
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    E = np.unique(np.sort(E, axis=1), axis=0)
+    assert e["vertex_rmse"] == pytest.approx(0.01 / np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean(), rel=1e-9)
     # mirroring in z maps a face normal n to (-nx, -ny, nz) (mirror, then the
     # reversed orientation): flipped exactly where nx^2 + ny^2 > nz^2
     N, _ = face_normals_and_areas(V, F)

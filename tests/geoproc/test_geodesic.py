@@ -113,6 +113,29 @@ def test_heat_on_open_grid_with_two_sources(make_fixtures):
     assert abs(d[0]) < 1e-3 and abs(d[1680]) < 1e-3
 
 
+def test_heat_on_open_mesh_averages_the_neumann_and_dirichlet_solutions(make_fixtures):
+    # Crane et al.'s boundary rule: the mean of the heat with free (Neumann) and with
+    # zero (Dirichlet) boundary values; with an interior source neither half is zero
+    import igl
+
+    V, F = make_fixtures.grid(21)
+    h = gd.mean_edge_length(V, F)
+    t, s = h * h, 220  # vertex (10, 10), the middle of the grid
+    solver = gd.HeatMethodSolver(V, F, t, operators="extrinsic")
+    L = sp.csc_matrix(igl.cotmatrix(V, F))
+    M = igl.massmatrix(V, F, igl.MASSMATRIX_TYPE_VORONOI).diagonal()
+    A = (sp.diags(M) - t * L).tocsc()
+    b = np.zeros(len(V))
+    b[s] = 1.0
+    neumann = spsolve(A, b)
+    lo, hi = V.min(axis=0), V.max(axis=0)  # the boundary of the square grid: its four sides
+    inner = np.flatnonzero(((V[:, :2] > lo[:2] + 1e-9) & (V[:, :2] < hi[:2] - 1e-9)).all(axis=1))
+    dirichlet = np.zeros(len(V))
+    dirichlet[inner] = spsolve(A[inner][:, inner].tocsc(), b[inner])
+    assert np.abs(dirichlet - neumann).max() > 5e-5 * neumann.max()  # the two differ (near the boundary)
+    np.testing.assert_allclose(solver.heat(np.array([s])), 0.5 * (neumann + dirichlet), rtol=1e-9, atol=1e-12)
+
+
 def test_heat_solver_reuses_its_factorization(make_fixtures):
     V, F = make_fixtures.icosphere(3)
     h = gd.mean_edge_length(V, F)
@@ -648,6 +671,22 @@ def _pulled_grid(make_fixtures, factor, n=30, count=150, seed=3):
         w = (i + di) * n + (j + dj)
         V[v] = V[w] + (V[v] - V[w]) * factor
     return V, F
+
+
+@pytest.mark.parametrize("count, kind", [(4, "extrinsic"), (6, "intrinsic")])
+def test_auto_operators_switch_at_half_a_percent_of_slivers(make_fixtures, count, kind):
+    # 4 pulled vertices make 8 of the 1682 faces slivers (0.48 %), 6 make 12 (0.71 %):
+    # auto goes intrinsic from 0.5 % of faces with an angle below 5 degrees
+    V, F = _pulled_grid(make_fixtures, 1e-2, count=count)
+    P = V[F]
+    cosines = [np.einsum("ij,ij->i", P[:, (k + 1) % 3] - P[:, k], P[:, (k + 2) % 3] - P[:, k])
+               / np.linalg.norm(P[:, (k + 1) % 3] - P[:, k], axis=1) / np.linalg.norm(P[:, (k + 2) % 3] - P[:, k], axis=1)
+               for k in range(3)]
+    slivers = int((np.degrees(np.arccos(np.clip(np.max(cosines, axis=0), -1, 1))) < 5.0).sum())
+    assert slivers == 2 * count and len(F) == 1682
+    h = gd.mean_edge_length(V, F)
+    assert gd.HeatMethodSolver(V, F, h * h).operators == kind
+    assert gd.LogHeatSolver(V, F, h * h).operators == kind
 
 
 def _mean_error_on_flat(V, d, s=0):

@@ -15,6 +15,21 @@ def sphere(make_fixtures):
     return make_fixtures.icosphere(5)  # 10,242 vertices: the sample std is within ~0.7 %
 
 
+def test_noise_scale_of_a_cloud_is_the_mean_nearest_neighbour_distance():
+    # a clustered cloud (a tight cluster and a sparse one), where the mean and the
+    # median of the nearest-neighbour distances differ by a factor of 5 or more;
+    # a point stored twice counts once
+    rng = np.random.default_rng(1)
+    P = np.vstack([rng.random((300, 3)) * 0.05, 2.0 + rng.random((60, 3))])
+    D = np.linalg.norm(P[:, None] - P[None], axis=2)
+    np.fill_diagonal(D, np.inf)
+    nearest = D.min(axis=1)
+    assert nearest.mean() > 5 * np.median(nearest)
+    empty = np.zeros((0, 3), dtype=np.int64)
+    assert noise_scale(P, empty) == pytest.approx(nearest.mean(), rel=1e-12)
+    assert noise_scale(np.vstack([P, P[:1]]), empty) == pytest.approx(nearest.mean(), rel=1e-12)
+
+
 @pytest.mark.parametrize("sigma", [0.2, 0.5])
 def test_normal_noise_has_requested_sigma(sphere, sigma):
     V, F = sphere

@@ -75,6 +75,21 @@ def test_naive_walks_are_unbiased():
     assert (se < 0.02).all()  # the check has teeth: 3 SE stays well below the data's range
 
 
+def test_reported_variance_is_unbiased_with_few_walks():
+    # with 4 walks the sample variance needs Bessel's factor 4/3: over 2000 points the mean
+    # squared error of the 4-walk mean must match the mean reported variance / 4
+    # (statistical spread of the ratio about 3 %; without the factor it reads 1.33)
+    pb = WalkProblem(DISK, RE_Z3, None, 1e-4)
+    rng = np.random.default_rng(8)
+    r = 0.9 * np.sqrt(rng.random(2000))
+    a = 2 * np.pi * rng.random(2000)
+    X = np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
+    mean, var, _ = pb.estimate(X, 4, pass_seed(1, 7))
+    err = mean - evaluate(RE_Z3, X[:, 0], X[:, 1])
+    ratio = np.mean(err ** 2) / np.mean(var / 4)
+    assert 0.88 < ratio < 1.12, ratio
+
+
 def test_control_variate_walks_are_unbiased():
     from geoproc.wos.fit import green_kernels
 
