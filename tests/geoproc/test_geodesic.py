@@ -679,9 +679,10 @@ def test_auto_operators_switch_at_half_a_percent_of_slivers(make_fixtures, count
     # auto goes intrinsic from 0.5 % of faces with an angle below 5 degrees
     V, F = _pulled_grid(make_fixtures, 1e-2, count=count)
     P = V[F]
-    cosines = [np.einsum("ij,ij->i", P[:, (k + 1) % 3] - P[:, k], P[:, (k + 2) % 3] - P[:, k])
-               / np.linalg.norm(P[:, (k + 1) % 3] - P[:, k], axis=1) / np.linalg.norm(P[:, (k + 2) % 3] - P[:, k], axis=1)
-               for k in range(3)]
+    cosines = []
+    for k in range(3):
+        u, v = P[:, (k + 1) % 3] - P[:, k], P[:, (k + 2) % 3] - P[:, k]
+        cosines.append(np.einsum("ij,ij->i", u, v) / np.linalg.norm(u, axis=1) / np.linalg.norm(v, axis=1))
     slivers = int((np.degrees(np.arccos(np.clip(np.max(cosines, axis=0), -1, 1))) < 5.0).sum())
     assert slivers == 2 * count and len(F) == 1682
     h = gd.mean_edge_length(V, F)
