@@ -70,6 +70,17 @@ def test_sources_file_and_stdout(cli, fixture_dir, tmp_path):
     assert np.abs(m.vertex_fields["distance"] - ref).max() < 1e-12
 
 
+def test_a_source_given_twice_counts_once(cli, fixture_dir, tmp_path):
+    rep = tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "-s", "0", "-s", "440", "-m", "exact",
+            "-o", tmp_path / "o.ply", "--report", rep, "-q")
+    assert p.returncode == 0, p.stderr
+    assert json.loads(rep.read_text())["metrics"]["sources"] == 2
+    out = load_mesh(tmp_path / "o.ply")
+    ref = np.minimum(np.linalg.norm(out.V - out.V[0], axis=1), np.linalg.norm(out.V - out.V[440], axis=1))
+    assert np.abs(out.vertex_fields["distance"] - ref).max() < 1e-12
+
+
 def test_sources_from_stdin_and_all_sources_against_exact(cli, fixture_dir, tmp_path):
     out, rep = tmp_path / "o.ply", tmp_path / "r.json"
     p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", "-", "-m", "exact", "-o", out,

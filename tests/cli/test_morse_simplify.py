@@ -88,6 +88,27 @@ def test_npy_field_and_curvature(cli, fixture_dir, tmp_path):
     assert m["minima_after"] - m["saddles_after"] + m["maxima_after"] == 0
 
 
+def test_pairs_of_exactly_the_threshold_count_as_kept(cli, fixture_dir, tmp_path):
+    # an integer field: pairs of persistence exactly P stay, and the counts add up
+    pytest.importorskip("gudhi")
+    from tests.geoproc.test_morse import gudhi_diagrams
+
+    mesh = load_mesh(fixture_dir / "icosphere.ply")
+    vals = np.random.default_rng(3).integers(0, 12, len(mesh.V)).astype(np.float64)
+    np.save(tmp_path / "k.npy", vals)
+    pers = np.concatenate([d[np.isfinite(d[:, 1]), 1] - d[np.isfinite(d[:, 1]), 0]
+                           for d in gudhi_diagrams(mesh.F, vals)[:2]])
+    pers = pers[pers > 0]
+    assert (pers == 3.0).sum() >= 3
+    rep = tmp_path / "r.json"
+    p = cli("morse-simplify", fixture_dir / "icosphere.ply", "--field", tmp_path / "k.npy", "--persistence", "3",
+            "-o", tmp_path / "k.ply", "--report", rep, "-q")
+    assert p.returncode == 0, p.stderr
+    m = metrics(rep)
+    # removed also counts the pairs of zero persistence that ties make (gudhi lists none)
+    assert m["pairs_kept"] == (pers >= 3.0).sum() and m["pairs_removed"] >= (pers < 3.0).sum()
+
+
 @pytest.mark.parametrize("name,needle", [("bowtie.obj", "vertex"), ("fin.obj", "edge")])
 def test_non_manifold_refused(cli, fixture_dir, tmp_path, name, needle):
     out = tmp_path / "o.ply"

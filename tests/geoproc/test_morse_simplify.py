@@ -123,6 +123,19 @@ def test_several_components():
     check_simplification(V, F, f, 0.1 * (f.max() - f.min()))
 
 
+def test_pairs_of_exactly_the_threshold_are_kept():
+    # integer values: many pairs have a persistence of exactly P, and "everything
+    # with persistence < P goes" must keep them (and count them as kept)
+    V, F = mfx.two_spheres(2)
+    f = np.random.default_rng(3).integers(0, 12, len(V)).astype(np.float64)
+    ref = gudhi_diagrams(F, f)
+    P = 3.0
+    exact = sum(int(np.sum(np.isclose(d[np.isfinite(d[:, 1]), 1] - d[np.isfinite(d[:, 1]), 0], P))) for d in ref[:2])
+    assert exact >= 3
+    s = check_simplification(V, F, f, P)
+    assert s.pairs_kept == len(finite_pairs(ref[0], P)) + len(finite_pairs(ref[1], P))
+
+
 def test_threshold_zero_keeps_f():
     V, F = mfx.two_spheres(1)
     f = mfx.noisy_height(V, seed=9)
