@@ -139,6 +139,24 @@ def test_ridge_fit_without_ridge_on_too_few_rows_is_the_minimum_norm_fit():
     assert np.allclose(np.append(sigma * scale, b + sigma @ mean), x_min, atol=1e-10)
 
 
+def test_ridge_fit_penalizes_the_coefficients_and_not_the_constant():
+    from geoproc.wos.fit import ridge_fit
+
+    # min |D x - u|^2 + alpha |x[:M]|^2 over the centred, scaled columns D and a free
+    # constant, solved independently as one stacked least-squares problem
+    rng = np.random.default_rng(2)
+    Phi = rng.random((40, 6)) * [1, 2, 3, 4, 5, 6] + 10.0
+    u = 5.0 + Phi @ rng.standard_normal(6) + 0.1 * rng.standard_normal(40)
+    alpha = 10.0
+    sigma, b, scale = ridge_fit(Phi, u, alpha)
+    mean = Phi.mean(axis=0)
+    D = np.hstack([(Phi - mean) / Phi.std(axis=0), np.ones((40, 1))])
+    R = np.hstack([np.sqrt(alpha) * np.eye(6), np.zeros((6, 1))])
+    x = np.linalg.lstsq(np.vstack([D, R]), np.concatenate([u, np.zeros(6)]), rcond=None)[0]
+    np.testing.assert_allclose(sigma * scale, x[:6], rtol=1e-9, atol=1e-12)
+    assert b == pytest.approx(x[6] - sigma @ mean, rel=1e-9)
+
+
 def test_ridge_fit_does_not_depend_on_the_length_unit():
     from geoproc.wos.fit import ridge_fit
 
