@@ -358,6 +358,26 @@ def test_log_ode_solver_and_newton_agree_at_tiny_time(make_fixtures):
     assert np.abs(w_lu - w_nt).max() < 1e-9 * np.abs(w_nt).max()
 
 
+def test_log_ode_step_polishes_a_slightly_wrong_factorization(make_fixtures):
+    # the simplified-Newton refinement of LogODESolver.step: with the factor's diagonal
+    # off by 1e-9 (relative) the log-space solve is off by about as much; the
+    # refinement, using those same factors, must bring it to the exact step without
+    # the Newton fallback (stepping the wrong way, it ends in the fallback)
+    V, F, L, M, h = _sphere_operators(make_fixtures, 3)
+    dt = h * h
+    solver = LogODESolver(L, M, dt)
+    indptr, indices, logabs, logdiag = solver.lu._U
+    solver.lu._U = (indptr, indices, logabs + 1e-9, logdiag + 1e-9)
+    b = np.zeros(len(M))
+    b[0] = 1.0 / M[0]
+    with np.errstate(divide="ignore"):
+        w_prev = np.log(b)
+    w, passes = solver.step(w_prev)
+    u = spsolve((sp.diags(M) - dt * L).tocsc(), M * b)
+    assert passes >= 1 and solver.fallbacks == 0
+    assert np.abs(np.exp(w) - u).max() < 1e-12 * u.max()
+
+
 def test_log_ode_refuses_negative_weights(make_fixtures):
     V, F = make_fixtures.icosphere(2)
     V = V * np.array([1.0, 1.0, 0.05])  # flattened: obtuse triangles, negative cotan weights
