@@ -32,8 +32,6 @@ class FaceConnectivity:
         (:func:`geoproc.mesh.orientation.consistent_orientation`).
     flip : (m,) bool faces that were turned.
     edge_nb : (m, 3) int64 :func:`geoproc.denoise.face_geometry.face_edge_neighbors` of F.
-    ring : CSR (indptr, indices) the faces sharing a vertex with each face
-        (:func:`geoproc.denoise.face_geometry.face_ring_csr`, one ring).
     """
 
     faces: np.ndarray
@@ -41,8 +39,13 @@ class FaceConnectivity:
     F: np.ndarray
     flip: np.ndarray
     edge_nb: np.ndarray
-    ring: tuple[np.ndarray, np.ndarray]
     _work: tuple | None = field(default=None, repr=False)
+
+    @cached_property
+    def ring(self) -> tuple[np.ndarray, np.ndarray]:
+        """The faces sharing a vertex with each face, as CSR (indptr, indices)
+        (:func:`geoproc.denoise.face_geometry.face_ring_csr`, one ring), built on first use."""
+        return face_ring_csr(self.F, self.n, 1)
 
     @cached_property
     def inside(self) -> tuple[np.ndarray, np.ndarray]:
@@ -56,7 +59,7 @@ class FaceConnectivity:
         inv = inverse_permutation(vertex_order)
         F = inv[self.F[face_order]]
         return FaceConnectivity(faces=inv[self.faces[face_order]], n=self.n, F=F, flip=self.flip[face_order],
-                                edge_nb=face_edge_neighbors(F), ring=face_ring_csr(F, self.n, 1))
+                                edge_nb=face_edge_neighbors(F))
 
     def work_order(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray, FaceConnectivity]:
         """``(vertex_order, face_order, renumbered)``: vertices and faces along a
@@ -88,5 +91,4 @@ def face_connectivity(F: np.ndarray, n: int) -> FaceConnectivity:
     faces = np.ascontiguousarray(F, dtype=np.int64)
     require_denoisable(faces, None)
     Fo, flip = consistent_orientation(faces)
-    return FaceConnectivity(faces=faces, n=int(n), F=Fo, flip=flip, edge_nb=face_edge_neighbors(Fo),
-                            ring=face_ring_csr(Fo, n, 1))
+    return FaceConnectivity(faces=faces, n=int(n), F=Fo, flip=flip, edge_nb=face_edge_neighbors(Fo))

@@ -330,14 +330,17 @@ def denoise_mesh(
         connectivity = face_connectivity(F, len(V))
     elif not connectivity.matches(F, len(V)):
         raise ValueError("connectivity was built from other faces or another vertex count")
-    conn = connectivity
-    F, flip, edge_nb = conn.F, conn.flip, conn.edge_nb
+    flip = connectivity.flip
     if initial_normals is not None and flip.any():
         initial_normals = np.where(flip[:, None], -initial_normals, initial_normals)
-    noise_deg = median_dihedral_deg(V, F, edge_nb)
-    rough = roughness(V, F, edge_nb)
+    # everything below runs with faces and vertices renumbered along a space-filling
+    # curve (their neighbours close in memory); the result is put back in the input's order
+    vo, fo, conn = connectivity.work_order(V)
+    Vw = V[vo]
+    noise_deg = median_dihedral_deg(Vw, conn.F, conn.edge_nb)
+    rough = roughness(Vw, conn.F, conn.edge_nb)
     needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
-    coarse, tail = smoothed_dihedral_stats(V, F, conn) if needs_schedule and rough >= 0.03 else (0.0, np.inf)
+    coarse, tail = smoothed_dihedral_stats(Vw, conn.F, conn) if needs_schedule and rough >= 0.03 else (0.0, np.inf)
     sched = default_schedule(rough, coarse, tail)
     # automatic schedule at strong noise: the last round repairs faces the fit
     # squashed against a crease; on finely meshed surfaces (the narrow-kernel
@@ -350,10 +353,7 @@ def denoise_mesh(
         spatial_scale=sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale,
         guidance_mix=sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0,
         strong=strong, fine=strong and sched["coarse_weight"] < 0.5)
-    # the rounds run with faces and vertices renumbered along a space-filling curve
-    # (their neighbours close in memory), the result is put back in the input's order
-    vo, fo, work = conn.work_order(V)
-    res = filter_and_fit(V[vo], work, method, p, plan, progress,
+    res = filter_and_fit(Vw, conn, method, p, plan, progress,
                          None if initial_normals is None else np.asarray(initial_normals)[fo])
     res.V = res.V[inverse_permutation(vo)]
     inv_fo = inverse_permutation(fo)
