@@ -53,18 +53,36 @@ def _flip(Fi: np.ndarray, l: np.ndarray, f: int, c: int, g: int, d: int) -> None
     l[g] = (bp, pq, qb)
 
 
-def _interior_edges(Fi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Every interior edge of edge-manifold triangles once: its half-edge ids ``f * 3 + c`` in the two
-    triangles (``h``, with endpoints a < b, and its twin ``t``) and the endpoints."""
+def _interior_edges(Fi: np.ndarray, l: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every interior edge once: its half-edge ids ``f * 3 + c`` in the two
+    triangles (``h``, with endpoints a < b, and its twin ``t``) and the endpoints.
+
+    An intrinsic triangulation may join two vertices by more than one edge
+    (the flips make a Delta-complex: camelhead's has such pairs), so the
+    vertex indices alone do not tell twins apart: half-edges are twins when
+    they join the same two vertices in opposite directions with the same
+    length ``l`` (m, 3) (stored once per flip, so equal to the bit). Edges
+    from a vertex to itself are left out.
+    """
     n = int(Fi.max()) + 1
     a, b = halfedges(np.roll(np.asarray(Fi, dtype=np.int64), -1, axis=1)).T  # f * 3 + c runs a -> b, opposite c
-    order = np.argsort(np.minimum(a, b) * n + np.maximum(a, b), kind="stable")
-    key = (np.minimum(a, b) * n + np.maximum(a, b))[order]
-    first = np.flatnonzero(key[1:] == key[:-1])  # the two half-edges of an edge sort side by side
-    p, q = order[first], order[first + 1]
-    p, q = p[a[p] == b[q]], q[a[p] == b[q]]  # opposite directions: an interior edge
-    h = np.where(a[p] < b[p], p, q)
-    t = np.where(a[p] < b[p], q, p)
+    length = np.asarray(l, dtype=np.float64).reshape(-1)
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    forward = a < b
+    idx = np.flatnonzero(a != b)
+    # groups of equal (vertex pair, length): forward half-edges first, each direction in id order
+    order = idx[np.lexsort((idx, ~forward[idx], length[idx], key[idx]))]
+    k, w, fw = key[order], length[order], forward[order]
+    new_group = np.r_[True, (k[1:] != k[:-1]) | (w[1:] != w[:-1])]
+    gid = np.cumsum(new_group) - 1
+    gstart = np.flatnonzero(new_group)
+    nfw = np.bincount(gid, weights=fw, minlength=len(gstart)).astype(np.int64)
+    nbw = np.diff(np.r_[gstart, len(order)]) - nfw
+    rank = np.arange(len(order)) - gstart[gid]
+    fpos = np.flatnonzero(fw)  # the j-th forward half-edge of a group pairs with its j-th backward one
+    fpos = fpos[rank[fpos] < nbw[gid[fpos]]]
+    h = order[fpos]
+    t = order[gstart[gid[fpos]] + nfw[gid[fpos]] + rank[fpos]]
     s = np.argsort(h)
     return h[s], t[s], a[h[s]], b[h[s]]
 
@@ -79,11 +97,27 @@ def cocircular_edges(Fi: np.ndarray, l: np.ndarray, tol: float = TOL) -> np.ndar
     """(k, 2) vertex pairs of the interior edges whose two triangles are
     cocircular (see :func:`canonical_cocircular_diagonals`): their cotangent
     weight is zero, up to rounding."""
+    return cocircular_edge_weights(Fi, l, tol)[0]
+
+
+def cocircular_edge_weights(Fi: np.ndarray, l: np.ndarray,
+                            tol: float = TOL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The cocircular edges of the triangulation ``(Fi, l)``: (k, 2) their
+    vertex pairs (:func:`cocircular_edges`), (k,) their cotangent weights
+    ``(cot a + cot b) / 2`` (zero up to rounding), and (k,) bool whether each is
+    the only edge joining its two vertices (an intrinsic triangulation may
+    join them by two; the Laplacian's entry then sums both weights)."""
     if len(Fi) == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    h, t, a, b = _interior_edges(Fi)
-    on = _cocircular(corner_cotangents(l).ravel(), h, t, tol)
-    return np.stack([a[on], b[on]], axis=1)
+        return np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0, dtype=bool)
+    h, t, a, b = _interior_edges(Fi, l)
+    cot = corner_cotangents(l).ravel()
+    on = _cocircular(cot, h, t, tol)
+    n = int(np.max(Fi)) + 1
+    ha, hb = halfedges(np.asarray(Fi, dtype=np.int64)).T
+    keys = np.sort(np.minimum(ha, hb) * n + np.maximum(ha, hb))
+    k = a[on] * n + b[on]
+    halves = np.searchsorted(keys, k, side="right") - np.searchsorted(keys, k, side="left")
+    return np.stack([a[on], b[on]], axis=1), 0.5 * (cot[h[on]] + cot[t[on]]), halves == 2
 
 
 def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = TOL,
@@ -115,7 +149,7 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
         return Fi, l, 0, np.zeros((0, 2), dtype=np.int64)
     total = 0
     for _ in range(max_passes):
-        h, t, a, b = _interior_edges(Fi)
+        h, t, a, b = _interior_edges(Fi, l)
         p, q = Fi.ravel()[h], Fi.ravel()[t]
         on = _cocircular(corner_cotangents(l).ravel(), h, t, tol)
         want = on & (np.minimum(p, q) < np.minimum(a, b))

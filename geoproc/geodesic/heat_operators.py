@@ -59,6 +59,8 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     see :func:`geoproc.geodesic.intrinsic.face_operators_triangulation`).
     Intrinsic falls back to extrinsic where the triangulation does not apply.
     """
+    if len(F) == 0:  # libigl's operators crash on an empty face list
+        raise ValueError("the mesh has no faces")
     tri = face_operators_triangulation(V, F, operators)
     if tri is not None:
         L, M, Fi, lengths = tri

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.geodesic.cocircular import canonical_cocircular_diagonals
+from geoproc.geodesic.cocircular import canonical_cocircular_diagonals, cocircular_edge_weights
 from geoproc.mesh.topology import boundary_edges, face_areas
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
@@ -77,7 +77,9 @@ def lumped_mass(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def is_edge_manifold_nondegenerate(V: np.ndarray, F: np.ndarray) -> bool:
-    """True when no edge has more than two faces and every face has positive area."""
+    """True when there are faces, no edge has more than two and every face has positive area."""
+    if len(F) == 0:
+        return False
     E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
     key = np.sort(E[:, 0] * len(V) + E[:, 1])
     return bool(not (key[2:] == key[:-2]).any() and (face_areas(V, F) > 0).all())  # no key three times
@@ -152,7 +154,7 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bo
     if flips or len(zero):
         Li = igl.cotmatrix_intrinsic(l, Fi)
         Li.resize((len(V), len(V)))  # vertices after the last one a face uses
-        Li = _without_weights(sp.csr_matrix(Li), zero)  # zero in exact arithmetic
+        Li = _without_weights(sp.csr_matrix(Li), *cocircular_edge_weights(Fi, l))  # zero in exact arithmetic
     L = _drop_rounding_negatives(sp.csr_matrix(Li))
     if not np.isfinite(L.data).all():
         return None
@@ -175,12 +177,15 @@ def _all_boundary_edges(i: np.ndarray, j: np.ndarray, F: np.ndarray) -> bool:
     return bool(np.isin(np.minimum(i, j) * n + np.maximum(i, j), key).all())
 
 
-def _without_weights(L: sp.csr_matrix, E: np.ndarray) -> sp.csr_matrix:
-    """L with the weights of the edges E (k, 2) set to zero (rows still sum to zero)."""
+def _without_weights(L: sp.csr_matrix, E: np.ndarray, w: np.ndarray, single: np.ndarray) -> sp.csr_matrix:
+    """L without the weights w (k,) of the edges E (k, 2), moved onto the
+    diagonal (rows still sum to zero). Where an edge is the only one joining
+    its two vertices (``single``) its entry is cleared exactly; where another
+    edge joins them too, only w is taken from the entry they share."""
     if len(E) == 0:
         return L
     i, j = E[:, 0], E[:, 1]
-    return _moved_to_diagonal(L, i, j, np.asarray(L[i, j]).ravel())
+    return _moved_to_diagonal(L, i, j, np.where(single, np.asarray(L[i, j]).ravel(), w))
 
 
 def _moved_to_diagonal(L: sp.csr_matrix, i: np.ndarray, j: np.ndarray, v: np.ndarray) -> sp.csr_matrix:

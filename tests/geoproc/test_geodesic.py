@@ -136,6 +136,15 @@ def test_heat_on_open_mesh_averages_the_neumann_and_dirichlet_solutions(make_fix
     np.testing.assert_allclose(solver.heat(np.array([s])), 0.5 * (neumann + dirichlet), rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.parametrize("solver", ["HeatMethodSolver", "LogHeatSolver"])
+@pytest.mark.parametrize("operators", ["auto", "intrinsic", "extrinsic"])
+def test_a_mesh_without_faces_is_refused(solver, operators):
+    # libigl's operators end the process on an empty face list (a segmentation fault)
+    V = np.random.default_rng(0).random((4, 3))
+    with pytest.raises(ValueError, match="no faces"):
+        getattr(gd, solver)(V, np.zeros((0, 3), dtype=np.int64), 1.0, operators=operators)
+
+
 def test_heat_solver_reuses_its_factorization(make_fixtures):
     V, F = make_fixtures.icosphere(3)
     h = gd.mean_edge_length(V, F)
@@ -667,6 +676,53 @@ def test_cocircular_quads_take_the_diagonal_of_their_smallest_vertex(fixture_dir
         assert all(min(q) in e for q, e in zip(quads, E.tolist(), strict=True))
     assert all(np.array_equal(sorted(map(tuple, np.sort(o, axis=1))), sorted(map(tuple, np.sort(out[0], axis=1))))
                for o in out[1:])
+
+
+def _scaled_vertices(make_fixtures, seed, cube):
+    """A grid or a cube with a few vertices scaled away from the origin: their
+    intrinsic Delaunay triangulations can join a vertex pair by two edges."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 16))
+    V, F = make_fixtures.cube(int(rng.integers(2, 6))) if cube else make_fixtures.grid(n)
+    V = V.copy()
+    idx = rng.choice(len(V), int(rng.integers(1, 6)), replace=False)
+    V[idx] *= rng.uniform(1.5, 5)
+    return V, np.ascontiguousarray(F, dtype=np.int64)
+
+
+@pytest.mark.parametrize("seed, cube", [(23, False), (11, False), (12, True)])
+def test_twin_half_edges_of_an_intrinsic_triangulation_with_double_edges(make_fixtures, seed, cube):
+    # twins are told apart by their length, not only by their two vertices: pairing by
+    # vertices alone matched half-edges of different edges, missed cocircular quads
+    # and zeroed the weight of an edge that is not cocircular
+    import igl
+
+    from geoproc.geodesic.cocircular import _interior_edges
+    from geoproc.mesh.topology import halfedges
+
+    V, F = _scaled_vertices(make_fixtures, seed, cube)
+    Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(V, F)
+    Fi, l = np.asarray(Fi, dtype=np.int64), np.asarray(l)
+    h, t, a, b = _interior_edges(Fi, l)
+    ha, hb = halfedges(np.roll(Fi, -1, axis=1)).T
+    both = np.concatenate([h, t])
+    assert len(np.unique(both)) == len(both)  # each half-edge in one pair at most
+    assert np.array_equal(ha[h], hb[t]) and np.array_equal(hb[h], ha[t]) and (a < b).all()
+    assert np.array_equal(l.ravel()[h], l.ravel()[t])
+    keys = np.minimum(ha, hb) * len(V) + np.maximum(ha, hb)
+    _, count = np.unique(keys, return_counts=True)
+    loops = int((ha == hb).sum())  # half-edges from a vertex to itself are left out
+    edges = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    boundary = int((np.unique(edges, axis=0, return_counts=True)[1] == 1).sum())  # flips keep the boundary
+    assert 2 * len(h) == 3 * len(Fi) - boundary - loops
+    if not cube:
+        assert (count > 2).any()  # the double edges are there
+    # the canonical diagonals change only weights that are zero: L is libigl's
+    from geoproc.geodesic.operators import intrinsic_delaunay_mesh
+
+    L = intrinsic_delaunay_mesh(V, F, boundary_negatives=True)[0].toarray()
+    Lref = np.asarray(sp.csr_matrix(Li).todense())
+    assert np.abs(L - Lref).max() <= 1e-9 * np.abs(Lref).max()
 
 
 def _faces_of_edges(Fi, E):
