@@ -167,7 +167,7 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         raise InputError(source, "no boundary loops")
     clean, flags, vals = [], [], []
     for k, raw in enumerate(loops):
-        L = np.asarray(raw, dtype=np.float64)
+        L = np.array(raw, dtype=np.float64)  # a copy: the domain must not share the caller's array
         if L.ndim != 2 or L.shape[1] != 2:
             raise InputError(source, f"loop {k} is not a list of [x, y] points")
         if not np.isfinite(L).all():

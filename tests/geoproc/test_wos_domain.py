@@ -82,6 +82,16 @@ def test_loop_signed_areas_of_regular_polygons():
     np.testing.assert_allclose([loop_signed_area(L) for L in loops], exact, rtol=1e-9)
 
 
+def test_the_domain_keeps_its_own_copy_of_the_loops():
+    sq = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    closed = np.vstack([sq, sq[:1]])  # the first vertex repeated at the end
+    d, e = build_domain([sq]), build_domain([closed])
+    sq *= 2.0
+    closed *= 2.0
+    assert d.area == pytest.approx(1.0) and e.area == pytest.approx(1.0)
+    assert d.loops[0].max() == 1.0 and e.loops[0].max() == 1.0
+
+
 def test_loop_offsets():
     start, nxt = loop_offsets(np.array([3, 1, 4]))
     assert start.tolist() == [0, 3, 4]
