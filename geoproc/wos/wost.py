@@ -27,6 +27,7 @@ import numpy as np
 from numba import prange
 
 from geoproc.wos.closest import closest_point, point_segment_d2
+from geoproc.wos.domain import loop_offsets
 from geoproc.wos.kernels import cv_gradient
 from geoproc.wos.program import eval_program
 from geoproc.wos.rng import next_uniform, stream_state
@@ -40,13 +41,10 @@ def silhouette_candidates(A: np.ndarray, B: np.ndarray, neumann: np.ndarray,
     """Vertices joining two Neumann segments: (U, V, Wn) each (k, 2).
 
     ``V`` is the shared vertex, ``U`` the start of the segment ending at ``V`` and
-    ``Wn`` the end of the segment starting there.
+    ``Wn`` the end of the segment starting there. ``loop_of`` numbers the
+    loops in the order their segments are stored (as :class:`geoproc.wos.domain.Domain` does).
     """
-    S = len(A)
-    nxt = np.empty(S, dtype=np.int64)
-    for lp in np.unique(loop_of):
-        idx = np.flatnonzero(loop_of == lp)
-        nxt[idx] = np.roll(idx, -1)
+    _, nxt = loop_offsets(np.bincount(loop_of))
     sel = np.flatnonzero(neumann & neumann[nxt])
     return (np.ascontiguousarray(A[sel]), np.ascontiguousarray(B[sel]),
             np.ascontiguousarray(B[nxt[sel]]))

@@ -184,6 +184,25 @@ RECT = build_domain(wf.rectangle_neumann()["loops"], neumann_segments=[np.array(
 RECT_PTS = np.array([[0.3, 0.5], [1.0, 0.1], [1.7, 0.9], [1.0, 0.5]])
 
 
+def test_silhouette_candidates_are_the_vertices_between_two_neumann_segments():
+    from geoproc.wos.wost import silhouette_candidates
+
+    outer = [[0, 0], [4, 0], [4, 4], [0, 4]]
+    hole = [[1, 1], [1, 2], [2, 2], [2, 1]]
+    tri = [[3, 3], [3.5, 3], [3, 3.5]]
+    flags = [np.array([1, 1, 0, 1], bool), np.ones(4, bool), np.array([1, 0, 1], bool)]
+    d = build_domain([outer, hole, tri], flags)
+    U, V, W = silhouette_candidates(d.A, d.B, d.neumann, d.loop_of)
+    expected = set()  # every loop vertex whose incoming and outgoing segments are Neumann, by brute force
+    for k in range(3):
+        seg = np.flatnonzero(d.loop_of == k)
+        for p, q in zip(seg, np.roll(seg, -1), strict=True):
+            if d.neumann[p] and d.neumann[q]:
+                expected.add((tuple(d.A[p]), tuple(d.B[p]), tuple(d.B[q])))
+    got = {(tuple(u), tuple(v), tuple(w)) for u, v, w in zip(U, V, W, strict=True)}
+    assert got == expected and len(U) == len(expected) == 2 + 4 + 1
+
+
 # flux = du/dn with the outward normal: (0, -1) at the bottom y = 0, (0, 1) at the top y = 1
 @pytest.mark.parametrize("u,flux", [("x", None), ("y", "2*y - 1"), ("x*y - 0.5*x", "x*(2*y - 1)")])
 def test_wost_rectangle_with_flux_is_unbiased(u, flux):
