@@ -57,9 +57,10 @@ class FaceConnectivity:
         """The same connectivity with vertex ``vertex_order[i]`` as vertex i and
         face ``face_order[k]`` as face k (both (n,) and (m,) permutations)."""
         inv = inverse_permutation(vertex_order)
-        F = inv[self.F[face_order]]
-        return FaceConnectivity(faces=inv[self.faces[face_order]], n=self.n, F=F, flip=self.flip[face_order],
-                                edge_nb=face_edge_neighbors(F))
+        nb = self.edge_nb[face_order]  # the corners keep their order: the same neighbours, renamed
+        return FaceConnectivity(faces=inv[self.faces[face_order]], n=self.n, F=inv[self.F[face_order]],
+                                flip=self.flip[face_order],
+                                edge_nb=np.where(nb >= 0, inverse_permutation(face_order)[nb], -1))
 
     def work_order(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray, FaceConnectivity]:
         """``(vertex_order, face_order, renumbered)``: vertices and faces along a

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from geoproc.denoise import denoise_mesh, face_connectivity
+from geoproc.denoise.face_geometry import face_edge_neighbors, face_ring_csr
 from geoproc.errors import InputError
 
 
@@ -62,3 +63,5 @@ def test_renumbered_faces_give_the_input_order_back(dfx_noisy_cube):
     vo, fo, work = conn.work_order(V)
     assert np.array_equal(np.sort(vo), np.arange(len(V))) and np.array_equal(np.sort(fo), np.arange(len(F)))
     assert np.array_equal(np.argsort(vo)[conn.F[fo]], work.F) and work is conn.work_order(V[::-1])[2]
+    assert np.array_equal(work.edge_nb, face_edge_neighbors(work.F))
+    assert all(np.array_equal(x, y) for x, y in zip(work.ring, face_ring_csr(work.F, len(V), 1), strict=True))
