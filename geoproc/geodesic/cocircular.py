@@ -109,9 +109,19 @@ def cocircular_edge_weights(Fi: np.ndarray, l: np.ndarray,
     join them by two; the Laplacian's entry then sums both weights)."""
     if len(Fi) == 0:
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0), np.zeros(0, dtype=bool)
+    return _edge_weights(Fi, *_cocircular_pairs(Fi, l, tol))
+
+
+def _cocircular_pairs(Fi: np.ndarray, l: np.ndarray, tol: float):
+    """:func:`_interior_edges` ``(h, t, a, b)``, the corner cotangents (3m,) and
+    which of the edges are cocircular (bool)."""
     h, t, a, b = _interior_edges(Fi, l)
     cot = corner_cotangents(l).ravel()
-    on = _cocircular(cot, h, t, tol)
+    return h, t, a, b, cot, _cocircular(cot, h, t, tol)
+
+
+def _edge_weights(Fi, h, t, a, b, cot, on) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`cocircular_edge_weights` from :func:`_cocircular_pairs`'s output."""
     n = int(np.max(Fi)) + 1
     ha, hb = halfedges(np.asarray(Fi, dtype=np.int64)).T
     keys = np.sort(np.minimum(ha, hb) * n + np.maximum(ha, hb))
@@ -121,7 +131,7 @@ def cocircular_edge_weights(Fi: np.ndarray, l: np.ndarray,
 
 
 def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = TOL,
-                                   max_passes: int = 64) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+                                   max_passes: int = 64) -> tuple[np.ndarray, np.ndarray, int, tuple]:
     """Flip every cocircular quad of an intrinsic Delaunay triangulation to the
     diagonal that holds its smallest vertex index.
 
@@ -141,29 +151,28 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
     -------
     Fi, l : the triangulation after the flips (copies; the inputs when none);
     flips : int, how many edges were flipped;
-    edges : (k, 2) its cocircular edges (:func:`cocircular_edges`), found on the way.
+    cocircular : its :func:`cocircular_edge_weights` (edges, weights, single), found on the way.
     """
     Fi = np.asarray(Fi, dtype=np.int64)
     l = np.asarray(l, dtype=np.float64)
     if len(Fi) == 0:
-        return Fi, l, 0, np.zeros((0, 2), dtype=np.int64)
+        return Fi, l, 0, cocircular_edge_weights(Fi, l, tol)
     total = 0
     for _ in range(max_passes):
-        h, t, a, b = _interior_edges(Fi, l)
+        pairs = _cocircular_pairs(Fi, l, tol)
+        h, t, a, b, _, on = pairs
         p, q = Fi.ravel()[h], Fi.ravel()[t]
-        on = _cocircular(corner_cotangents(l).ravel(), h, t, tol)
         want = on & (np.minimum(p, q) < np.minimum(a, b))
-        h, t = h[want], t[want]
-        if len(h) == 0:
-            return Fi, l, total, np.stack([a[on], b[on]], axis=1)
+        if not want.any():
+            return Fi, l, total, _edge_weights(Fi, *pairs)
         if total == 0:
             Fi, l = Fi.copy(), l.copy()
         used = np.zeros(len(Fi), dtype=bool)
-        for he, tw in zip(h.tolist(), t.tolist(), strict=True):
+        for he, tw in zip(h[want].tolist(), t[want].tolist(), strict=True):
             f, g = he // 3, tw // 3
             if used[f] or used[g]:
                 continue  # this pass already changed one of its triangles
             used[f] = used[g] = True
             _flip(Fi, l, f, he % 3, g, tw % 3)
             total += 1
-    return Fi, l, total, cocircular_edges(Fi, l, tol)
+    return Fi, l, total, cocircular_edge_weights(Fi, l, tol)

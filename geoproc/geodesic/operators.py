@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.geodesic.cocircular import canonical_cocircular_diagonals, cocircular_edge_weights
+from geoproc.geodesic.cocircular import canonical_cocircular_diagonals
 from geoproc.mesh.topology import boundary_edges, face_areas
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
@@ -150,11 +150,11 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bo
     Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
     # cocircular quads: the diagonal fixed by the numbering, not by rounding (the mass and the
     # face operators would otherwise change with the mesh's scale and position)
-    Fi, l, flips, zero = canonical_cocircular_diagonals(Fi, l)
-    if flips or len(zero):
+    Fi, l, flips, cocircular = canonical_cocircular_diagonals(Fi, l)
+    if flips or len(cocircular[0]):
         Li = igl.cotmatrix_intrinsic(l, Fi)
         Li.resize((len(V), len(V)))  # vertices after the last one a face uses
-        Li = _without_weights(sp.csr_matrix(Li), *cocircular_edge_weights(Fi, l))  # zero in exact arithmetic
+        Li = _without_weights(sp.csr_matrix(Li), *cocircular)  # zero in exact arithmetic
     L = _drop_rounding_negatives(sp.csr_matrix(Li))
     if not np.isfinite(L.data).all():
         return None
