@@ -70,9 +70,14 @@ def _interior_edges(Fi: np.ndarray, l: np.ndarray) -> tuple[np.ndarray, np.ndarr
     key = np.minimum(a, b) * n + np.maximum(a, b)
     forward = a < b
     idx = np.flatnonzero(a != b)
-    # groups of equal (vertex pair, length): forward half-edges first, each direction in id order
-    order = idx[np.lexsort((idx, ~forward[idx], length[idx], key[idx]))]
-    k, w, fw = key[order], length[order], forward[order]
+    # groups of equal (vertex pair, length): forward half-edges first, each direction in id order;
+    # sorting by vertex pair and direction alone gives that order unless two edges join the same pair
+    order = idx[np.argsort(key[idx] * 2 + ~forward[idx], kind="stable")]
+    k, w = key[order], length[order]
+    if ((k[1:] == k[:-1]) & (w[1:] != w[:-1])).any():
+        order = idx[np.lexsort((idx, ~forward[idx], length[idx], key[idx]))]
+        k, w = key[order], length[order]
+    fw = forward[order]
     new_group = np.r_[True, (k[1:] != k[:-1]) | (w[1:] != w[:-1])]
     gid = np.cumsum(new_group) - 1
     gstart = np.flatnonzero(new_group)

@@ -14,10 +14,14 @@ the intrinsic Delaunay Laplacian, the pairing the Poisson step needs.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from geoproc.geodesic.names import OPERATORS
-from geoproc.geodesic.operators import intrinsic_delaunay_mesh, smallest_angles, stack_gradient_coefficients
+from geoproc.geodesic.operators import (
+    integrated_divergence,
+    intrinsic_delaunay_mesh,
+    smallest_angles,
+    stack_gradient_coefficients,
+)
 
 SLIVER_ANGLE_DEG = 5.0
 """A face with a corner angle below this (degrees) counts as a sliver."""
@@ -99,4 +103,4 @@ def intrinsic_face_operators(Fi: np.ndarray, l: np.ndarray, n: int):
     with ``D G`` its cotan Laplacian."""
     coef, area = intrinsic_gradient_coefficients(l)
     G = stack_gradient_coefficients(coef, Fi, n)
-    return coef, G, sp.csr_matrix(-(G.T @ sp.diags(np.tile(area, 2))))
+    return coef, G, integrated_divergence(G, area)

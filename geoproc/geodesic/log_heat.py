@@ -97,7 +97,7 @@ class LogHeatSolver:
                  boundary: str = "average", poisson: str = "cotan", operators: str = "auto"):
         ops = heat_operators(V, F, laplacian, operators, poisson)
         L, M = ops.L, ops.M
-        if negative_offdiagonal_count(L) and ops.kind == "intrinsic":
+        if ops.kind == "intrinsic" and negative_offdiagonal_count(L):
             # obtuse angles facing boundary edges: the log-ODE needs non-negative weights,
             # which robust-laplacian's tufted cover gives (its boundary edges are interior)
             L, M = intrinsic_delaunay_laplacian(V, F)

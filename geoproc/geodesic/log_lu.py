@@ -20,6 +20,8 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
+from geoproc.geodesic.operators import upper_triangle_csc
+
 
 @numba.njit(cache=True, inline="always")
 def _log_row(indptr, indices, logabs, x, start, i):
@@ -76,7 +78,7 @@ class LogMMatrixSolver:
     def __init__(self, A: sp.spmatrix):
         import qdldl
 
-        Lf, D, P = qdldl.Solver(sp.csc_matrix(A)).factors()
+        Lf, D, P = qdldl.Solver(upper_triangle_csc(A), upper=True).factors()
         Lf = sp.csc_matrix(Lf)
         Lf.eliminate_zeros()
         if (D <= 0).any() or (Lf.data > 0).any():

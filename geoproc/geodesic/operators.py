@@ -13,7 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoproc.geodesic.cocircular import canonical_cocircular_diagonals
-from geoproc.mesh.topology import boundary_edges, face_areas
+from geoproc.mesh.topology import boundary_edges, face_areas, undirected_edge_keys
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
 # robust-laplacian's weights that are zero in exact arithmetic come out negative by
@@ -58,14 +58,18 @@ def flat_within_rounding(Xf: np.ndarray, floor: float = 0.0) -> np.ndarray:
 
 def smallest_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(m,) smallest corner angle of each face, in radians (``atan2(|u x v|, u . v)``,
-    accurate for needles where the arccosine of a dot product is not)."""
+    accurate for needles where the arccosine of a dot product is not).
+
+    ``|u x v|`` is twice the area at every corner, and ``atan2(y, x)`` falls
+    as ``x`` grows, so the smallest angle is the one with the largest dot
+    product of its two edges: one cross product per face instead of three.
+    """
     P = V[F]
-    out = np.full(len(F), np.pi)
-    for k in range(3):
-        u = P[:, (k + 1) % 3] - P[:, k]
-        v = P[:, (k + 2) % 3] - P[:, k]
-        out = np.minimum(out, np.arctan2(np.linalg.norm(np.cross(u, v), axis=1), np.einsum("ij,ij->i", u, v)))
-    return out
+    e = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)  # e_c opposite corner c
+    twice_area = np.linalg.norm(np.cross(e[:, 1], e[:, 2]), axis=1)
+    # corner c lies between edges c+1 and c+2, which leave it as e_{c+2} and -e_{c+1}
+    dots = -np.einsum("kcj,kcj->kc", np.roll(e, -1, axis=1), np.roll(e, -2, axis=1))
+    return np.arctan2(twice_area, dots.max(axis=1))
 
 
 def lumped_mass(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -80,8 +84,7 @@ def is_edge_manifold_nondegenerate(V: np.ndarray, F: np.ndarray) -> bool:
     """True when there are faces, no edge has more than two and every face has positive area."""
     if len(F) == 0:
         return False
-    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    key = np.sort(E[:, 0] * len(V) + E[:, 1])
+    key = np.sort(undirected_edge_keys(F))
     return bool(not (key[2:] == key[:-2]).any() and (face_areas(V, F) > 0).all())  # no key three times
 
 
@@ -229,7 +232,13 @@ def upper_entries(L: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def negative_offdiagonal_count(L: sp.spmatrix) -> int:
     """Number of undirected edges whose Laplacian weight is negative."""
-    return int((upper_entries(L)[2] < 0).sum())
+    C = sp.csr_matrix(L)
+    if not C.has_canonical_format:  # a weight stored in parts counts once
+        C = C.copy()
+        C.sum_duplicates()
+    if (C.data < 0).sum() == (C.diagonal() < 0).sum():
+        return 0  # the negative entries are all on the diagonal (the usual case, found without the row indices)
+    return int((upper_entries(C)[2] < 0).sum())
 
 
 def face_gradient_matrix(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
@@ -263,9 +272,18 @@ def stack_gradient_coefficients(coef: np.ndarray, F: np.ndarray, n: int) -> sp.c
     """(k m, n) sparse gradient (rows ``a m + face``, the layout of ``igl.grad``)
     from per-face weights ``coef`` (k, m, 3) on the faces ``F`` (m, 3)."""
     k, m = coef.shape[:2]
-    rows = np.broadcast_to((np.arange(k)[:, None] * m + np.arange(m))[:, :, None], coef.shape)
-    cols = np.broadcast_to(F[None], coef.shape)
-    return sp.csr_matrix((coef.ravel(), (rows.ravel(), cols.ravel())), shape=(k * m, n))
+    F = np.asarray(F, dtype=np.int64)
+    if ((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])).any():
+        # a repeated vertex: its entries are summed into one
+        rows = np.broadcast_to((np.arange(k)[:, None] * m + np.arange(m))[:, :, None], coef.shape)
+        cols = np.broadcast_to(F[None], coef.shape)
+        return sp.csr_matrix((coef.ravel(), (rows.ravel(), cols.ravel())), shape=(k * m, n))
+    # three entries per row, put in column order (the canonical CSR that scipy's constructor makes)
+    order = np.argsort(F, axis=1, kind="stable")
+    cols = np.take_along_axis(F, order, axis=1)
+    data = np.take_along_axis(coef, order[None], axis=2)
+    indices = np.broadcast_to(cols[None], coef.shape).reshape(-1)
+    return sp.csr_matrix((data.reshape(-1), indices, np.arange(0, 3 * k * m + 1, 3)), shape=(k * m, n))
 
 
 def divergence_matrix(V: np.ndarray, F: np.ndarray, G: sp.spmatrix | None = None) -> sp.csr_matrix:
@@ -275,8 +293,18 @@ def divergence_matrix(V: np.ndarray, F: np.ndarray, G: sp.spmatrix | None = None
     Poisson problem ``L phi = D X`` recovers ``phi`` from ``X = grad phi``.
     """
     G = face_gradient_matrix(V, F) if G is None else G
-    a = face_areas(V, F)
-    return sp.csr_matrix(-(G.T @ sp.diags(np.tile(a, 3))))
+    return integrated_divergence(G, face_areas(V, F))
+
+
+def integrated_divergence(G: sp.spmatrix, area: np.ndarray) -> sp.csr_matrix:
+    """(n, k m) ``D = -G^T diag(area)`` for a face gradient ``G`` (k m, n)
+    stacked by axis (k axes, m faces, ``area`` (m,) repeated for each axis):
+    the transposed gradient with each face's column scaled, formed from G's
+    arrays instead of a sparse product."""
+    G = sp.csr_matrix(G)
+    w = np.tile(area, G.shape[0] // len(area)) if len(area) else np.zeros(0)
+    data = -(G.data * np.repeat(w, np.diff(G.indptr)))
+    return sp.csc_matrix((data, G.indices, G.indptr), shape=G.shape[::-1]).tocsr()
 
 
 def face_to_vertex_average(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
@@ -307,7 +335,26 @@ def factor_sparse(A: sp.spmatrix):
     """
     import qdldl
 
-    return qdldl.Solver(sp.csc_matrix(A))
+    return qdldl.Solver(upper_triangle_csc(A), upper=True)
+
+
+def upper_triangle_csc(A: sp.spmatrix) -> sp.csc_matrix:
+    """The upper triangle (diagonal included) of a symmetric (n, n) matrix as
+    a canonical csc matrix, the input QDLDL factors.
+
+    Read from the lower triangle of A's rows, which by symmetry holds the same
+    values, without the coordinate round trip of ``sp.triu``.
+    """
+    C = sp.csr_matrix(A)
+    if not C.has_canonical_format:
+        C = C.copy()
+        C.sum_duplicates()
+    n = C.shape[0]
+    rows = np.repeat(np.arange(n, dtype=C.indices.dtype), np.diff(C.indptr))
+    keep = C.indices <= rows
+    indptr = np.zeros(n + 1, dtype=C.indptr.dtype)
+    np.cumsum(np.bincount(rows[keep], minlength=n), out=indptr[1:])
+    return sp.csc_matrix((C.data[keep], C.indices[keep], indptr), shape=(n, n))
 
 
 def factor_sparse_lu(A: sp.spmatrix):

@@ -27,6 +27,15 @@ def halfedges(F: np.ndarray) -> np.ndarray:
     return np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)
 
 
+def undirected_edge_keys(F: np.ndarray) -> np.ndarray:
+    """(3m,) int64 key ``min(i, j) * n + max(i, j)`` of every half-edge (i, j),
+    with ``n = F.max() + 1``: equal for the two halves of an edge."""
+    F = np.asarray(F, dtype=np.int64)  # keys up to n^2: int32 faces overflow
+    n = int(F.max()) + 1 if F.size else 1
+    G = np.roll(F, -1, axis=1)
+    return (np.minimum(F, G) * n + np.maximum(F, G)).reshape(-1)
+
+
 def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Undirected edges of a triangle mesh.
 
@@ -49,9 +58,14 @@ def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def boundary_edges(F: np.ndarray) -> np.ndarray:
-    """(b, 2) undirected edges used by exactly one face."""
-    E, _, count = unique_edges(F)
-    return E[count == 1]
+    """(b, 2) undirected edges used by exactly one face, in the order of
+    :func:`unique_edges` (``E[:, 0] <= E[:, 1]``, sorted)."""
+    keys = np.sort(undirected_edge_keys(F))
+    n = int(F.max()) + 1 if F.size else 1
+    if len(keys):
+        differs = keys[1:] != keys[:-1]
+        keys = keys[np.r_[True, differs] & np.r_[differs, True]]  # unlike both neighbours
+    return np.column_stack([keys // n, keys % n])
 
 
 def boundary_vertices(F: np.ndarray) -> np.ndarray:

@@ -460,6 +460,84 @@ def test_face_gradient_weights_equal_libigl_grad(make_fixtures):
     assert np.allclose((G @ (V @ a)).reshape(3, -1).T, a - (N @ a)[:, None] * N, atol=1e-12)
 
 
+def test_stacked_gradient_and_divergence_equal_their_dense_definitions(make_fixtures):
+    from geoproc.geodesic.operators import (
+        face_areas,
+        face_gradient_coefficients,
+        integrated_divergence,
+        stack_gradient_coefficients,
+    )
+
+    V, F = make_fixtures.icosphere(1)
+    V = V * np.array([1.0, 0.5, 2.0])
+    F = np.vstack([F, [[0, 0, 5]]])  # a repeated vertex: its entries add up (to zero: no area)
+    coef = face_gradient_coefficients(V, F)
+    for f in (F, F[:, ::-1]):  # corners out of column order
+        c = coef if f is F else coef[:, :, ::-1]
+        dense = np.zeros((3 * len(f), len(V)))
+        for a in range(3):
+            for k in range(len(f)):
+                for j in range(3):
+                    dense[a * len(f) + k, f[k, j]] += c[a, k, j]
+        G = stack_gradient_coefficients(c, f, len(V))
+        assert np.array_equal(G.toarray(), dense)
+        area = face_areas(V, f)
+        assert np.array_equal(integrated_divergence(G, area).toarray(), -(dense * np.tile(area, 3)[:, None]).T)
+
+
+def test_upper_triangle_for_the_factorization_equals_scipy_triu():
+    from geoproc.geodesic.operators import factor_sparse, upper_triangle_csc
+
+    rng = np.random.default_rng(3)
+    R = sp.random(40, 40, density=0.1, random_state=rng)
+    A = (R + R.T + 40 * sp.eye(40)).tocsr()
+    ref = sp.triu(A, format="csc")
+    for X in (A, A.tocsc(), A.tocoo(), sp.coo_matrix((np.r_[A.tocoo().data, 1.0], (np.r_[A.tocoo().row, 3],
+                                                              np.r_[A.tocoo().col, 3])))):
+        U = upper_triangle_csc(X)
+        if X.nnz > A.nnz:  # a duplicate entry, summed
+            assert U[3, 3] == A[3, 3] + 1.0
+            continue
+        assert abs(U - ref).max() == 0 and U.nnz == ref.nnz and U.has_sorted_indices
+    b = rng.standard_normal(40)
+    assert np.abs(A @ factor_sparse(A).solve(b) - b).max() < 1e-12
+
+
+def test_negative_weights_are_counted_once_per_edge(make_fixtures):
+    from geoproc.geodesic.operators import cotan_laplacian, negative_offdiagonal_count
+
+    V, F = make_fixtures.icosphere(2)
+    for stretch in ([1.0, 1.0, 1.0], [1.0, 0.2, 3.0]):  # Delaunay, then with obtuse angles
+        L = cotan_laplacian(V * np.array(stretch), F)
+        expected = int((np.triu(L.toarray(), 1) < 0).sum())
+        assert negative_offdiagonal_count(L) == expected
+        assert negative_offdiagonal_count(L.tocoo()) == expected
+        # stored twice, in halves (not canonical)
+        dup = sp.csr_matrix((np.repeat(L.data / 2, 2), np.repeat(L.indices, 2), 2 * L.indptr), shape=L.shape)
+        assert not dup.has_canonical_format and negative_offdiagonal_count(dup) == expected
+    assert expected > 0
+    P = sp.csr_matrix(np.array([[1.0, -1.0], [-1.0, -2.0]]))  # a positive diagonal entry beside a negative weight
+    assert negative_offdiagonal_count(P) == 1
+
+
+def test_smallest_angle_against_the_arccosine_of_each_corner(make_fixtures):
+    from geoproc.geodesic.operators import smallest_angles
+
+    V, F = make_fixtures.icosphere(2)
+    V = V * np.array([1.0, 0.3, 2.0])
+    P = V[F]
+    ref = np.full(len(F), np.pi)
+    for c in range(3):
+        u, v = P[:, (c + 1) % 3] - P[:, c], P[:, (c + 2) % 3] - P[:, c]
+        cos = np.einsum("ij,ij->i", u, v) / np.linalg.norm(u, axis=1) / np.linalg.norm(v, axis=1)
+        ref = np.minimum(ref, np.arccos(cos))
+    assert np.abs(smallest_angles(V, F) - ref).max() < 1e-12
+    # a needle of 1e-12 rad (its arccosine is 0) and a face with a repeated vertex
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 0.5e-12, 0]])
+    assert np.isclose(smallest_angles(V, np.array([[0, 1, 2]]))[0], 2e-12, rtol=1e-6)
+    assert smallest_angles(V, np.array([[0, 1, 2], [0, 0, 1]]))[1] == 0.0
+
+
 # ---- operators on the intrinsic Delaunay triangulation ----------------------------------------
 
 def test_intrinsic_gradient_and_divergence_give_the_intrinsic_laplacian(make_fixtures):

@@ -10,6 +10,7 @@ import trimesh
 from geoproc.mesh import Mesh, load_mesh, mesh_info
 from geoproc.mesh.topology import (
     COMPILED_FANS_FROM,
+    boundary_edges,
     count_boundary_loops,
     fans_by_sorting,
     fans_compiled,
@@ -138,6 +139,17 @@ def test_unique_edges_counts_faces_per_edge(make_fixtures):
     assert (count == 1).sum() == 16 and (count == 2).sum() == len(E) - 16
     assert np.array_equal(np.sort(F[:, :2], axis=1), E[edge_of.reshape(-1, 3)[:, 0]])
     assert count_boundary_loops(F) == 1
+
+
+def test_boundary_edges_are_the_edges_of_one_face_on_random_soups():
+    from collections import Counter
+
+    rng = np.random.default_rng(5)
+    for _ in range(300):  # repeated indices, non-manifold edges, duplicate faces
+        F = rng.integers(0, rng.integers(1, 9), size=(rng.integers(0, 12), 3))
+        count = Counter(tuple(sorted((int(f[k]), int(f[(k + 1) % 3])))) for f in F for k in range(3))
+        expected = sorted(e for e, c in count.items() if c == 1)
+        assert boundary_edges(F).tolist() == [list(e) for e in expected]
 
 
 def test_vertex_fans_and_components_of_disjoint_parts(make_fixtures):
