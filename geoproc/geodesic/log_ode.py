@@ -25,6 +25,7 @@ start point below (the max-plus solution, a lower bound of the answer with
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
@@ -171,6 +172,30 @@ def log_ode_step(system: LogStepSystem, w_prev: np.ndarray, w_start: np.ndarray 
     return w, max_iter
 
 
+@numba.njit(cache=True)
+def _lse_residual(indptr, cols, a, c, w, b):
+    """Row by row, ``val_i = log(exp(b_i) + sum_j exp(a_ij + w_j))`` (shifted by
+    the row's largest exponent; -inf when every term is 0) and the residual
+    ``g_i = w_i + c_i - val_i`` (0 where ``w_i`` is not finite)."""
+    n = len(w)
+    val = np.empty(n)
+    g = np.zeros(n)
+    for i in range(n):
+        m = b[i]
+        for k in range(indptr[i], indptr[i + 1]):
+            m = max(m, a[k] + w[cols[k]])
+        if m == -np.inf:
+            val[i] = -np.inf
+        else:
+            s = np.exp(b[i] - m)
+            for k in range(indptr[i], indptr[i + 1]):
+                s += np.exp(a[k] + w[cols[k]] - m)
+            val[i] = m + np.log(s)
+        if np.isfinite(w[i]):
+            g[i] = w[i] + c[i] - val[i]
+    return g, val
+
+
 class LogODESolver:
     """One factorization of ``M - dt L``, reused for every step and source.
 
@@ -188,12 +213,11 @@ class LogODESolver:
         self.fallbacks = 0
 
     def residual(self, w: np.ndarray, w_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``g = w + c - lse(w)`` (zero at the solution) and ``lse(w)``."""
-        val, _, _ = self.system.lse(w, self.system.logM + w_prev)
-        with np.errstate(invalid="ignore"):
-            g = w + self.system.c - val
-        g[~np.isfinite(w)] = 0.0
-        return g, val
+        """``g = w + c - lse(w)`` (zero at the solution, 0 where w is not
+        finite) and ``lse(w)``, the values of :meth:`LogStepSystem.lse`."""
+        sy = self.system
+        return _lse_residual(sy.indptr, sy.cols, sy.a, sy.c, np.asarray(w, dtype=np.float64),
+                             sy.logM + w_prev)
 
     def step(self, w_prev: np.ndarray, rtol: float = 1e-14, max_refine: int = 3) -> tuple[np.ndarray, int]:
         """One backward-Euler step: ``w`` (n,) from ``w_prev`` (-inf allowed).

@@ -319,11 +319,9 @@ def face_to_vertex_average(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
 
 def normalized_direction(X: np.ndarray) -> np.ndarray:
     """Rows of ``X`` (m, 3) scaled to unit length; zero (or non-finite) rows become 0."""
-    norm = np.linalg.norm(X, axis=1)
+    norm = np.sqrt(np.add.reduce(X * X, axis=1))  # np.linalg.norm's sum, without its checks
     ok = np.isfinite(norm) & (norm > 0)
-    out = np.zeros_like(X)
-    out[ok] = X[ok] / norm[ok, None]
-    return out
+    return np.divide(X, norm[:, None], out=np.zeros_like(X), where=ok[:, None])
 
 
 def factor_sparse(A: sp.spmatrix):

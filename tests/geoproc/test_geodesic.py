@@ -387,6 +387,48 @@ def test_log_ode_step_polishes_a_slightly_wrong_factorization(make_fixtures):
     assert np.abs(np.exp(w) - u).max() < 1e-12 * u.max()
 
 
+def test_log_ode_residual_is_the_log_of_the_linear_residual(make_fixtures):
+    # g = w + c - lse(w) is log of (M - dt L) e^w over the right-hand side M e^w_prev;
+    # checked in ordinary arithmetic, where nothing underflows
+    V, F, L, M, h = _sphere_operators(make_fixtures, 3)
+    dt = h * h
+    solver = LogODESolver(L, M, dt)
+    rng = np.random.default_rng(2)
+    w_prev, w = rng.normal(-3, 1, len(M)), rng.normal(-3, 1, len(M))
+    g, val = solver.residual(w, w_prev)
+    u, u_prev = np.exp(w), np.exp(w_prev)
+    rhs = M * u_prev + dt * (L @ u - L.diagonal() * u)  # M_i u_prev_i + dt sum_(j != i) L_ij u_j
+    assert np.abs(val - np.log(rhs)).max() < 1e-13
+    assert np.abs(g - np.log((M - dt * L.diagonal()) * u / rhs)).max() < 1e-13
+    w[:5] = -np.inf  # no heat there: no residual, and no heat from there
+    w_prev[:5] = -np.inf
+    g, val = solver.residual(w, w_prev)
+    assert (g[:5] == 0).all() and np.isfinite(g).all() and np.isfinite(val[5:]).all()
+
+
+def test_face_heat_direction_is_the_gradient_of_the_heat(make_fixtures):
+    from geoproc.geodesic.log_heat import face_heat_direction
+    from geoproc.geodesic.operators import face_gradient_coefficients, face_gradient_matrix
+
+    V, F = make_fixtures.icosphere(2)
+    coef = face_gradient_coefficients(V, F)
+    rng = np.random.default_rng(4)
+    w = rng.normal(-3, 1, len(V))
+    f0, f1, f2 = 0, 100, 200
+    assert len(np.unique(F[[f0, f1, f2]])) == 9  # no shared vertex
+    w[F[f0]] = -np.inf  # a face without heat
+    w[F[f1]] = [-np.inf, -3.0, -2.0]  # heat on two corners only
+    w[F[f2]] = -2.5  # constant: no direction
+    ref = (face_gradient_matrix(V, F) @ np.exp(w)).reshape(3, -1).T
+    live = np.ones(len(F), dtype=bool)
+    live[[f0, f2]] = False
+    for shift in (0.0, -1e4):  # e^w below the double range: the direction stays
+        g = face_heat_direction(coef, F, w + shift)
+        cos = np.einsum("ij,ij->i", g, ref)[live] / np.linalg.norm(g[live], axis=1) / np.linalg.norm(ref[live], axis=1)
+        assert np.abs(cos - 1).max() < 1e-9
+        assert (g[[f0, f2]] == 0).all()
+
+
 def test_log_ode_refuses_negative_weights(make_fixtures):
     V, F = make_fixtures.icosphere(2)
     V = V * np.array([1.0, 1.0, 0.05])  # flattened: obtuse triangles, negative cotan weights
