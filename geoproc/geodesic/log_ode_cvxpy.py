@@ -15,7 +15,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.errors import UsageError
+from geoproc.errors import InputError, UsageError
 from geoproc.geodesic.log_ode import LogStepSystem
 
 
@@ -55,10 +55,14 @@ def log_ode_step_cvxpy(system: LogStepSystem, w_prev: np.ndarray, tol: float = 1
     prob = cp.Problem(cp.Minimize(weights @ w), [Re @ edge + Sf @ src <= 1])
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
-        prob.solve(solver="CLARABEL", tol_gap_abs=tol, tol_gap_rel=tol, tol_feas=tol, tol_ktratio=1e-8,
-                   max_iter=500)
-    if w.value is None:
-        raise RuntimeError(f"Clarabel did not solve the log-ODE step ({prob.status})")
+        try:
+            prob.solve(solver="CLARABEL", tol_gap_abs=tol, tol_gap_rel=tol, tol_feas=tol, tol_ktratio=1e-8,
+                       max_iter=500)
+        except cp.error.SolverError:  # Clarabel stopped without a solution (large time steps)
+            pass
+    if w.value is None:  # an InputError without the path: geodesic_distance names the mesh
+        raise InputError(None, f"log-ode --solver cvxpy: Clarabel did not solve the step ({prob.status or 'failed'}); "
+                               "--solver lu solves the same step without it")
     return np.asarray(w.value, dtype=np.float64), str(prob.status)
 
 

@@ -152,6 +152,17 @@ def test_cvxpy_inaccurate_steps_are_a_note_not_a_warning(cli, fixture_dir, tmp_p
     assert ("short of its tolerances" in p.stderr) == (inaccurate > 0)
 
 
+def test_cvxpy_step_that_clarabel_cannot_solve_is_refused(cli, fixture_dir, tmp_path):
+    # a time factor of 1e6 (within the allowed range): Clarabel fails, which was an internal error (exit 3)
+    pytest.importorskip("cvxpy")
+    out, rep = tmp_path / "d.ply", tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-m", "log-ode", "--solver", "cvxpy", "-c", "1e6",
+            "-o", out, "--report", rep)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.count("\n") == 1 and "torus.ply" in p.stderr and "--solver lu" in p.stderr
+    assert not out.exists() and not rep.exists()
+
+
 @pytest.mark.parametrize("squash,args,fragment", [
     # libigl's exact geodesic ran for minutes on this 8 x 8 grid (angles 3e-6 rad)
     (3e-6, ["-m", "exact"], "below 0.0001 rad"),
