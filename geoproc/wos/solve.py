@@ -30,7 +30,6 @@ from geoproc.wos.problem import WalkProblem, pass_seed
 
 METHODS = ("naive", "cv-green", "cv-angle", "npass")
 _TAG_FIT, _TAG_RESIDUAL, _TAG_NPASS = 1, 2, 1000
-_CHUNK = 4096
 
 
 @dataclass
@@ -190,7 +189,8 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         cand = far if len(far) else X
         ks = make_kernels(method, domain, kernels, problem.distance)
         F = fit_points(cand, fit_points_n or 8 * ks.M)
-        u_fit, _, st = problem.estimate(F, fit_walks, pass_seed(seed, _TAG_FIT))
+        u_fit, _, st = problem.estimate_chunked(F, fit_walks, pass_seed(seed, _TAG_FIT),
+                                                progress=lambda f: report(0.05 * f))
         dPhi = hN = None
         if domain.has_neumann:
             # the residual's Neumann data is h - dc/dn: fit dc/dn to h on Neumann samples,
@@ -222,14 +222,8 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
                             "refine_iterations": npass_steps})
     start_frac = 0.0 if method == "naive" else (0.2 if method == "npass" else 0.05)
     t0 = time.perf_counter()
-    mean = np.empty(len(X))
-    var = np.empty(len(X))
-    steps = np.empty(len(X), dtype=np.int64)
-    rseed = pass_seed(seed, _TAG_RESIDUAL)
-    for i in range(0, len(X), _CHUNK):
-        sl = slice(i, i + _CHUNK)
-        mean[sl], var[sl], steps[sl] = problem.estimate(X[sl], walks, rseed, i, ks, sigma)
-        report(start_frac + (1 - start_frac) * min(1.0, (i + _CHUNK) / len(X)))
+    mean, var, steps = problem.estimate_chunked(X, walks, pass_seed(seed, _TAG_RESIDUAL), ks, sigma,
+                                                progress=lambda f: report(start_frac + (1 - start_frac) * f))
     residual_seconds = time.perf_counter() - t0
     bad = ~np.isfinite(mean)
     if bad.any():  # the data is singular between the sampled boundary points

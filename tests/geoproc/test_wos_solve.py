@@ -152,6 +152,31 @@ def test_same_seed_same_numbers_any_thread_count():
     assert not np.array_equal(a[0], c[0])
 
 
+def test_walks_in_short_calls_give_the_same_numbers(monkeypatch):
+    # long runs are cut into calls of about CHUNK_WALKS walks, so that Ctrl-C is answered
+    # within a call: every call stays near that size, and the numbers do not change
+    import geoproc.wos.problem as wp
+
+    pb = WalkProblem(build_domain(wf.glyph("a", 128)["loops"]), RE_Z3, None, 1e-3)
+    from geoproc.wos.solve import grid_over
+
+    P = grid_over(pb.domain, 12).points()
+    X = P[pb.domain.contains(P)]
+    whole = pb.estimate(X, 64, pass_seed(4, 2))
+    calls, estimate = [], pb.estimate
+    monkeypatch.setattr(pb, "estimate", lambda Y, walks, *a: calls.append(len(Y) * walks) or estimate(Y, walks, *a))
+    monkeypatch.setattr(wp, "CHUNK_WALKS", 200)
+    fractions = []
+    parts = pb.estimate_chunked(X, 64, pass_seed(4, 2), progress=fractions.append)
+    for u, v in zip(whole, parts, strict=True):
+        assert np.array_equal(u, v)
+    assert max(calls) == 3 * 64 and sum(calls) == len(X) * 64 and fractions[-1] == 1.0
+    monkeypatch.setattr(wp, "CHUNK_WALKS", 10)  # fewer walks than a point has: one point per call
+    calls.clear()
+    parts = pb.estimate_chunked(X, 64, pass_seed(4, 2))
+    assert np.array_equal(whole[0], parts[0]) and set(calls) == {64}
+
+
 def test_grid_points_on_the_boundary_take_the_boundary_value():
     # square with a square hole whose sides pass through pixel centers (grid 4 -> h = 0.25)
     d = build_domain([[[0, 0], [1, 0], [1, 1], [0, 1]],
