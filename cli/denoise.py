@@ -156,7 +156,7 @@ def denoise(
               "clean": not no_clean}
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output], inputs=[input, reference], metrics=METRICS, text_metrics=TEXT_METRICS,
-                     needs={"--reference": REFERENCE_METRICS} if reference is None and not outliers else None) as run:
+                     needs=_metric_needs(reference, outliers, dynamic, features)) as run:
         if method not in METHODS:
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:
@@ -200,6 +200,31 @@ def denoise(
 
 _FILTER_OPTIONS = ("method", "rounds", "normal_iterations", "vertex_iterations", "fidelity", "sigma_r",
                    "sigma_s", "pin_boundary")
+OUTLIER_METRICS = ("points", "detected_outliers", "threshold", "true_outliers", "precision", "recall", "f1",
+                   "mean_refinement_shift", "motion_basis")
+"""Reported only with ``--outliers``."""
+DYNAMIC_METRICS = ("frames", "coherence", "rpca_iterations", "rpca_converged", "low_rank", "turn_limited_vertices")
+"""Reported only with ``--dynamic`` (``frames`` and ``rpca_iterations`` also by ``--outliers`` on a moving cloud)."""
+L1_METRICS = ("feature_lambda", "feature_tau", "feature_vertices", "feature_admm_iterations")
+"""Reported only by the l1 feature detection (``--features l1``)."""
+
+
+def _metric_needs(reference, outliers: bool, dynamic: bool, features: str) -> dict[str, tuple[str, ...]]:
+    """For each option not given, the metrics only it reports: a --check on one of them is
+    refused before the input is read."""
+    needs: dict[str, tuple[str, ...]] = {}
+    if reference is None and not outliers:
+        needs["--reference"] = REFERENCE_METRICS
+    if not outliers:
+        needs["--outliers"] = OUTLIER_METRICS
+    if not dynamic:
+        needs["--dynamic"] = (tuple(m for m in DYNAMIC_METRICS if m not in ("frames", "rpca_iterations"))
+                              if outliers else DYNAMIC_METRICS)
+    if features != "l1" and not outliers:
+        needs["--features l1"] = L1_METRICS
+    return needs
+
+
 _FEATURE_OPTIONS = ("features", "feature_tau", "feature_angle")
 _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 

@@ -35,6 +35,22 @@ METRICS = EXACT_METRICS + (
 """Every metric ``wos-solve`` can report (which ones a run reports depends on its method and options)."""
 
 
+FIT_METRICS = ("kernels_used", "fit_points", "fit_walks", "fit_seconds", "fit_steps")
+"""Reported only with a control variate (every method but naive)."""
+REFINE_METRICS = ("refine_seconds", "refine_steps", "refine_iterations")
+"""Reported only by npass."""
+
+
+def _metric_needs(exact: bool, method: str) -> dict[str, tuple[str, ...]]:
+    """For each option not given, the metrics only it reports (a --check on one is refused at once)."""
+    needs: dict[str, tuple[str, ...]] = {} if exact else {"--exact": EXACT_METRICS}
+    if method == "naive":
+        needs["a control variate (--method cv-green, cv-angle or npass)"] = FIT_METRICS
+    if method != "npass":
+        needs["--method npass"] = REFINE_METRICS
+    return needs
+
+
 class Method(StrEnum):
     naive = "naive"
     cv_green = "cv-green"
@@ -114,7 +130,7 @@ def wos_solve(
               "ridge": ridge if fitted else None, "seed": seed, "exact": exact}
     with command_run("wos-solve", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, image, error_image], inputs=[domain], metrics=METRICS,
-                     needs=None if exact else {"--exact": EXACT_METRICS}) as run:
+                     needs=_metric_needs(exact, method)) as run:
         require_extension(output, ".exr", "-o")
         if method == Method.naive:
             refuse_options(ctx, ("kernels", "fit_walks", "fit_points", "ridge"),

@@ -95,6 +95,10 @@ def test_outliers_f1_and_outputs(cli, dfx, tmp_path):
     p = cli("denoise", src, "--outliers", "--k", "16", "-o", out, "--report", rep)
     assert p.returncode == 0, p.stderr
     met = _metrics(rep)
+    from geoproc_cli.denoise import _metric_needs
+
+    gated = {m for names in _metric_needs(None, True, False, "dihedral").values() for m in names}
+    assert set(met) & gated == set()  # no metric this mode reports is refused as a --check
     kept = load_mesh(out)
     assert len(kept.V) == met["points"] - met["detected_outliers"]
     # precision and recall recomputed from the written inliers and perturb's flags
@@ -142,6 +146,24 @@ def test_dynamic_npz(cli, dfx, tmp_path, coherence):
     before = [flipped_faces(Vn[t], F, V[t]) for t in range(3)]
     assert met["input_flipped_faces"] == sum(len(b) for b in before)
     assert met["new_flipped_faces"] == sum(new_flipped_faces(a.V[t], F, V[t], before[t]) for t in range(3))
+
+
+@pytest.mark.parametrize("args,gate,option", [
+    ([], "f1>=0.9", "--outliers"),
+    ([], "frames==1", "--dynamic"),
+    ([], "feature_tau>=0", "--features l1"),
+    (["--features", "l1"], "feature_angle_deg>=0", None),  # reported by the dihedral rule only: after the run
+    (["--outliers"], "low_rank>=1", "--dynamic"),
+    (["--dynamic"], "precision>=0", "--outliers"),
+])
+def test_a_check_that_the_mode_cannot_report_is_refused_before_reading(cli, tmp_path, args, gate, option):
+    missing = tmp_path / "missing.ply"  # never read when the check is refused first
+    p = cli("denoise", missing, *args, "-o", tmp_path / "o.ply", "--check", gate)
+    assert _one_line_error(p)
+    if option is None:
+        assert "missing.ply" in p.stderr
+    else:
+        assert f"only with {option}" in p.stderr and "missing.ply" not in p.stderr
 
 
 def test_dynamic_needs_three_frames(cli, dfx, tmp_path):

@@ -72,3 +72,38 @@ def test_wos_metrics_are_declared(method):
                         npass_steps=2, npass_batch=2, npass_walks=2, exact=True)
     assert set(res.metrics) - set(wos_solve.METRICS) == set()
     assert _text(res.metrics) == set()  # wos-solve declares no text metric
+
+
+def _gated(needs: dict) -> set[str]:
+    return {m for names in needs.values() for m in names}
+
+
+@pytest.mark.parametrize("method", ["bilateral", "guided", "rpca"])
+@pytest.mark.parametrize("features", ["dihedral", "l1"])
+def test_denoise_checks_refused_early_are_not_reported_by_that_mode(method, features):
+    # a --check on a metric the run's options cannot report is refused before the input is read;
+    # the metrics the run does report must never be among those
+    Vn, F, V = load_fixture_module("denoise_fixtures").noisy_cube(n=4, sigma=0.3, seed=0)
+    res = denoise_mesh(Vn, F, method, DenoiseParams(features=features))
+    reported = _scalars(res.info) | {"vertices", "faces"}
+    assert reported & _gated(denoise._metric_needs(None, False, False, features)) == set()
+    with_reference = reported | set(reference_metrics(res.V, Vn, F, V))
+    assert with_reference & _gated(denoise._metric_needs("clean.ply", False, False, features)) == set()
+    frames = np.stack([Vn * (1 + 0.01 * t) for t in range(3)])
+    for coherence in ("heights", "normals"):
+        _, info = denoise_animation(frames, F, coherence=coherence, params=DenoiseParams(features=features))
+        assert (_scalars(info) | {"frames", "vertices", "faces"}) & _gated(
+            denoise._metric_needs(None, False, True, features)) == set()
+    for needs in (denoise._metric_needs(None, o, d, features) for o in (False, True) for d in (False, True)):
+        assert _gated(needs) <= set(denoise.METRICS)
+
+
+@pytest.mark.parametrize("method", WOS_METHODS)
+def test_wos_checks_refused_early_are_not_reported_by_that_method(method):
+    square = build_domain([[[0, 0], [1, 0], [1, 1], [0, 1]]])
+    res = solve_laplace(square, parse_expression("x"), method=method, walks=2, grid=6, kernels=4, fit_walks=2,
+                        npass_steps=2, npass_batch=2, npass_walks=2, exact=True)
+    assert set(res.metrics) & _gated(wos_solve._metric_needs(True, method)) == set()
+    assert _gated(wos_solve._metric_needs(False, method)) <= set(wos_solve.METRICS)
+    gated = _gated(wos_solve._metric_needs(False, method))
+    assert ({"fit_seconds"} <= gated) == (method == "naive") and ({"refine_steps"} <= gated) == (method != "npass")

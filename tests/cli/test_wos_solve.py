@@ -133,6 +133,18 @@ def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, do
     assert not out.exists() and not (tmp_path / "r.json").exists() and not (tmp_path / "e.png").exists()
 
 
+@pytest.mark.parametrize("args,gate,option", [
+    ([], "fit_seconds<100", "a control variate"),
+    (["--method", "cv-green"], "refine_steps<100", "--method npass"),
+    ([], "bias<1", "--exact"),
+])
+def test_a_check_that_the_method_cannot_report_is_refused_at_once(cli, tmp_path, args, gate, option):
+    missing = tmp_path / "missing.json"  # never read when the check is refused first
+    p = cli("wos-solve", missing, "--boundary", "x", *args, "-o", tmp_path / "u.exr", "--check", gate)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert f"only with {option}" in p.stderr and "missing.json" not in p.stderr
+
+
 def test_json_domain_from_stdin(cli, inputs, tmp_path):
     out, rep = tmp_path / "u.exr", tmp_path / "r.json"
     p = cli("wos-solve", "-", "--boundary", "x", "--grid", "16", "--walks", "4", "-o", out, "--report", rep,
