@@ -344,16 +344,27 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
     if not keep_all and res.outlier.all():
         raise InputError(path or input, f"every point scores above the threshold {res.threshold:.6g}; no "
                          "inlier to write (raise --threshold, or --keep-all writes every point with its score)")
-    if keep_all:
-        out = Mesh(P, np.zeros((0, 3), dtype=np.int64), dict(cloud.vertex_fields))
+    if keep_all:  # every point, so the faces stay as they are
+        out = Mesh(P, cloud.F, dict(cloud.vertex_fields), dict(cloud.face_fields))
         run.note_replaced("vertex", SCORE_FIELDS, out.vertex_fields)
         out.vertex_fields["outlier_score"] = res.score
         out.vertex_fields["outlier_detected"] = res.outlier.astype(np.float64)
     else:
-        keep = ~res.outlier
-        out = Mesh(P[keep], np.zeros((0, 3), dtype=np.int64),
-                   {name: v[keep] for name, v in cloud.vertex_fields.items()})
+        out = _inliers(run, cloud, P, ~res.outlier)
     run.write_mesh(output, out)
+
+
+def _inliers(run, cloud: Mesh, P: np.ndarray, keep: np.ndarray) -> Mesh:
+    """The inlier points (positions P, vertex properties) and the input's faces
+    whose three corners are inliers, renumbered (with their properties); a note
+    counts the faces left out."""
+    new = np.cumsum(keep) - 1
+    whole = keep[cloud.F].all(axis=1) if len(cloud.F) else np.zeros(0, dtype=bool)
+    if len(cloud.F) and not whole.all():
+        run.note(f"{int((~whole).sum())} of {len(cloud.F)} faces use a removed point and are left out")
+    return Mesh(P[keep], new[cloud.F[whole]].reshape(-1, 3),
+                {name: v[keep] for name, v in cloud.vertex_fields.items()},
+                {name: v[whole] for name, v in cloud.face_fields.items()})
 
 
 SCORE_FIELDS = ("outlier_score", "outlier_detected")

@@ -166,6 +166,32 @@ def test_a_check_that_the_mode_cannot_report_is_refused_before_reading(cli, tmp_
         assert f"only with {option}" in p.stderr and "missing.ply" not in p.stderr
 
 
+def test_outliers_of_a_triangle_mesh_keep_the_faces_among_inliers(cli, make_fixtures, tmp_path):
+    V, F = make_fixtures.icosphere(3)
+    rng = np.random.default_rng(1)
+    far = rng.choice(len(V), 40, replace=False)
+    V = V.copy()
+    V[far] *= 1.5  # pushed off the sphere
+    src = tmp_path / "m.ply"
+    save_mesh(src, Mesh(V, F, {"outlier": np.isin(np.arange(len(V)), far).astype(float)},
+                        {"label": np.arange(len(F), dtype=float)}))
+    out = tmp_path / "o.ply"
+    p = cli("denoise", src, "--outliers", "-o", out)
+    assert p.returncode == 0, p.stderr
+    o = load_mesh(out, clean=False)
+    kept = {tuple(v) for v in np.round(o.V, 12)}
+    inlier = np.array([tuple(v) in kept for v in np.round(V, 12)])
+    expected = np.flatnonzero(inlier[F].all(axis=1))
+    assert (~inlier).sum() > 0 and 0 < len(expected) < len(F)
+    # the same triangles, by position, with their labels
+    assert np.array_equal(np.sort(o.face_fields["label"]), expected.astype(float))
+    order = np.argsort(o.face_fields["label"])
+    assert np.allclose(o.V[o.F[order]], V[F[expected]])
+    assert f"{len(F) - len(expected)} of {len(F)} faces use a removed point" in p.stderr
+    p = cli("denoise", src, "--outliers", "--keep-all", "-o", out)
+    assert p.returncode == 0 and np.array_equal(load_mesh(out, clean=False).F, F)
+
+
 def test_dynamic_needs_three_frames(cli, dfx, tmp_path):
     Vn, F, _ = dfx.noisy_wave(frames=3)
     src, out = tmp_path / "two.npz", tmp_path / "d.npz"
