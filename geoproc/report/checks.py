@@ -45,6 +45,8 @@ def parse_check(text: str) -> Check:
         raise UsageError(f"--check '{text}': unknown operator '{op}{raw[0]}'; use <=, <, >=, > or ==")
     if not _NUMBER.fullmatch(raw) or not math.isfinite(float(raw)):
         raise UsageError(f"--check '{text}': '{raw}' is not a finite decimal number")
+    if float(raw) == 0 and re.search(r"[1-9]", raw.lower().split("e")[0]):  # 1e-400 reads as 0
+        raise UsageError(f"--check '{text}': '{raw}' is too small for a double (it would compare as 0)")
     return Check(name, op, float(raw), text.strip())
 
 

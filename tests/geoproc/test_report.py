@@ -75,6 +75,15 @@ def test_malformed_checks_are_usage_errors(text):
         parse_check(text)
 
 
+def test_a_value_below_the_double_range_is_refused_not_read_as_zero():
+    with pytest.raises(UsageError, match="too small for a double"):
+        parse_check("genus==1e-400")
+    with pytest.raises(UsageError, match="too small for a double"):
+        parse_check("x<=-0.5E-330")
+    for text, value in (("x<=0e-400", 0.0), ("x<=0.000", 0.0), ("x>=5e-324", 5e-324), ("x<=1e-300", 1e-300)):
+        assert parse_check(text).value == value
+
+
 @pytest.mark.parametrize("op", ["<=", "<", ">=", ">", "=="])
 def test_a_check_without_a_number_names_its_operator(op):
     # 'x<=' must not read as 'x' < '=' (which blamed '=' for not being a number)
