@@ -272,6 +272,14 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     return Mesh(V, F, vfields, ffields), polys, unread
 
 
+def _nonblank_lines(body: bytes) -> int:
+    """Number of lines of ``body`` holding anything but white space."""
+    arr = np.frombuffer(body, dtype=np.uint8)
+    line = np.cumsum(arr == 10)
+    filled = ~np.isin(arr, np.frombuffer(b" \t\n\r\x0b\x0c", dtype=np.uint8))
+    return len(np.unique(line[filled]))
+
+
 def _require_declared_rows_fit(data: bytes, path: str) -> None:
     """InputError when the header's row counts cannot fit the bytes after it.
 
@@ -292,6 +300,11 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
         if need > have:
             raise InputError(path, f"PLY header declares {_row_counts(elements)}, but only {have} "
                                    f"line{'s' * (have != 1)} follow{'s' * (have == 1)} it (one per row)")
+        if have > need:  # blank lines after the rows are harmless; text is not
+            filled = _nonblank_lines(data[offset:])
+            if filled > need:
+                raise InputError(path, f"PLY header declares {_row_counts(elements)}, but {filled} non-empty "
+                                       "lines follow it (one per row): data after the declared rows")
         return
     need = sum(e.count * smallest_row_bytes(e) for e in elements)
     if need > body:

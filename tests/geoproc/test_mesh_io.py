@@ -208,6 +208,18 @@ def test_ply_counts_beyond_the_file_are_refused_before_allocating(tmp_path):
                                  "but only 1 line follows it (one per row)")
 
 
+def test_ascii_ply_text_after_the_declared_rows_is_refused(tmp_path):
+    rows = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    p = tmp_path / "t.ply"
+    p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n=3) + rows + "GARBAGE\n")
+    with pytest.raises(InputError) as err:
+        load_mesh(p)
+    assert err.value.problem == ("PLY header declares 3 vertex rows and 1 face row, but 5 non-empty lines "
+                                 "follow it (one per row): data after the declared rows")
+    p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n=3) + rows + "\n  \t\r\n\n")  # blank lines are fine
+    assert len(load_mesh(p, clean=False).F) == 1
+
+
 def test_ply_rows_that_fit_the_counts_keep_plyfiles_message(tmp_path):
     p = tmp_path / "t.ply"
     p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n=3) + "0 0 0\n1 0 0\n0 a 0\n3 0 1 2\n")
