@@ -61,14 +61,16 @@ def read_sources_file(path: str, data: bytes | None = None) -> list[int]:
     separated by spaces, commas or newlines; ``#`` starts a comment."""
     if data is None:
         data = read_input_bytes(path, "file of source indices")
-    text = data.decode("utf-8", errors="replace").removeprefix("\ufeff")  # a BOM some editors write
+    # a BOM some editors write goes; bytes that are not UTF-8 show as \xNN in an error
+    text = data.decode("utf-8", errors="backslashreplace").removeprefix("\ufeff")
     out = []
     for lineno, line in enumerate(text.splitlines(), 1):
         for tok in re.split(r"[\s,]+", line.split("#", 1)[0].strip()):
             if not tok:
                 continue
             if not re.fullmatch(r"[+-]?[0-9]+", tok):  # ASCII digits only (no 1_0, no other scripts)
-                raise InputError(path, f"line {lineno}: '{tok}' is not a vertex index")
+                shown = "".join(c if " " <= c <= "~" else ascii(c)[1:-1] for c in tok)  # non-ASCII escaped
+                raise InputError(path, f"line {lineno}: '{shown}' is not a vertex index")
             out.append(int(tok))
     if not out:
         raise InputError(path, "no vertex indices in the file")

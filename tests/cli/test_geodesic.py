@@ -70,6 +70,19 @@ def test_sources_file_and_stdout(cli, fixture_dir, tmp_path):
     assert np.abs(m.vertex_fields["distance"] - ref).max() < 1e-12
 
 
+@pytest.mark.parametrize("content,shown", [
+    (b"0\n1x\n", "line 2: '1x' is not a vertex index"),
+    (b"\xff\xfe1\n", "line 1: '\\xff\\xfe1' is not a vertex index"),  # bytes that are not UTF-8
+    ("0 \u0661\n".encode(), "line 1: '\\u0661' is not a vertex index"),  # an Arabic-Indic digit
+])
+def test_a_bad_token_in_the_sources_file_is_shown_in_ascii(cli, fixture_dir, tmp_path, content, shown):
+    sf = tmp_path / "s.txt"
+    sf.write_bytes(content)
+    p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", sf, "-o", tmp_path / "o.ply")
+    assert p.returncode == 2 and p.stderr.strip().endswith(shown), p.stderr
+    assert p.stderr.isascii() or "s.txt" not in p.stderr
+
+
 def test_a_source_given_twice_counts_once(cli, fixture_dir, tmp_path):
     rep = tmp_path / "r.json"
     p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "-s", "0", "-s", "440", "-m", "exact",
