@@ -13,6 +13,7 @@ from geoproc.geodesic.operators import (
     divergence_matrix,
     face_gradient_coefficients,
     laplacian_and_mass,
+    smallest_angles,
     stack_gradient_coefficients,
 )
 from geoproc.geodesic.poisson import PoissonSolver
@@ -49,7 +50,7 @@ class HeatOperators:
 
 
 def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
-                   poisson: str = "cotan") -> HeatOperators:
+                   poisson: str = "cotan", compiled: bool = False) -> HeatOperators:
     """Build :class:`HeatOperators`.
 
     ``operators``: ``"extrinsic"`` (the heat step with ``laplacian``, the
@@ -58,16 +59,23 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     Laplacian in both steps) or ``"auto"`` (intrinsic on meshes with slivers,
     see :func:`geoproc.geodesic.intrinsic.face_operators_triangulation`).
     Intrinsic falls back to extrinsic where the triangulation does not apply.
+    ``compiled``: the per-face angles and gradient weights by the numba kernels of
+    :mod:`geoproc.geodesic.face_kernels` (for callers that load numba anyway).
     """
     if len(F) == 0:  # libigl's operators crash on an empty face list
         raise ValueError("the mesh has no faces")
-    tri = face_operators_triangulation(V, F, operators)
+    angles, gradient_coefficients = smallest_angles, face_gradient_coefficients
+    if compiled:
+        from geoproc.geodesic.face_kernels import face_gradient_coefficients_compiled, smallest_angles_compiled
+
+        angles, gradient_coefficients = smallest_angles_compiled, face_gradient_coefficients_compiled
+    tri = face_operators_triangulation(V, F, operators, angles)
     if tri is not None:
         L, M, Fi, lengths = tri
         coef, G, D = intrinsic_face_operators(Fi, lengths, len(V))
         return HeatOperators("intrinsic", L, M, Fi, coef, G, D, PoissonSolver(L))
     L, M = laplacian_and_mass(V, F, laplacian)
-    coef = face_gradient_coefficients(V, F)
+    coef = gradient_coefficients(V, F)
     G = stack_gradient_coefficients(coef, F, len(V))
     if laplacian == poisson:
         Lp = L

@@ -77,19 +77,20 @@ def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return coef, area
 
 
-def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str):
+def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str, angles=smallest_angles):
     """The intrinsic Delaunay mesh (:func:`geoproc.geodesic.operators.intrinsic_delaunay_mesh`,
     negative weights allowed on boundary edges; None where it does not apply, callers
     then keep extrinsic operators) when ``operators`` asks for it, else None.
 
     ``operators``: ``"extrinsic"`` (None), ``"intrinsic"``, or ``"auto"``
     (intrinsic when at least :data:`SLIVER_SHARE` of the faces are slivers, or
-    a face has an angle below :data:`POISSON_NEEDLE_ANGLE`).
+    a face has an angle below :data:`POISSON_NEEDLE_ANGLE`). ``angles``: the function
+    that gives the faces' smallest angles (a compiled one for the log methods).
     """
     if operators not in OPERATORS:
         raise ValueError(f"unknown operators {operators!r}")
     if operators == "auto":
-        angle = smallest_angles(V, F)
+        angle = angles(V, F)
         if not (_sliver_share(angle) >= SLIVER_SHARE or angle.min(initial=np.pi) < POISSON_NEEDLE_ANGLE):
             return None
     if operators in ("auto", "intrinsic"):

@@ -112,7 +112,7 @@ class LogHeatSolver:
     def __init__(self, V: np.ndarray, F: np.ndarray, t: float, steps: int = 1,
                  laplacian: str = "intrinsic-delaunay", direction: str = "heat",
                  boundary: str = "average", poisson: str = "cotan", operators: str = "auto"):
-        ops = heat_operators(V, F, laplacian, operators, poisson)
+        ops = heat_operators(V, F, laplacian, operators, poisson, compiled=True)
         L, M = ops.L, ops.M
         if ops.kind == "intrinsic" and negative_offdiagonal_count(L):
             # obtuse angles facing boundary edges: the log-ODE needs non-negative weights,

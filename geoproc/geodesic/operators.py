@@ -9,7 +9,6 @@ components of every face, ``[m, 2m)`` y and ``[2m, 3m)`` z.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -65,25 +64,12 @@ def smallest_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     as ``x`` grows, so the smallest angle is the one with the largest dot
     product of its two edges: one cross product per face instead of three.
     """
-    out = np.empty(len(F))
-    _smallest_angles(np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64), out)
-    return out
-
-
-@numba.njit(cache=True)
-def _smallest_angles(V, F, out):
-    for f in range(F.shape[0]):
-        best = -np.inf  # the largest dot product of the two edges leaving a corner
-        for k in range(3):
-            i, j, q = F[f, k], F[f, (k + 1) % 3], F[f, (k + 2) % 3]
-            d = ((V[j, 0] - V[i, 0]) * (V[q, 0] - V[i, 0]) + (V[j, 1] - V[i, 1]) * (V[q, 1] - V[i, 1])
-                 + (V[j, 2] - V[i, 2]) * (V[q, 2] - V[i, 2]))
-            best = max(best, d)
-        a, b, c = F[f, 0], F[f, 1], F[f, 2]
-        x0, x1, x2 = V[a, 0] - V[c, 0], V[a, 1] - V[c, 1], V[a, 2] - V[c, 2]
-        y0, y1, y2 = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
-        c0, c1, c2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
-        out[f] = np.arctan2(np.sqrt(c0 * c0 + c1 * c1 + c2 * c2), best)
+    P = V[F]
+    e = np.stack([P[:, 2] - P[:, 1], P[:, 0] - P[:, 2], P[:, 1] - P[:, 0]], axis=1)  # e_c opposite corner c
+    twice_area = np.linalg.norm(np.cross(e[:, 1], e[:, 2]), axis=1)
+    # corner c lies between edges c+1 and c+2, which leave it as e_{c+2} and -e_{c+1}
+    dots = -np.einsum("kcj,kcj->kc", np.roll(e, -1, axis=1), np.roll(e, -2, axis=1))
+    return np.arctan2(twice_area, dots.max(axis=1))
 
 
 def lumped_mass(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -271,27 +257,15 @@ def face_gradient_coefficients(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     oriented counter-clockwise: the weights of ``igl.grad``, formed directly.
     Zero-area faces get zero weights.
     """
+    X = V[F]  # (m, 3 corners, 3)
+    N = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+    nn = np.einsum("ka,ka->k", N, N)
+    inv = np.divide(1.0, nn, out=np.zeros_like(nn), where=nn > 0)
     coef = np.empty((3, len(F), 3))
-    _face_gradient_coefficients(np.ascontiguousarray(V, dtype=np.float64),
-                                np.ascontiguousarray(F, dtype=np.int64), coef)
+    for c in range(3):
+        e = X[:, (c + 2) % 3] - X[:, (c + 1) % 3]
+        coef[:, :, c] = (np.cross(N, e) * inv[:, None]).T
     return coef
-
-
-@numba.njit(cache=True)
-def _face_gradient_coefficients(V, F, coef):
-    for f in range(F.shape[0]):
-        a, b, c = F[f, 0], F[f, 1], F[f, 2]
-        u0, u1, u2 = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
-        v0, v1, v2 = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
-        n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0  # N
-        nn = n0 * n0 + n1 * n1 + n2 * n2
-        inv = 1.0 / nn if nn > 0 else 0.0
-        for k in range(3):
-            p, q = F[f, (k + 1) % 3], F[f, (k + 2) % 3]
-            e0, e1, e2 = V[q, 0] - V[p, 0], V[q, 1] - V[p, 1], V[q, 2] - V[p, 2]  # e_k
-            coef[0, f, k] = (n1 * e2 - n2 * e1) * inv
-            coef[1, f, k] = (n2 * e0 - n0 * e2) * inv
-            coef[2, f, k] = (n0 * e1 - n1 * e0) * inv
 
 
 def stack_gradient_coefficients(coef: np.ndarray, F: np.ndarray, n: int) -> sp.csr_matrix:

@@ -545,6 +545,22 @@ def test_upper_triangle_for_the_factorization_equals_scipy_triu():
     assert np.abs(A @ factor_sparse(A).solve(b) - b).max() < 1e-12
 
 
+def test_compiled_face_kernels_agree_with_numpy(make_fixtures):
+    from geoproc.geodesic.face_kernels import face_gradient_coefficients_compiled, smallest_angles_compiled
+    from geoproc.geodesic.operators import face_gradient_coefficients, smallest_angles
+
+    V, F = make_fixtures.icosphere(2)
+    V = V * np.array([1.0, 0.3, 2.0])
+    V = np.vstack([V, [[0.0, 0, 0], [1, 0, 0], [0.5, 0.5e-12, 0]]])  # a needle, and a face repeating a vertex
+    n = len(V)
+    F = np.vstack([F, [[n - 3, n - 2, n - 1], [0, 0, 1]]])
+    a, b = smallest_angles_compiled(V, F), smallest_angles(V, F)
+    assert np.abs(a - b).max() <= 1e-15 * np.pi and a[-1] == b[-1] == 0.0
+    assert np.isclose(a[-2], 2e-12, rtol=1e-6)
+    c, d = face_gradient_coefficients_compiled(V, F), face_gradient_coefficients(V, F)
+    assert np.abs(c - d).max() <= 1e-15 * np.abs(d).max() and (c[:, -1] == 0).all()
+
+
 def test_negative_weights_are_counted_once_per_edge(make_fixtures):
     from geoproc.geodesic.operators import cotan_laplacian, negative_offdiagonal_count
 
