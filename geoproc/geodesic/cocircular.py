@@ -74,8 +74,11 @@ def _interior_edges(Fi: np.ndarray, l: np.ndarray) -> tuple[np.ndarray, np.ndarr
     # sorting by vertex pair and direction alone gives that order unless two edges join the same pair
     order = idx[np.argsort(key[idx] * 2 + ~forward[idx], kind="stable")]
     k, w = key[order], length[order]
-    if ((k[1:] == k[:-1]) & (w[1:] != w[:-1])).any():
-        order = idx[np.lexsort((idx, ~forward[idx], length[idx], key[idx]))]
+    mixed = (k[1:] == k[:-1]) & (w[1:] != w[:-1])
+    if mixed.any():  # re-sort those pairs' half-edges by length too, in the places they hold
+        at = np.flatnonzero(np.isin(k, k[1:][mixed]))
+        sub = order[at]
+        order[at] = sub[np.lexsort((sub, ~forward[sub], length[sub], key[sub]))]
         k, w = key[order], length[order]
     fw = forward[order]
     new_group = np.r_[True, (k[1:] != k[:-1]) | (w[1:] != w[:-1])]
