@@ -36,7 +36,8 @@ def _smallest_angles(V, F, out):
         x0, x1, x2 = V[a, 0] - V[c, 0], V[a, 1] - V[c, 1], V[a, 2] - V[c, 2]
         y0, y1, y2 = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
         c0, c1, c2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
-        out[f] = np.arctan2(np.sqrt(c0 * c0 + c1 * c1 + c2 * c2), best)
+        twice_area = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+        out[f] = 0.0 if twice_area == 0 else np.arctan2(twice_area, best)
 
 
 def face_gradient_coefficients_compiled(V: np.ndarray, F: np.ndarray) -> np.ndarray:

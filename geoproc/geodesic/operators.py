@@ -69,7 +69,8 @@ def smallest_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     twice_area = np.linalg.norm(np.cross(e[:, 1], e[:, 2]), axis=1)
     # corner c lies between edges c+1 and c+2, which leave it as e_{c+2} and -e_{c+1}
     dots = -np.einsum("kcj,kcj->kc", np.roll(e, -1, axis=1), np.roll(e, -2, axis=1))
-    return np.arctan2(twice_area, dots.max(axis=1))
+    # no area: 0 (three corners at one point give dot products of -0.0, and atan2(0, -0.0) = pi)
+    return np.where(twice_area == 0, 0.0, np.arctan2(twice_area, dots.max(axis=1)))
 
 
 def lumped_mass(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -302,9 +303,12 @@ def integrated_divergence(G: sp.spmatrix, area: np.ndarray) -> sp.csr_matrix:
     the transposed gradient with each face's column scaled, formed from G's
     arrays instead of a sparse product."""
     G = sp.csr_matrix(G)
-    w = np.tile(area, G.shape[0] // len(area)) if len(area) else np.zeros(0)
-    data = -(G.data * np.repeat(w, np.diff(G.indptr)))
-    return sp.csc_matrix((data, G.indices, G.indptr), shape=G.shape[::-1]).tocsr()
+    w = np.repeat(np.tile(area, G.shape[0] // len(area)) if len(area) else np.zeros(0), np.diff(G.indptr))
+    with np.errstate(invalid="ignore"):
+        data = np.where(w == 0, 0.0, -(G.data * w))  # no area, no entry (libigl's gradient is NaN there)
+    D = sp.csc_matrix((data, G.indices, G.indptr), shape=G.shape[::-1]).tocsr()
+    D.eliminate_zeros()
+    return D
 
 
 def face_to_vertex_average(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
@@ -340,18 +344,18 @@ def upper_triangle_csc(A: sp.spmatrix) -> sp.csc_matrix:
     """The upper triangle (diagonal included) of a symmetric (n, n) matrix as
     a canonical csc matrix, the input QDLDL factors.
 
-    Read from the lower triangle of A's rows, which by symmetry holds the same
-    values, without the coordinate round trip of ``sp.triu``.
+    The entries with row <= column, as ``sp.triu`` keeps them (QDLDL reads
+    only those), without its coordinate round trip.
     """
-    C = sp.csr_matrix(A)
+    C = sp.csc_matrix(A)
     if not C.has_canonical_format:
         C = C.copy()
         C.sum_duplicates()
     n = C.shape[0]
-    rows = np.repeat(np.arange(n, dtype=C.indices.dtype), np.diff(C.indptr))
-    keep = C.indices <= rows
+    cols = np.repeat(np.arange(n, dtype=C.indices.dtype), np.diff(C.indptr))
+    keep = C.indices <= cols
     indptr = np.zeros(n + 1, dtype=C.indptr.dtype)
-    np.cumsum(np.bincount(rows[keep], minlength=n), out=indptr[1:])
+    np.cumsum(np.bincount(cols[keep], minlength=n), out=indptr[1:])
     return sp.csc_matrix((C.data[keep], C.indices[keep], indptr), shape=(n, n))
 
 

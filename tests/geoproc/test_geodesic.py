@@ -527,6 +527,21 @@ def test_stacked_gradient_and_divergence_equal_their_dense_definitions(make_fixt
         assert np.array_equal(integrated_divergence(G, area).toarray(), -(dense * np.tile(area, 3)[:, None]).T)
 
 
+def test_divergence_leaves_out_faces_without_area(make_fixtures):
+    # libigl's gradient is NaN on a zero-area face; the face carries no area, so no divergence
+    V, F = make_fixtures.icosphere(1)
+    V = np.vstack([V, [[3.0, 0, 0], [4, 0, 0], [5, 0, 0]]])
+    n = len(V)
+    for extra in ([n - 3, n - 2, n - 1], [0, 0, 5]):  # collinear corners, a repeated vertex
+        Fx = np.vstack([F, [extra]])
+        D = gd.divergence_matrix(V, Fx)
+        assert np.isfinite(D.data).all()
+        X = np.random.default_rng(0).standard_normal(3 * len(Fx))
+        Dref = gd.divergence_matrix(V, F)  # the same mesh without that face
+        keep = np.r_[np.arange(len(F)), len(Fx) + np.arange(len(F)), 2 * len(Fx) + np.arange(len(F))]
+        assert np.abs(D @ X - Dref @ X[keep]).max() <= 1e-12 * np.abs(Dref @ X[keep]).max()
+
+
 def test_upper_triangle_for_the_factorization_equals_scipy_triu():
     from geoproc.geodesic.operators import factor_sparse, upper_triangle_csc
 
@@ -543,6 +558,11 @@ def test_upper_triangle_for_the_factorization_equals_scipy_triu():
         assert abs(U - ref).max() == 0 and U.nnz == ref.nnz and U.has_sorted_indices
     b = rng.standard_normal(40)
     assert np.abs(A @ factor_sparse(A).solve(b) - b).max() < 1e-12
+    N = (A + sp.triu(sp.random(40, 40, density=0.1, random_state=rng), 1)).tocsr()  # not symmetric
+    assert abs(upper_triangle_csc(N) - sp.triu(N, format="csc")).max() == 0
+    U = sp.triu(N)  # QDLDL reads the upper triangle: the solution is that of U + U^T - diag
+    S = (U + U.T - sp.diags(N.diagonal())).tocsr()
+    assert np.abs(S @ factor_sparse(N).solve(b) - b).max() < 1e-12
 
 
 def test_compiled_face_kernels_agree_with_numpy(make_fixtures):
@@ -551,14 +571,15 @@ def test_compiled_face_kernels_agree_with_numpy(make_fixtures):
 
     V, F = make_fixtures.icosphere(2)
     V = V * np.array([1.0, 0.3, 2.0])
-    V = np.vstack([V, [[0.0, 0, 0], [1, 0, 0], [0.5, 0.5e-12, 0]]])  # a needle, and a face repeating a vertex
+    # a needle, a face repeating a vertex, one repeating it three times, and three corners at one point
+    V = np.vstack([V, [[0.0, 0, 0], [1, 0, 0], [0.5, 0.5e-12, 0], [2, 2, 2], [2, 2, 2], [2, 2, 2]]])
     n = len(V)
-    F = np.vstack([F, [[n - 3, n - 2, n - 1], [0, 0, 1]]])
+    F = np.vstack([F, [[n - 6, n - 5, n - 4], [0, 0, 1], [7, 7, 7], [n - 3, n - 2, n - 1]]])
     a, b = smallest_angles_compiled(V, F), smallest_angles(V, F)
-    assert np.abs(a - b).max() <= 1e-15 * np.pi and a[-1] == b[-1] == 0.0
-    assert np.isclose(a[-2], 2e-12, rtol=1e-6)
+    assert np.abs(a - b).max() <= 1e-15 * np.pi and (a[-3:] == 0).all() and (b[-3:] == 0).all()
+    assert np.isclose(a[-4], 2e-12, rtol=1e-6)
     c, d = face_gradient_coefficients_compiled(V, F), face_gradient_coefficients(V, F)
-    assert np.abs(c - d).max() <= 1e-15 * np.abs(d).max() and (c[:, -1] == 0).all()
+    assert np.abs(c - d).max() <= 1e-15 * np.abs(d).max() and (c[:, -3:] == 0).all()
 
 
 def test_negative_weights_are_counted_once_per_edge(make_fixtures):
