@@ -299,7 +299,8 @@ def read_uniform_ply(data: bytes) -> dict[str, np.ndarray] | None:
             if got is None:
                 return None
             out[e.name], pos = got
-        return out if pos == len(lines[0]) else None
+        rest = body[lines[0][pos]:] if pos < len(lines[0]) else b""
+        return None if rest.strip() else out  # blank lines may end the file; anything else goes to plyfile
     order = "<" if fmt == "binary_little_endian" else ">"
     for e in elements:
         got = _binary_element(data, offset, e, order)

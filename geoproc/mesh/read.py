@@ -272,12 +272,15 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     return Mesh(V, F, vfields, ffields), polys, unread
 
 
-def _nonblank_lines(body: bytes) -> int:
-    """Number of lines of ``body`` holding anything but white space."""
-    arr = np.frombuffer(body, dtype=np.uint8)
-    line = np.cumsum(arr == 10)
-    filled = ~np.isin(arr, np.frombuffer(b" \t\n\r\x0b\x0c", dtype=np.uint8))
-    return len(np.unique(line[filled]))
+def _nonblank_lines_after(data: bytes, offset: int, rows: int) -> int:
+    """Number of lines holding anything but white space after the first
+    ``rows`` lines that follow byte ``offset`` (the header's end). A blank line
+    among the rows is refused by the row parsers, so these are the lines
+    after the declared rows."""
+    end = offset - 1
+    if rows:  # the newline that ends the last row
+        end = offset + int(np.flatnonzero(np.frombuffer(data, dtype=np.uint8, offset=offset) == 10)[rows - 1])
+    return sum(1 for line in data[end + 1:].split(b"\n") if line.strip())
 
 
 def _require_declared_rows_fit(data: bytes, path: str) -> None:
@@ -301,10 +304,10 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
             raise InputError(path, f"PLY header declares {_row_counts(elements)}, but only {have} "
                                    f"line{'s' * (have != 1)} follow{'s' * (have == 1)} it (one per row)")
         if have > need:  # blank lines after the rows are harmless; text is not
-            filled = _nonblank_lines(data[offset:])
-            if filled > need:
-                raise InputError(path, f"PLY header declares {_row_counts(elements)}, but {filled} non-empty "
-                                       "lines follow it (one per row): data after the declared rows")
+            extra = _nonblank_lines_after(data, offset, need)
+            if extra:
+                raise InputError(path, f"PLY header declares {_row_counts(elements)}, but {need + extra} "
+                                       "non-empty lines follow it (one per row): data after the declared rows")
         return
     need = sum(e.count * smallest_row_bytes(e) for e in elements)
     if need > body:
