@@ -323,6 +323,7 @@ def face_to_vertex_average(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
 
 def normalized_direction(X: np.ndarray) -> np.ndarray:
     """Rows of ``X`` (m, 3) scaled to unit length; zero (or non-finite) rows become 0."""
+    X = np.asarray(X, dtype=np.float64)
     norm = np.sqrt(np.add.reduce(X * X, axis=1))  # np.linalg.norm's sum, without its checks
     ok = np.isfinite(norm) & (norm > 0)
     return np.divide(X, norm[:, None], out=np.zeros_like(X), where=ok[:, None])
