@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoproc.mesh.topology import halfedges
+from geoproc.mesh.topology import halfedges, undirected_edge_keys
 
 TOL = 1e-9
 """Cotangent sums within this (relative) of zero are cocircular: translated
@@ -64,10 +64,10 @@ def _interior_edges(Fi: np.ndarray, l: np.ndarray) -> tuple[np.ndarray, np.ndarr
     length ``l`` (m, 3) (stored once per flip, so equal to the bit). Edges
     from a vertex to itself are left out.
     """
-    n = int(Fi.max()) + 1
-    a, b = halfedges(np.roll(np.asarray(Fi, dtype=np.int64), -1, axis=1)).T  # f * 3 + c runs a -> b, opposite c
+    rolled = np.roll(np.asarray(Fi, dtype=np.int64), -1, axis=1)
+    a, b = halfedges(rolled).T  # f * 3 + c runs a -> b, opposite c
     length = np.asarray(l, dtype=np.float64).reshape(-1)
-    key = np.minimum(a, b) * n + np.maximum(a, b)
+    key = undirected_edge_keys(rolled)
     forward = a < b
     idx = np.flatnonzero(a != b)
     # groups of equal (vertex pair, length): forward half-edges first, each direction in id order;
@@ -130,9 +130,8 @@ def _cocircular_pairs(Fi: np.ndarray, l: np.ndarray, tol: float):
 
 def _edge_weights(Fi, h, t, a, b, cot, on) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`cocircular_edge_weights` from :func:`_cocircular_pairs`'s output."""
-    n = int(np.max(Fi)) + 1
-    ha, hb = halfedges(np.asarray(Fi, dtype=np.int64)).T
-    keys = np.sort(np.minimum(ha, hb) * n + np.maximum(ha, hb))
+    n = int(np.max(Fi)) + 1  # the keys' base (undirected_edge_keys's)
+    keys = np.sort(undirected_edge_keys(Fi))
     k = a[on] * n + b[on]
     halves = np.searchsorted(keys, k, side="right") - np.searchsorted(keys, k, side="left")
     return np.stack([a[on], b[on]], axis=1), 0.5 * (cot[h[on]] + cot[t[on]]), halves == 2
