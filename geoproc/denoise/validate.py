@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from geoproc.errors import InputError
-from geoproc.mesh.topology import face_list_renumbering
+from geoproc.mesh.topology import face_areas, face_list_renumbering
 from geoproc.mesh.validate import require_edge_manifold
 
 
@@ -38,7 +38,9 @@ def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np
     Raises
     ------
     InputError
-        When the counts differ, or the face lists differ beyond a renumbering.
+        When the counts differ, the face lists differ beyond a renumbering, or
+        every reference face has zero area (in some frame): its normals, and so
+        every metric against it, would mean nothing.
     """
     n_ref = V_ref.shape[-2]
     P = V_ref.reshape(-1, n_ref, 3)
@@ -47,6 +49,10 @@ def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np
     if n_ref != n or len(F_ref) != len(F):
         raise InputError(path, f"reference connectivity differs from the input ({n_ref} vertices, "
                          f"{len(F_ref)} faces vs {n}, {len(F)}); load both with the same --no-clean setting")
+    for t in range(len(P)):
+        if not (face_areas(P[t], F_ref) > 0).any():
+            where = f" (frame {t})" if V_ref.ndim == 3 else ""
+            raise InputError(path, f"the reference is degenerate{where}: every face has zero area")
     if np.array_equal(F_ref, F):
         return V_ref
     r = face_list_renumbering(F, n, F_ref, n_ref)

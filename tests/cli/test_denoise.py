@@ -312,6 +312,20 @@ def test_reference_with_other_connectivity(cli, cube_pair, fixture_dir, tmp_path
     assert _one_line_error(p) and "connectivity" in p.stderr and not out.exists() and not rep.exists()
 
 
+def test_reference_whose_faces_all_have_zero_area_is_refused(cli, cube_pair, tmp_path):
+    # distinct vertices on a line: no reference normal exists, so no metric against it means anything
+    noisy, clean = cube_pair
+    c = load_mesh(clean)
+    L = np.zeros_like(c.V)
+    L[:, 0] = np.arange(len(L)) * 1e-3
+    flat = tmp_path / "line.ply"
+    save_mesh(flat, Mesh(L, c.F))
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = cli("denoise", noisy, "--reference", flat, "-o", out, "--report", rep)
+    assert _one_line_error(p) and f"{flat}: the reference is degenerate: every face has zero area" in p.stderr
+    assert not out.exists() and not rep.exists()
+
+
 @pytest.mark.slow
 def test_bad_method(cli, cube_pair, tmp_path):
     noisy, _ = cube_pair
@@ -488,6 +502,12 @@ def test_dynamic_checks_every_frame_and_names_file_and_frame(cli, dfx, tmp_path)
     save_mesh(mesh, Mesh(Vn[0], F))
     p = cli("denoise", src, "--dynamic", "--reference", mesh, "-o", out)
     assert _one_line_error(p) and "with --dynamic the reference is an animation" in p.stderr
+    # a reference animation with a frame of no area is refused too, naming the frame
+    ref = tmp_path / "ref.npz"
+    ref.write_bytes(animation_to_bytes(Animation(flat, F)))
+    p = cli("denoise", src, "--dynamic", "--reference", ref, "-o", out)
+    assert _one_line_error(p) and "ref.npz: the reference is degenerate (frame 2): every face has zero area" \
+        in p.stderr and not out.exists()
     # the outlier field travels to the output: non-finite values are refused there too
     src = tmp_path / "inf.npz"
     src.write_bytes(animation_to_bytes(Animation(Vn, F, {"outlier": np.full(Vn.shape[:2], np.inf)})))
