@@ -29,6 +29,9 @@ def persistence_diagram_png(before: PersistencePairs, after: PersistencePairs, t
     FigureCanvasAgg(fig)
     lo = float(min(before.f.min(), after.f.min()))
     hi = float(max(before.f.max(), after.f.max()))
+    scale = plot_scale(lo, hi)
+    lo, hi, band = lo / scale, hi / scale, threshold / scale
+    unit = "" if scale == 1.0 else f" (× {scale:.6g})"
     pad = 0.05 * (hi - lo if hi > lo else 1.0)
     top = hi + 2 * pad
     for k, (pp, name) in enumerate([(before, "before (f)"), (after, "after (g)")]):
@@ -36,12 +39,12 @@ def persistence_diagram_png(before: PersistencePairs, after: PersistencePairs, t
         xs = np.array([lo - pad, top])
         # the band's top edge is clipped to the plot: at P near the float range matplotlib's
         # transform overflowed and the band vanished
-        ax.fill_between(xs, xs, np.minimum(xs + threshold, top + pad), color="0.85", lw=0,
+        ax.fill_between(xs, xs, np.minimum(xs + band, top + pad), color="0.85", lw=0,
                         label=f"persistence < {threshold:.4g}")
         ax.plot(xs, xs, color="0.4", lw=0.8)
         ax.axhline(top, color="0.4", lw=0.8, ls="--")
         for dim, style, colour in [(0, "o", "tab:blue"), (1, "^", "tab:red"), (2, "s", "tab:green")]:
-            d = pp.diagram(dim)
+            d = pp.diagram(dim) / scale
             if not len(d):
                 continue
             fin = np.isfinite(d[:, 1])
@@ -54,8 +57,8 @@ def persistence_diagram_png(before: PersistencePairs, after: PersistencePairs, t
                        label=f"essential dim {dim} ({int((~fin).sum())})")
         ax.set_xlim(lo - pad, top + pad)
         ax.set_ylim(lo - pad, top + pad)
-        ax.set_xlabel("birth")
-        ax.set_ylabel("death")
+        ax.set_xlabel("birth" + unit)
+        ax.set_ylabel("death" + unit)
         ax.set_title(name)
         ax.set_aspect("equal")
         ax.legend(loc="lower right", fontsize=8)
@@ -64,3 +67,11 @@ def persistence_diagram_png(before: PersistencePairs, after: PersistencePairs, t
     buf = io.BytesIO()
     fig.savefig(buf, format="png", metadata={"Software": None})
     return buf.getvalue()
+
+
+def plot_scale(lo: float, hi: float) -> float:
+    """Power of two the diagram's values are divided by before plotting: 1
+    unless the values (between ``lo`` and ``hi``) or their span exceed 1e300,
+    where the plot's margins and matplotlib's transforms would overflow."""
+    big = max(abs(lo), abs(hi), 2.0 * (hi / 2 - lo / 2))
+    return 1.0 if big <= 1e300 else float(2.0 ** np.floor(np.log2(big)))

@@ -30,14 +30,18 @@ def mean_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n,) pointwise Gaussian curvature per vertex, in 1/length^2: libigl's
-    angle defect divided by the vertex's Voronoi area."""
+    angle defect divided by the vertex's Voronoi area; 0 where that area is 0
+    (a vertex no face uses)."""
     import igl
 
     V = np.ascontiguousarray(V)
     F = np.ascontiguousarray(F)
-    K = np.asarray(igl.gaussian_curvature(V, F))
+    K = np.asarray(igl.gaussian_curvature(V, F), dtype=np.float64)
     M = igl.massmatrix(V, F, igl.MassMatrixType.MASSMATRIX_TYPE_VORONOI)
-    area = np.asarray(M.diagonal())
+    # libigl sizes the mass matrix by the largest face index: unused vertices
+    # stored last (kept by --no-clean) have no entry there
+    area = np.zeros(len(V))
+    area[:M.shape[0]] = M.diagonal()
     return np.divide(K, area, out=np.zeros_like(K), where=area > 0)
 
 

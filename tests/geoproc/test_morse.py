@@ -187,3 +187,40 @@ def test_diagram_band_drawn_at_any_threshold(make_fixtures, threshold):
     img = matplotlib.image.imread(io.BytesIO(persistence_diagram_png(pp, pp, threshold)))
     band = np.all(np.abs(img[..., :3] - 0.85) < 0.01, axis=-1)  # the band's grey, 0.85
     assert band.mean() > 0.05, band.mean()
+
+
+@pytest.mark.parametrize("lo, span", [(1.0e308, 0.7e308), (-8.9e307, 1.78e308)])
+def test_diagram_drawn_for_values_near_the_float_range(make_fixtures, lo, span):
+    # values accepted by the field check: the plot's margins overflowed to inf (exit 3,
+    # "Axis limits cannot be NaN or Inf") and matplotlib's transform failed at a span of 1.78e308
+    import io
+
+    import matplotlib.image
+
+    from geoproc.morse.diagram_plot import persistence_diagram_png
+
+    V, F = make_fixtures.icosphere(2)
+    f = lo + span * np.random.default_rng(0).random(len(V))
+    pp = lower_star_persistence(surface_complex(F, len(V)), f)
+    img = matplotlib.image.imread(io.BytesIO(persistence_diagram_png(pp, pp, 0.1 * span)))
+    band = np.all(np.abs(img[..., :3] - 0.85) < 0.01, axis=-1)
+    assert band.mean() > 0.02, band.mean()
+    blue = np.all(np.abs(img[..., :3] - np.array([0.122, 0.467, 0.706])) < 0.02, axis=-1)  # tab:blue dots
+    assert blue.sum() > 50, blue.sum()
+
+
+def test_gaussian_curvature_with_an_unused_vertex_stored_last():
+    # libigl's mass matrix stops at the largest face index: --no-clean with a vertex no face
+    # uses, stored last, failed to broadcast (exit 3)
+    from geoproc.morse.fields import gaussian_curvature
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [5, 5, 5.0]])
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    K = gaussian_curvature(V, F)
+    assert K.shape == (5,) and K[4] == 0.0
+    np.testing.assert_allclose(K[:4], gaussian_curvature(V[:4], F))
+    # at the corner where three right angles meet the angle defect is pi/2
+    import igl
+
+    area = igl.massmatrix(V[:4], F, igl.MassMatrixType.MASSMATRIX_TYPE_VORONOI).diagonal()
+    assert K[0] == pytest.approx((2 * np.pi - 3 * np.pi / 2) / area[0])
