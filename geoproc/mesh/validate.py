@@ -145,6 +145,12 @@ def vertex_field_values(values, n: int, name: str, path: str | None = None) -> n
     values = np.asarray(values)
     if values.dtype.kind not in "fiub":
         raise InputError(path, f"field '{name}' must hold real numbers, got dtype {values.dtype}")
+    if values.dtype.kind == "f" and values.dtype.itemsize > 8:  # long double: may not fit float64
+        wide = np.isfinite(values) & (np.abs(values) > np.finfo(np.float64).max)
+        if wide.any():
+            raise InputError(
+                path, f"field '{name}' has {int(wide.sum())} values beyond the float64 range "
+                f"(first: vertex {int(np.flatnonzero(wide.reshape(-1))[0])}); rescale it")
     a = np.asarray(values, dtype=np.float64).reshape(-1)
     if len(a) != n:
         raise InputError(path, f"field '{name}' has {len(a)} values for {n} vertices")

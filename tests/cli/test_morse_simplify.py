@@ -295,3 +295,19 @@ def test_tie_breaking_past_half_threshold_is_not_counted(cli, fixture_dir, tmp_p
     g = load_mesh(out).vertex_fields["plateau"]
     past = np.abs(g - f) - 0.05
     assert 64 * np.finfo(np.float64).eps < past.max() < 1e-12  # beyond 64 units, yet only tie-breaking
+
+
+def test_long_double_field_beyond_float64_is_one_line(cli, fixture_dir, tmp_path):
+    # finite long doubles past 1.8e308 printed numpy's overflow warning and its source line,
+    # then called the values non-finite
+    n = len(load_mesh(fixture_dir / "torus.ply").V)
+    field = tmp_path / "ld.npy"
+    values = np.ones(n, dtype=np.longdouble)
+    if np.finfo(np.longdouble).max <= np.finfo(np.float64).max:
+        pytest.skip("long double is float64 on this platform")
+    values[5] = np.longdouble(10) ** 400
+    np.save(field, values)
+    out = tmp_path / "o.ply"
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", field, "-p", "0.1", "-o", out)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert "field 'ld' has 1 values beyond the float64 range (first: vertex 5)" in p.stderr and not out.exists()
