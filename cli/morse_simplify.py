@@ -153,7 +153,11 @@ def morse_simplify(
         if npy is not None:
             run.add_input(field, npy)
         name = field_name(field)
-        run.note_replaced("vertex", [k for k in (name, f"{name}_original") if k != field], m.vertex_fields)
+        written = (name, f"{name}_original") + (("cell_dim",) if barycentric else ())
+        if barycentric and name == "cell_dim":
+            raise UsageError("--field cell_dim with --barycentric: the output's 'cell_dim' property holds "
+                             "each subdivision vertex's cell dimension; copy the field under another name")
+        run.note_replaced("vertex", [k for k in written if k != field], m.vertex_fields)
         span = float(f.max() - f.min()) if len(f) else 0.0
         threshold = float(persistence) * span if relative else float(persistence)
         if not np.isfinite(threshold):

@@ -69,6 +69,16 @@ def test_replacing_an_input_property_is_noted(cli, fixture_dir, tmp_path):
     assert p.returncode == 0 and "note: replacing the input's vertex property 'x_value'" in p.stderr
     p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", "x", "-p", "0.1", "-o", tmp_path / "o.ply")
     assert p.returncode == 0 and "replacing" not in p.stderr
+    # --barycentric writes 'cell_dim': an input property of that name is replaced with a note,
+    # and a field of that name, which the result would have overwritten silently, is refused
+    src = tmp_path / "cd.ply"
+    save_mesh(src, Mesh(torus.V, torus.F, {"cell_dim": torus.V[:, 2]}))
+    out = tmp_path / "b.ply"
+    p = cli("morse-simplify", src, "-f", "x", "-p", "0.1", "--barycentric", "-o", out)
+    assert p.returncode == 0 and "note: replacing the input's vertex property 'cell_dim'" in p.stderr
+    p = cli("morse-simplify", src, "-f", "cell_dim", "-p", "0.1", "--barycentric", "-o", tmp_path / "c.ply")
+    assert p.returncode == 2 and "--field cell_dim with --barycentric" in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and not (tmp_path / "c.ply").exists()
 
 
 def test_npy_field_and_curvature(cli, fixture_dir, tmp_path):
