@@ -393,7 +393,9 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
         except OverflowError:
             raise InputError(path, f"loop {k} has a coordinate too large for a float") from None
     flags = [np.zeros(len(L), dtype=bool) for L in loops]
-    neumann = doc.get("neumann", []) or []
+    neumann = doc.get("neumann")
+    if neumann is None:  # absent, or null
+        neumann = []
     if not isinstance(neumann, list):
         raise InputError(path, f"'neumann' must be a list of loop indices or [loop, segment] pairs, "
                          f"not {neumann!r}")

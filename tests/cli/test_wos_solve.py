@@ -27,6 +27,7 @@ def inputs(tmp_path_factory):
         "flat": {"loops": [[[0, 0], [1, 0], [2, 0]]]},
         "huge": {"loops": [[[0, 0], [1e20, 0], [1e20, 1e20], [0, 1e20]]]},
         "neu_int": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": 1},
+        "neu_zero": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": 0},
         "typo": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "Neumann": [[0, 1]]},
     }
     for name, doc in files.items():
@@ -104,6 +105,8 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("folder.json", [], "folder.json: is a directory, not a domain file"),
     ("huge.json", [], "loop 0 has coordinates as large as 1e+20; they must stay within +-1e+15"),
     ("neu_int.json", [], "'neumann' must be a list of loop indices or [loop, segment] pairs, not 1"),
+    # a falsy non-list ("neumann": 0) was read as no Neumann loop: a Dirichlet problem without a word
+    ("neu_zero.json", [], "'neumann' must be a list of loop indices or [loop, segment] pairs, not 0"),
     # a misspelt key gave a Dirichlet problem without a word
     ("typo.json", [], "unknown key 'Neumann' (the keys are 'loops', 'neumann' and 'values')"),
     ("disk.json", ["--boundary", "+".join(["x"] * 20000)], "expression nested too deeply"),
