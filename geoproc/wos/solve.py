@@ -165,11 +165,12 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     gs = grid_over(domain, grid)
     P = gs.points()
     d_all = problem.distance(P)
-    d_dir = problem.distance(P, dirichlet_only=True) if problem.mixed else d_all
-    # points on the Dirichlet boundary (up to round-off) count as inside: their walks
-    # stop at once and they take the boundary value
+    # points on the boundary (up to round-off) count as inside, whatever the even-odd
+    # test says of them: on a Dirichlet segment their walks stop at once and they take
+    # the boundary value; on a Neumann segment they start 1e-9 of the diagonal inside
+    # (wost.off_neumann_walls), where the points on a hole's top edge had been left NaN
     lo, hi = domain.bbox
-    inside = domain.contains(P) | (d_dir <= 1e-9 * float(np.linalg.norm(hi - lo)))
+    inside = domain.contains(P) | (d_all <= 1e-9 * float(np.linalg.norm(hi - lo)))
     X = np.ascontiguousarray(P[inside])
     if len(X) == 0:
         raise UsageError(f"--grid {grid}: no grid point falls inside the domain; use a finer grid")

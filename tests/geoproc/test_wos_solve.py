@@ -375,3 +375,22 @@ def test_a_part_with_only_neumann_segments_is_refused(loops, neumann):
     flags = [np.full(len(L), k == 1) for k, L in enumerate(loops)]
     if len(loops) == 3:
         WalkProblem(build_domain([np.array(L, float) for L in loops], flags), parse_expression("x"), None, 1e-3)
+
+
+def test_grid_points_on_every_neumann_edge_of_a_hole_are_solved():
+    # the even-odd test is arbitrary exactly on an edge: the points on the hole's top
+    # (Neumann) edge had been left NaN while those on its bottom edge were solved
+    outer = [[0, 0], [4, 0], [4, 4], [0, 4]]
+    hole = [[1.25, 1.25], [2.75, 1.25], [2.75, 2.75], [1.25, 2.75]]
+    d = build_domain([np.asarray(outer, float), np.asarray(hole, float)],
+                     neumann_segments=[np.zeros(4, bool), np.array([1, 0, 1, 0], bool)])
+    r = solve_laplace(d, parse_expression("y"), flux=parse_expression("-(y - 2)/0.75"),
+                      walks=256, grid=8, exact=True, seed=0)
+    cx = (np.arange(8) + 0.5) / 2  # pixel centres (grid 8 over the 4 x 4 box)
+    y = 4 - cx[:, None] + 0 * cx[None, :]
+    x = cx[None, :] + 0 * cx[:, None]
+    in_hole = (x > 1.25) & (x < 2.75) & (y > 1.25) & (y < 2.75)
+    assert np.isfinite(r.U[~in_hole]).all() and np.isnan(r.U[in_hole]).all()
+    edge = ((y == 1.25) | (y == 2.75)) & (x > 1.25) & (x < 2.75)  # both Neumann edges, 2 points each
+    assert edge.sum() == 4
+    assert (np.abs(r.U[edge] - y[edge]) <= 4 * r.stderr[edge] + 1e-3).all(), (r.U[edge], r.stderr[edge])
