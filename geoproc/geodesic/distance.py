@@ -199,28 +199,8 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     h = mean_edge_length(V, F)
     t = None if method == "exact" else diffusion_time(h, time_factor, time)
     lap = None if method == "exact" else (laplacian or DEFAULT_LAPLACIAN[method])
-    if method in NEEDS_MANIFOLD:
-        from geoproc.mesh import Mesh
-        from geoproc.mesh.mesh import LoadLog
-
-        require_manifold(Mesh(V, F, log=LoadLog(path=path or "")), f"; method '{method}' needs a manifold mesh")
-    if method in NEEDS_EDGE_MANIFOLD:
-        require_edge_manifold(F, path, f"; method '{method}' needs an edge-manifold mesh")
-    own_triangles = method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"
-    if (area <= 0).any() and own_triangles:
-        k = int(np.flatnonzero(area <= 0)[0])
-        raise InputError(path, f"{int((area <= 0).sum())} faces have zero area (first: face {k}); "
-                               f"method '{method}' needs non-degenerate triangles")
-    if own_triangles:  # faces whose edge lengths give zero area count as zero-area faces
-        from geoproc.geodesic.operators import infinite_cotan_faces
-
-        thin = infinite_cotan_faces(V, F)  # their cotangents are infinite: heat gave NaN, exact never returned
-        if len(thin):
-            raise InputError(path, f"{len(thin)} faces are too thin (first: face {thin[0]}): their edge lengths "
-                                   f"give zero area, so their cotangents are infinite; method '{method}' needs "
-                                   "non-degenerate triangles")
     ops = operators or DEFAULT_OPERATORS.get(method)
-    _refuse_needles(V, F, method, lap, ops, path)
+    require_method_mesh(V, F, method, lap, ops, path, area=area)
 
     V2, F2, keep, s2 = source_submesh(V, F, src)
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
@@ -253,14 +233,52 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     return GeodesicResult(d, t, h, timings, stats)
 
 
-def _refuse_needles(V, F, method, lap, ops, path) -> None:
+def require_method_mesh(V: np.ndarray, F: np.ndarray, method: str, lap: str | None = None,
+                        ops: str | None = None, path: str | None = None, who: str | None = None,
+                        area: np.ndarray | None = None) -> None:
+    """InputError when the triangles (V (n, 3), F (m, 3)) do not suit ``method``
+    run with Laplacian ``lap`` and operators ``ops``: not manifold where it needs
+    a manifold, zero-area or too thin faces where it works on the input's own
+    triangles, needles (:func:`_refuse_needles`). ``who`` names what needs it in
+    the message (default ``method '<method>'``; ``--reference exact`` when the
+    exact reference is checked before the chosen method runs)."""
+    who = who or f"method '{method}'"
+    if method in NEEDS_MANIFOLD:
+        from geoproc.mesh import Mesh
+        from geoproc.mesh.mesh import LoadLog
+
+        require_manifold(Mesh(V, F, log=LoadLog(path=path or "")), f"; {who} needs a manifold mesh")
+    if method in NEEDS_EDGE_MANIFOLD:
+        require_edge_manifold(F, path, f"; {who} needs an edge-manifold mesh")
+    own_triangles = method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"
+    if not own_triangles:
+        _refuse_needles(V, F, method, lap, ops, path, who)
+        return
+    area = face_areas(V, F) if area is None else area
+    if (area <= 0).any():
+        k = int(np.flatnonzero(area <= 0)[0])
+        raise InputError(path, f"{int((area <= 0).sum())} faces have zero area (first: face {k}); "
+                               f"{who} needs non-degenerate triangles")
+    # faces whose edge lengths give zero area count as zero-area faces
+    from geoproc.geodesic.operators import infinite_cotan_faces
+
+    thin = infinite_cotan_faces(V, F)  # their cotangents are infinite: heat gave NaN, exact never returned
+    if len(thin):
+        raise InputError(path, f"{len(thin)} faces are too thin (first: face {thin[0]}): their edge lengths "
+                               f"give zero area, so their cotangents are infinite; {who} needs "
+                               "non-degenerate triangles")
+    _refuse_needles(V, F, method, lap, ops, path, who)
+
+
+def _refuse_needles(V, F, method, lap, ops, path, who: str | None = None) -> None:
     """InputError when a face angle is below :data:`NEEDLE_ANGLE` for what
     the method would run on the input's own triangles (libigl's exact
     geodesic; the extrinsic Poisson step; a cotan solve)."""
     from geoproc.geodesic.operators import smallest_angles
 
     if method == "exact":
-        key, what = "exact", "libigl's exact geodesic (MMP) does not return on some such meshes"
+        key, what = "exact", (f"libigl's exact geodesic (MMP, {who or 'method exact'}) does not return on some "
+                              "such meshes")
     elif method in POISSON_METHODS and ops == "extrinsic":
         key, what = "poisson", f"method '{method}' with extrinsic operators loses its accuracy on such needles"
     elif method not in POISSON_METHODS and lap == "cotan":

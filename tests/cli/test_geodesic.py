@@ -238,6 +238,8 @@ BAD = [
     (["--sources-file", "."], "grid.ply", "error: .: is a directory, not a file of source indices"),
     (["-s", "0"], "fin.obj", "non-manifold"),
     (["-s", "0", "-m", "exact"], "bowtie.obj", "non-manifold"),
+    # the exact reference's needs are checked before the chosen method runs, and named as its own
+    (["-s", "0", "-m", "heat", "--reference", "exact"], "bowtie.obj", "; --reference exact needs a manifold mesh"),
     (["-s", "0"], "points.ply", "point cloud"),
     (["-s", "0"], "zero_area.off", "zero area"),
     ([], "grid.ply", "at least one source"),
