@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from geoproc.errors import UsageError
+from geoproc.errors import InputError, UsageError
 from geoproc.wos.domain import Domain
 from geoproc.wos.expression import Expression, evaluate
 from geoproc.wos.fit import fit_points, make_kernels, neumann_samples, ridge_fit
@@ -229,9 +229,12 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     bad = ~np.isfinite(mean)
     if bad.any():  # the data is singular between the sampled boundary points
         x, y = X[np.flatnonzero(bad)[0]]
-        raise UsageError(f"the walk estimates at {int(bad.sum())} grid points are not finite (first at "
-                         f"x = {x:.6g}, y = {y:.6g}): the boundary data is not finite between the sampled "
-                         "points, or too large to average (beyond about 1e307)")
+        what = (f"the walk estimates at {int(bad.sum())} grid points are not finite (first at "
+                f"x = {x:.6g}, y = {y:.6g}): the boundary data is not finite between the sampled "
+                "points, or too large to average (beyond about 1e307)")
+        if boundary is None:  # the domain file's own values
+            raise InputError(str(domain.source), what)
+        raise UsageError(f"--boundary on {domain.source}: {what}")
     total_walks += len(X) * walks
     total_steps += int(steps.sum())
     walk_time += residual_seconds

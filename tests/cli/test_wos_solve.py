@@ -28,6 +28,7 @@ def inputs(tmp_path_factory):
         "huge": {"loops": [[[0, 0], [1e20, 0], [1e20, 1e20], [0, 1e20]]]},
         "neu_int": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": 1},
         "neu_zero": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": 0},
+        "big_values": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "values": [[1e308] * 4]},
         "typo": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "Neumann": [[0, 1]]},
     }
     for name, doc in files.items():
@@ -134,6 +135,19 @@ def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, do
     assert len(lines) == 1 and lines[0].startswith("error: "), p.stderr
     assert message in lines[0], lines[0]
     assert not out.exists() and not (tmp_path / "r.json").exists() and not (tmp_path / "e.png").exists()
+
+
+@pytest.mark.parametrize("extra,message", [
+    ([], ("error: ", "big_values.json: the walk estimates at 16 grid points are not finite")),
+    (["--boundary", "1.7e308 + 0*x"], ("error: --boundary on ", "big_values.json: the walk estimates at 16")),
+])
+def test_walk_estimates_too_large_to_average_name_the_domain(cli, inputs, tmp_path, extra, message):
+    # the error line named no file
+    out = tmp_path / "u.exr"
+    p = cli("wos-solve", inputs / "big_values.json", *extra, "--grid", "4", "--walks", "2", "-o", out)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1 and all(m in lines[0] for m in message), p.stderr
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("args,gate,option", [
