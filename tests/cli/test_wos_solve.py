@@ -212,3 +212,17 @@ def test_capped_kernels_and_fit_points_are_noted(cli, inputs, tmp_path):
     assert m["kernels_used"] == 128 and m["fit_points"] < 5000
     assert "note: 128 kernels used, not 500: cv-angle puts at most one on each boundary segment" in p.stderr
     assert f"note: {m['fit_points']} fit points used, not 5000" in p.stderr
+
+
+def test_walks_stalled_at_the_step_cap_are_noted(cli, inputs, tmp_path):
+    # a stopping distance below what rounding resolves near the unit disk's boundary: walks stall
+    # there and run to the 10,000-step cap (96 s instead of 3 s on a 128 grid), without a word
+    rep = tmp_path / "r.json"
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "4", "--grid", "4",
+            "--epsilon", "1e-20", "-o", tmp_path / "u.exr", "--report", rep)
+    assert p.returncode == 0, p.stderr
+    steps = json.loads(rep.read_text())["metrics"]["mean_steps_per_walk"]
+    assert steps > 5000 and "near the cap of 10000" in p.stderr and "--epsilon 1e-20 here" in p.stderr
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "4", "--grid", "4",
+            "--epsilon", "1e-12", "-o", tmp_path / "u.exr")
+    assert p.returncode == 0 and "near the cap" not in p.stderr, p.stderr
