@@ -139,13 +139,12 @@ def morse_simplify(
         require_triangle_mesh(m)
         require_manifold(m, "; morse-simplify needs a manifold mesh")
         # the methods (scipy, the compiled kernels) load once the mesh is read and checked
-        from geoproc.morse import find_closed_vpath, lower_star_persistence, surface_complex
         from geoproc.morse import morse_simplify as morse_simplify_field
         from geoproc.morse.barycentric import barycentric_simplify, mesh_cell, subdivision_values
-        from geoproc.morse.critical_table import critical_cells_table, critical_counts, finite_persistence
+        from geoproc.morse.critical_table import critical_cells_table
         from geoproc.morse.diagram_plot import persistence_diagram_png
         from geoproc.morse.fields import field_name, vertex_field
-        from geoproc.morse.window_repair import half_bound_tolerance
+        from geoproc.morse.summary import simplification_summary
 
         npy = read_input_bytes(npy_path, "field file (.npy)") if npy_path else None
         with run.timer("field"):
@@ -168,51 +167,11 @@ def morse_simplify(
                 res = barycentric_simplify(m.V, m.F, f, threshold, m.log.path or None)
             else:
                 res = morse_simplify_field(m.F, f, threshold, m.log.path or None, exact_windows=exact_windows)
-            cx, grad, before, order = res.cx, res.gradient, res.pairs, res.order
-        cycle = find_closed_vpath(cx, grad)
-        if cycle is not None:
-            raise RuntimeError(f"the discrete gradient has a closed V-path of dimension {cycle[0]}")
-        with run.timer("after"):
-            if barycentric:
-                cx_after = surface_complex(res.F, len(res.g))
-                after = lower_star_persistence(cx_after, res.g)
-                order_after, f_ref, g = None, res.f, res.g
-                max_change, tie_slack = res.max_abs_change, res.tie_slack
-            else:
-                cx_after, order_after, f_ref, g = res.cx, res.order, f, res.g
-                after = lower_star_persistence(cx_after, res.simplification.g)
-                max_change, tie_slack = res.simplification.max_abs_change, res.simplification.tie_slack
-        chi = cx.euler_characteristic
-        c_before = critical_counts(before)
-        c_after = critical_counts(after)
-        for c, when in [(c_before, "f"), (c_after, "g")]:
-            if c[0] - c[1] + c[2] != chi:
-                raise RuntimeError(f"critical cells of {when} give c0 - c1 + c2 = {c[0] - c[1] + c[2]} "
-                                   f"!= V - E + F = {chi}")
-        if (len(grad.critical_vertices), len(grad.critical_edges), len(grad.critical_triangles)) != c_before:
-            raise RuntimeError("gradient critical cells do not match the persistence pairs")
-        pers = finite_persistence(before)
-        # a move past P/2 by at most 64 units in the last place of the field's
-        # largest value is rounding of the assigned values, and one unit per
-        # tied vertex is tie-breaking, not a move beyond P/2; with P = 0
-        # (nothing removed), --barycentric breaks the lower-star extension's
-        # ties by units in the last place
-        half_tol = half_bound_tolerance(f_ref, threshold / 2.0, tie_slack)
-        beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol)) if threshold > 0 else 0
-        b0, b1, b2 = before.betti
-        run.metrics.update({
-            "vertices": m.n_vertices,
-            "faces": m.n_faces,
-            "minima_before": c_before[0], "saddles_before": c_before[1], "maxima_before": c_before[2],
-            "minima_after": c_after[0], "saddles_after": c_after[1], "maxima_after": c_after[2],
-            "euler_characteristic": chi,
-            "betti_0": b0, "betti_1": b1, "betti_2": b2,
-            "pairs_removed": int(np.count_nonzero(pers < threshold)),
-            "pairs_kept": int(np.count_nonzero(pers >= threshold)),
-            "max_abs_change": max_change,
-            "threshold": threshold,
-            "vertices_beyond_half_threshold": beyond,
-        })
+        with run.timer("after"):  # pairs of g, and the checks that tie them to f's
+            summary = simplification_summary(res, f, threshold)
+        before, after, g = summary.before, summary.after, summary.g
+        run.metrics.update({"vertices": m.n_vertices, "faces": m.n_faces, **summary.metrics})
+        beyond, max_change = summary.metrics["vertices_beyond_half_threshold"], summary.metrics["max_abs_change"]
         if beyond:
             run.note(f"{beyond} vertices moved by more than P/2 = {threshold / 2:.6g} "
                      f"(max |f - g| = {max_change:.6g}) where cancelled basins and peaks "
@@ -220,7 +179,7 @@ def morse_simplify(
                      "on the barycentric subdivision)")
         if barycentric:
             carried = {k: subdivision_values(res, m.F, v) for k, v in m.vertex_fields.items()}  # interpolated
-            out = Mesh(res.V, res.F, {**carried, name: g, f"{name}_original": f_ref,
+            out = Mesh(res.V, res.F, {**carried, name: g, f"{name}_original": summary.f_ref,
                                       "cell_dim": res.dim.astype(np.float64)},
                        {k: np.repeat(v, 6, axis=0) for k, v in m.face_fields.items()})  # 6 per input face
             run.metrics["subdivision_vertices"] = len(res.V)
@@ -230,9 +189,10 @@ def morse_simplify(
             out.vertex_fields[f"{name}_original"] = f
         run.write_mesh(output, out)
         if critical is not None:
-            doc = {"field": name, "threshold": threshold, "euler_characteristic": chi,
-                   "before": critical_cells_table(cx, before, order),
-                   "after": critical_cells_table(cx_after, after, order_after)}
+            doc = {"field": name, "threshold": threshold,
+                   "euler_characteristic": summary.metrics["euler_characteristic"],
+                   "before": critical_cells_table(res.cx, before, res.order),
+                   "after": critical_cells_table(summary.cx_after, after, summary.order_after)}
             if barycentric:  # which mesh cell each subdivision vertex stands for
                 for row in doc["after"]:
                     row["mesh_cell"] = mesh_cell(res, m.F, row["vertex"])

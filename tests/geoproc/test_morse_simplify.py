@@ -305,3 +305,46 @@ def test_every_window_is_judged_by_the_half_bound(shared_data):
     f = h + 0.02 * (h.max() - h.min()) * np.random.default_rng(0).standard_normal(len(h))
     s = simplify_function(surface_complex(mesh.F, len(f)), f, 0.05 * (f.max() - f.min()), exact_windows=-1)
     assert len(s.widened_vertices) <= 142
+
+
+@pytest.mark.parametrize("barycentric", [False, True])
+def test_simplification_summary_counts_match_gudhi(make_fixtures, barycentric):
+    # the run's metrics from summary.py: Betti numbers, Euler characteristic and the pairs
+    # removed and kept, against gudhi's diagrams of f; g's counts against gudhi's diagrams of g
+    from geoproc.morse import barycentric_simplify, morse_simplify
+    from geoproc.morse.summary import simplification_summary
+
+    V, F = make_fixtures.torus(nu=24, nv=12)
+    f = V[:, 0] + 0.3 * np.random.default_rng(5).random(len(V))
+    P = 0.03  # 15 pairs of positive persistence, 0.014 to 0.093: some go, some stay
+    res = barycentric_simplify(V, F, f, P) if barycentric else morse_simplify(F, f, P)
+    s = simplification_summary(res, f, P)
+    m = s.metrics
+    ref = gudhi_diagrams(F, f)
+    assert (m["betti_0"], m["betti_1"], m["betti_2"]) == tuple(int(np.isinf(d[:, 1]).sum()) for d in ref)
+    assert m["euler_characteristic"] == 0
+    pers = np.concatenate([d[np.isfinite(d[:, 1]), 1] - d[np.isfinite(d[:, 1]), 0] for d in ref[:2]])
+    pers = pers[pers > 0]  # gudhi lists the zero-persistence pairs of the lower-star filtration too
+    assert m["pairs_kept"] == int((pers >= P).sum()) and m["pairs_removed"] == int((pers < P).sum())
+    assert m["pairs_kept"] >= 3 and m["pairs_removed"] >= 3
+    ref_g = gudhi_diagrams(res.F if barycentric else F, s.g)
+    pos = [int(((d[:, 1] > d[:, 0]) & np.isfinite(d[:, 1])).sum()) for d in ref_g[:2]]
+    ess = [int(np.isinf(d[:, 1]).sum()) for d in ref_g]
+    assert (m["minima_after"], m["saddles_after"], m["maxima_after"]) == (
+        pos[0] + ess[0], pos[0] + pos[1] + ess[1], pos[1] + ess[2])
+    assert m["minima_after"] - m["saddles_after"] + m["maxima_after"] == 0
+    assert m["vertices_beyond_half_threshold"] == 0 if barycentric else m["vertices_beyond_half_threshold"] >= 0
+    assert m["max_abs_change"] == pytest.approx(np.abs(s.g - s.f_ref).max())
+
+
+def test_simplification_summary_refuses_pairs_that_miss_the_gradient(make_fixtures):
+    # a construction defect (pairs of another field) is an internal error, not a report
+    from geoproc.morse import morse_simplify
+    from geoproc.morse.summary import simplification_summary
+
+    V, F = make_fixtures.torus(nu=24, nv=12)
+    f = V[:, 0] + 0.3 * np.random.default_rng(5).random(len(V))
+    res = morse_simplify(F, f, 0.25)
+    res.pairs = lower_star_persistence(res.cx, np.random.default_rng(6).random(len(V)))
+    with pytest.raises(RuntimeError, match="do not match"):
+        simplification_summary(res, f, 0.25)
