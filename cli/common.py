@@ -41,6 +41,7 @@ from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
 from geoproc.report import build_report, evaluate_checks, parse_check, require_known_metrics
 from geoproc.report.report import report_json
+from geoproc_cli.entry import interruption_line
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 T = TypeVar("T")
@@ -102,16 +103,17 @@ LOAD_METRICS = ("input_vertices", "input_faces", "triangulated_polygons", "merge
 what loading changed (:meth:`Run.note_load`)."""
 
 
-def _interrupted(exc: BaseException) -> bool:
-    """Whether ``exc`` was caused by Ctrl-C: numba's compiled functions re-raise a
+def _interruption(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C (or termination, :class:`~geoproc_cli.entry.Terminated`) that
+    caused ``exc``, if any: numba's compiled functions re-raise a
     KeyboardInterrupt that arrives while they run as a SystemError caused by it."""
     seen = set()
     while exc is not None and id(exc) not in seen:
         if isinstance(exc, KeyboardInterrupt):
-            return True
+            return exc
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
-    return False
+    return None
 
 
 def metrics_epilog(names: Sequence[str], text: Sequence[str] = ()) -> str:
@@ -477,16 +479,17 @@ def command_run(
         if debug:
             traceback.print_exc()
         raise _fail(str(exc), EXIT_BAD_INPUT) from None
-    except KeyboardInterrupt:
-        raise _fail("interrupted", 130) from None
+    except KeyboardInterrupt as exc:
+        raise _fail(*interruption_line(exc)) from None
     except MemoryError as exc:  # a request too large for this machine (grid size, step count)
         if debug:
             traceback.print_exc()
         detail = str(exc).strip().splitlines()[0] if str(exc).strip() else "the request is too large"
         raise _fail(f"out of memory: {detail}", EXIT_BAD_INPUT) from None
     except Exception as exc:  # a bug: keep the one-line contract, offer the traceback
-        if _interrupted(exc):  # Ctrl-C inside a compiled kernel comes back as a SystemError
-            raise _fail("interrupted", 130) from None
+        stop = _interruption(exc)
+        if stop is not None:  # Ctrl-C inside a compiled kernel comes back as a SystemError
+            raise _fail(*interruption_line(stop)) from None
         if debug:
             traceback.print_exc()
         line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""

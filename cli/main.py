@@ -10,6 +10,7 @@ import typer
 import geoproc
 from geoproc_cli import denoise, geodesic, info, morse_simplify, perturb, wos_solve
 from geoproc_cli.common import EXIT_BAD_INPUT, say
+from geoproc_cli.entry import interruption_line, unreported_interruption
 
 app = typer.Typer(
     name="geoproc",
@@ -45,6 +46,13 @@ def _root(
     """Geometry-processing research methods as pipeline-friendly tools."""
 
 
+def _stop(exc: KeyboardInterrupt) -> None:
+    """Exit with the error line and status of an interruption (Ctrl-C, termination)."""
+    text, status = interruption_line(exc)
+    say(f"error: {text}")
+    sys.exit(status)
+
+
 def main() -> None:
     """Console-script entry point.
 
@@ -58,7 +66,11 @@ def main() -> None:
         sys.exit(EXIT_BAD_INPUT)
     try:
         code = app(standalone_mode=False)
-    except typer.Abort:
+    except KeyboardInterrupt as exc:  # while typer builds the commands from their signatures
+        _stop(exc)
+    except typer.Abort as exc:
+        if isinstance(exc.__cause__, KeyboardInterrupt):  # Ctrl-C or termination while the options are parsed
+            _stop(exc.__cause__)
         say("error: aborted")
         sys.exit(EXIT_BAD_INPUT)
     except Exception as exc:  # the parser's usage errors (click's ClickException family)
@@ -69,8 +81,14 @@ def main() -> None:
         message = " ".join(exc.format_message().split())
         say(f"error: {message}{hint}")
         sys.exit(EXIT_BAD_INPUT)
+    stop = unreported_interruption()
+    if stop is not None:
+        _stop(stop)
     sys.exit(code if isinstance(code, int) else 0)
 
 
-if __name__ == "__main__":
+if __name__ == "__main__":  # python -m geoproc_cli.main: as the console script, once loaded
+    from geoproc_cli.entry import install_signal_handlers
+
+    install_signal_handlers()
     main()

@@ -34,6 +34,8 @@ def undeclared_metrics(path) -> list[str]:
     that it reports without the option they are declared to need, or whose
     value is text where the name is not declared as text or the reverse
     (empty for files that are not geoproc reports, or reports of other commands)."""
+    if not path.is_file():  # a FIFO named like a report would block the read
+        return []
     try:
         rep = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError):

@@ -569,3 +569,51 @@ def test_an_unwritable_stderr_keeps_the_exit_code(sink, fixture_dir, tmp_path):
     out = tmp_path / "p.ply"
     # a run with a note for stderr (the quad's polygons are split into triangles)
     assert status("perturb", fixture_dir / "quad.obj", "--seed", "1", "-o", out) == 0 and out.exists()
+
+
+def test_termination_while_writing_leaves_nothing_staged(fixture_dir, tmp_path):
+    # SIGTERM (timeout, job schedulers) killed the run with its outputs still staged as
+    # temporary files beside their destinations; it is now an error line and status 143
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    report = tmp_path / "r.json"
+    os.mkfifo(report)  # written to directly, after the mesh is staged: opening it waits for a reader
+    proc = subprocess.Popen([sys.executable, "-c", "from geoproc_cli.entry import main; main()", "perturb",
+                             str(fixture_dir / "torus.ply"), "--seed", "1", "-o", str(tmp_path / "o.ply"),
+                             "--report", str(report)], stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    while not any(p.name.endswith(".tmp") for p in tmp_path.iterdir()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert any(p.name.endswith(".tmp") for p in tmp_path.iterdir())  # staged, waiting on the FIFO
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143 and err.decode().strip() == "error: terminated (SIGTERM)"
+    assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
+
+
+def test_interruption_typer_swallows_is_reported(monkeypatch, capsys):
+    # typer turns a Ctrl-C outside a command's body (while it parses the options) into a
+    # silent exit status 130; the handlers remember the signal and main() reports it
+    import signal
+
+    from geoproc_cli import entry
+    from geoproc_cli import main as cli_main
+
+    monkeypatch.setattr(entry, "_received", [])
+    monkeypatch.setattr(entry, "_reported", [])
+
+    def swallowing_app(standalone_mode=False):
+        try:
+            entry._raise_interruption(signal.SIGTERM, None)
+        except KeyboardInterrupt:
+            return 130  # as typer.core does: raise Exit(130) from the interrupt
+
+    monkeypatch.setattr(cli_main, "app", swallowing_app)
+    monkeypatch.setattr("sys.argv", ["geoproc", "info", "x.ply"])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    assert stop.value.code == 143 and capsys.readouterr().err.strip() == "error: terminated (SIGTERM)"
+    assert entry.unreported_interruption() is None
