@@ -163,15 +163,13 @@ def geodesic(
             run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
         # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read
         from geoproc.geodesic.compare import compare_to_reference
-        from geoproc.geodesic.distance import geodesic_distance, require_method_mesh
+        from geoproc.geodesic.distance import geodesic_distance
 
-        if reference is not None and len(m.F):  # before the chosen method's solve, naming what needs it
-            require_method_mesh(m.V, m.F, "exact", path=m.log.path, who="--reference exact")
         with run.progress(f"geodesic {m_name}", 1.0) as update:
             res = geodesic_distance(m.V, m.F, srcs, m_name, time_factor=time_factor, time=time,
                                     steps=steps, laplacian=laplacian.value if laplacian else None,
                                     solver=solver.value, operators=operators.value if operators else None,
-                                    path=m.log.path, progress=update)
+                                    path=m.log.path, progress=update, also_exact=reference is not None)
         run.timings["setup"] = res.timings.get("setup", 0.0)
         run.timings["solve"] = res.timings.get("solve", 0.0)
         d = res.distance

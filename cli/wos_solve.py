@@ -175,10 +175,10 @@ def wos_solve(
         # a walk needs a few dozen steps to reach a stopping distance of 1e-16 of a unit domain;
         # below what rounding resolves, walks stall at the boundary and run to the cap
         if res.metrics["mean_steps_per_walk"] > MAX_STEPS / 10:
-            run.note(f"the walks took {res.metrics['mean_steps_per_walk']:.0f} steps on average, near the cap of "
-                     f"{MAX_STEPS} at which a walk stops and scores the closest boundary point (a stopping "
-                     f"distance finer than the coordinates' rounding, --epsilon {epsilon:g} here, stalls "
-                     "walks at the boundary)")
+            run.note(f"the walks took {res.metrics['mean_steps_per_walk']:.0f} steps on average; a walk that "
+                     f"reaches {MAX_STEPS} steps stops and scores the closest boundary point, which biases "
+                     "the estimate. Long Neumann corridors take that many steps, and so does an --epsilon "
+                     f"finer than the coordinates' rounding ({epsilon:g} here), where walks stall at the boundary")
         if fit_points is not None and res.metrics.get("fit_points", fit_points) < fit_points:
             run.note(f"{res.metrics['fit_points']} fit points used, not {fit_points}: every grid point farther "
                      "than 2 x epsilon from the boundary (raise --grid for more)")

@@ -141,7 +141,7 @@ def source_submesh(V: np.ndarray, F: np.ndarray, sources: np.ndarray):
 def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat", *,
                       time_factor: float | None = 1.0, time: float | None = None, steps: int = 1,
                       laplacian: str | None = None, solver: str = "lu", operators: str | None = None,
-                      path: str | None = None, progress=None) -> GeodesicResult:
+                      path: str | None = None, progress=None, also_exact: bool = False) -> GeodesicResult:
     """Geodesic distance from ``sources`` by ``method`` (see :data:`METHODS`).
 
     Parameters
@@ -173,6 +173,10 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         Named in error messages.
     progress : callable, optional
         ``progress(fraction_done)``.
+    also_exact : bool
+        Also check, before solving, that the mesh suits ``exact`` (the command
+        line's ``--reference exact``, named so in the error), so that the exact
+        reference computed afterwards cannot fail on it after this solve.
 
     For the Poisson-based methods (:data:`POISSON_METHODS`) the distances are
     set to 0 at the sources and clipped at 0 from below
@@ -201,6 +205,8 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     lap = None if method == "exact" else (laplacian or DEFAULT_LAPLACIAN[method])
     ops = operators or DEFAULT_OPERATORS.get(method)
     require_method_mesh(V, F, method, lap, ops, path, area=area)
+    if also_exact and method != "exact":
+        require_method_mesh(V, F, "exact", path=path, who="--reference exact", area=area)
 
     V2, F2, keep, s2 = source_submesh(V, F, src)
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
@@ -277,8 +283,8 @@ def _refuse_needles(V, F, method, lap, ops, path, who: str | None = None) -> Non
     from geoproc.geodesic.operators import smallest_angles
 
     if method == "exact":
-        key, what = "exact", (f"libigl's exact geodesic (MMP, {who or 'method exact'}) does not return on some "
-                              "such meshes")
+        key, what = "exact", ("libigl's exact geodesic (MMP" + (f", {who}" if who else "")
+                              + ") does not return on some such meshes")
     elif method in POISSON_METHODS and ops == "extrinsic":
         key, what = "poisson", f"method '{method}' with extrinsic operators loses its accuracy on such needles"
     elif method not in POISSON_METHODS and lap == "cotan":

@@ -232,9 +232,11 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         what = (f"the walk estimates at {int(bad.sum())} grid points are not finite (first at "
                 f"x = {x:.6g}, y = {y:.6g}): the boundary data is not finite between the sampled "
                 "points, or too large to average (beyond about 1e307)")
-        if boundary is None:  # the domain file's own values
+        data = ["--boundary" if boundary is not None else "the domain's values"]
+        data += ["--neumann"] if flux is not None else []
+        if data == ["the domain's values"]:  # the domain file alone
             raise InputError(str(domain.source), what)
-        raise UsageError(f"--boundary on {domain.source}: {what}")
+        raise UsageError(f"{domain.source}: {what} (data from {' and '.join(data)})")
     total_walks += len(X) * walks
     total_steps += int(steps.sum())
     walk_time += residual_seconds

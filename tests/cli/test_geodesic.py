@@ -240,6 +240,8 @@ BAD = [
     (["-s", "0", "-m", "exact"], "bowtie.obj", "non-manifold"),
     # the exact reference's needs are checked before the chosen method runs, and named as its own
     (["-s", "0", "-m", "heat", "--reference", "exact"], "bowtie.obj", "; --reference exact needs a manifold mesh"),
+    # ... after the checks every method makes (the sources, a mesh of no area)
+    (["-s", "9", "-m", "log-ode", "--reference", "exact"], "bowtie.obj", "source vertex 9 is out of range"),
     (["-s", "0"], "points.ply", "point cloud"),
     (["-s", "0"], "zero_area.off", "zero area"),
     ([], "grid.ply", "at least one source"),
