@@ -206,7 +206,7 @@ class Run:
                 self.inputs[-1]["frames"] = [{"path": f, "sha256": h}
                                              for f, h in zip(anim.frame_files, anim.frame_sha256, strict=True)]
         if anim.unread:
-            self.note(f"{name}: not carried (only numeric arrays shaped (frames, n) travel): "
+            self.note(f"{name}: not carried (only real numeric arrays shaped (frames, n) travel): "
                       + ", ".join(anim.unread))
         return anim
 

@@ -241,7 +241,7 @@ def test_npz_members_not_carried_are_noted(cli, tmp_path):
     np.savez(src, vertices=V, faces=np.array([[0, 1, 2], [0, 2, 3]]), scale=np.arange(3.0), tag=np.ones((3, 4)))
     p = cli("perturb", src, "--noise", "0.1", "--seed", "1", "-o", out)
     assert p.returncode == 0, p.stderr
-    assert f"note: {src}: not carried (only numeric arrays shaped (frames, n) travel): scale (3,)" in p.stderr
+    assert f"note: {src}: not carried (only real numeric arrays shaped (frames, n) travel): scale (3,)" in p.stderr
     assert sorted(np.load(out).files) == ["faces", "tag", "vertices"]
 
 

@@ -39,6 +39,10 @@ def test_members_that_are_not_numeric_arrays_are_left_out(wave, tmp_path):
     assert sorted(anim.unread) == ["README.txt (not a .npy array)", "meta (an object array (pickled Python objects))"]
     p = _npz(tmp_path / "b.npz", vertices=V, faces=F, scale=np.arange(3.0), names=np.array(["a", "b"]))
     assert sorted(load_animation(p).unread) == ["names (2,)", "scale (3,)"]
+    # a complex array shaped as a field was left out as "not carried" (the outlier flags with it)
+    p = _npz(tmp_path / "c.npz", vertices=V, faces=F, outlier=np.zeros(V.shape[:2], complex))
+    with pytest.raises(InputError, match="'outlier' must hold real numbers, got dtype complex128"):
+        load_animation(p)
 
 
 @pytest.mark.parametrize("case,message", [
