@@ -82,6 +82,11 @@ def format_from_extension(path: str) -> str:
 
 def sniff_format(data: bytes, path: str = "-") -> str:
     """Guess the mesh format of raw bytes (for standard input)."""
+    # a binary STL's length is exact; its 80-byte header is free text, which may start with
+    # digits, 'ply' or 'OFF' (an exporter's name), so this comes first. Text in bytes 80-84
+    # would declare over 500 million triangles, so no text file passes it
+    if len(data) >= 84 and len(data) == 84 + 50 * int(np.frombuffer(data[80:84], dtype="<u4")[0]):
+        return "stl"
     if data.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark
         data = data[3:]
     head = re.sub(rb"^(\s*#[^\n]*\n)+", b"", data[:4096]).lstrip()  # OFF and OBJ allow leading comments
@@ -90,10 +95,6 @@ def sniff_format(data: bytes, path: str = "-") -> str:
     first = head.split(None, 1)[0] if head.strip() else b""
     if _OFF_KEYWORD.fullmatch(first) or first.lower() == b"off":
         return "off"
-    # a binary STL's length is exact (its 80-byte header is free text, and may start with digits); text
-    # in bytes 80-84 would declare over 500 million triangles
-    if len(data) >= 84 and len(data) == 84 + 50 * int(np.frombuffer(data[80:84], dtype="<u4")[0]):
-        return "stl"
     if re.match(rb"\d+[ \t]+\d+([ \t]+\d+)?[ \t]*(#[^\n]*)?\r?\n", head):  # OFF without its keyword
         return "off"
     if head.startswith(b"solid") and b"facet" in data[:4096]:

@@ -263,10 +263,12 @@ def test_ascii_stl_of_several_solids_keeps_its_corners_as_stored():
     assert len(read_mesh_bytes(data, "stl", "two.stl").V) == 8
 
 
-def test_binary_stl_whose_header_starts_with_digits_is_sniffed_as_stl(sphere):
-    # the header is free text: '3 1' and a newline had read as an OFF without its keyword
+@pytest.mark.parametrize("header", [b"3 1\n", b"ply export by tool", b"OFF writer 2.1", b"\xef\xbb\xbfsolid x"])
+def test_binary_stl_whose_header_starts_like_another_format_is_sniffed_as_stl(sphere, header):
+    # the header is free text: '3 1' and a newline had read as an OFF without its keyword,
+    # and 'ply ...' or 'OFF ...' (an exporter's name) as a PLY or an OFF
     data = mesh_to_bytes(sphere, "stl")
-    data = b"3 1\n".ljust(80, b" ") + data[80:]
+    data = header.ljust(80, b" ") + data[80:]
     assert sniff_format(data) == "stl"
     assert len(read_mesh_bytes(data, "stl", "-").F) == len(sphere.F)
 
