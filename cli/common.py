@@ -352,17 +352,28 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
         what = "--report - and another output" if report is not None and os.fspath(report) == "-" \
             else "two outputs"
         raise UsageError(f"{what} both write to standard output; give all but one a file name")
-    seen: set[str] = set()
+    seen: set = set()
     sources = {os.path.realpath(p) for p in inputs if p != "-"}
+    sources |= {_file_id(p) for p in inputs if p != "-"} - {None}  # hard links too
     for name in names:
         if name == "-":
             continue
-        real = os.path.realpath(name)
-        if real in seen:
+        real, ident = os.path.realpath(name), _file_id(name)
+        if real in seen or (ident is not None and ident in seen):
             raise UsageError(f"{name}: given for two outputs; give each its own file name")
-        if real in sources:
+        if real in sources or (ident is not None and ident in sources):
             raise UsageError(f"{name}: is also an input; write the result to another file")
-        seen.add(real)
+        seen |= {real, ident} - {None}
+
+
+def _file_id(path: str) -> tuple[int, int] | None:
+    """(device, inode) of an existing file (through symbolic links), else None:
+    two names of one file (a hard link) share it."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return (st.st_dev, st.st_ino)
 
 
 def _require_output_folders(names: list[str]) -> None:

@@ -460,6 +460,16 @@ def test_output_paths_are_refused_before_any_input_is_read(cli, fixture_dir, tmp
         assert line.endswith("is also an input; write the result to another file"), line
     assert garbage.read_bytes() == b"not a mesh" and domain.read_bytes() == b"{"
     assert sorted(f.name for f in tmp_path.iterdir()) == ["garbage.json", "garbage.ply"]
+    # a hard link is the same file under another name: refused as an input, and as a second output
+    os.link(garbage, tmp_path / "linked.ply")
+    p = cli("perturb", garbage, "--seed", "1", "-o", tmp_path / "linked.ply")
+    assert p.returncode == 2 and _one_error_line(p.stderr, str(tmp_path / "linked.ply")).endswith(
+        "is also an input; write the result to another file"), p.stderr
+    os.link(garbage, tmp_path / "linked.json")
+    p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", tmp_path / "linked.ply",
+            "--report", tmp_path / "linked.json")
+    assert p.returncode == 2 and "linked.json: given for two outputs" in p.stderr, p.stderr
+    assert garbage.read_bytes() == b"not a mesh"
 
 
 def test_inputs_from_pipes_are_hashed_as_read(fixture_dir, tmp_path):
