@@ -171,7 +171,7 @@ def validate_arrays(V: np.ndarray, F: np.ndarray, path: str, allow_point_cloud: 
     if len(V) == 0:
         raise InputError(path, "mesh has no vertices")
     if len(F) == 0 and not allow_point_cloud:
-        raise InputError(path, "mesh has no faces")
+        raise InputError(path, "mesh has no faces (vertices only; store a point cloud as PLY)")
     bad = ~np.isfinite(V).all(axis=1)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
@@ -515,6 +515,8 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         log.setLevel(level)
     V = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     F = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
+    if V.size == 0 and fmt == "stl" and _stl_without_facets(data):
+        raise InputError(path, "mesh has no vertices (an STL of no facets)")
     if V.size == 0 and len(data.strip()) > 0:
         raise InputError(path, f"unparseable {fmt.upper()}: no vertices could be read")
     if len(V) != 3 * len(F) and len(F) and F.min() >= 0 and F.max() < len(V):
@@ -723,3 +725,12 @@ def _off_triangles(lines: list) -> np.ndarray | None:
 def _one_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return text[0] if text else type(exc).__name__
+
+
+def _stl_without_facets(data: bytes) -> bool:
+    """Whether ``data`` is a well-formed STL that holds no facet: a binary one of
+    84 bytes declaring 0 triangles, or an ASCII ``solid`` with no ``facet``."""
+    if len(data) == 84 and int(np.frombuffer(data[80:84], dtype="<u4")[0]) == 0:
+        return True
+    text = data.lstrip().lower()
+    return text.startswith(b"solid") and b"facet" not in text and b"endsolid" in text

@@ -609,3 +609,14 @@ def test_an_output_without_extension_says_so():
     with pytest.raises(UsageError, match="out: no file extension to choose the format by"):
         write_format("folder.d/out")
     assert write_format("a.b/out.PLY") == "ply"
+
+
+@pytest.mark.parametrize("data", [b"solid x\nendsolid x\n", b" " * 80 + b"\0\0\0\0"])
+def test_stl_of_no_facets_has_no_vertices(tmp_path, data):
+    # a well-formed STL with no facet was called unparseable
+    path = tmp_path / "e.stl"
+    path.write_bytes(data)
+    with pytest.raises(InputError, match=r"mesh has no vertices \(an STL of no facets\)"):
+        load_mesh(path)
+    with pytest.raises(InputError, match="unparseable STL"):  # not an STL at all
+        read_mesh_bytes(b"solid x\nfacet normal 0 0 1\n", "stl", "bad.stl")

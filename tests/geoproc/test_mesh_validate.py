@@ -34,7 +34,7 @@ def test_lists_dtypes_and_layouts_give_float64_and_int64_rows():
     (V, np.c_[F, F[:, :1]], "shape (m, 3) (triangles), not (2, 4)"),
     (V, np.r_[F, [[0, 1, -1]]], "face 2 references vertex -1"),
     (V, np.r_[F, [[0, 1, 4]]], "face 2 references vertex 4, but there are 4 vertices"),
-    (V, [], "mesh has no faces"),
+    (V, [], "mesh has no faces (vertices only; store a point cloud as PLY)"),
 ])
 def test_bad_arrays_are_named(Vin, Fin, message):
     with pytest.raises(InputError) as exc:
