@@ -11,6 +11,7 @@ import contextlib
 import errno
 import hashlib
 import os
+import stat
 import tempfile
 from collections.abc import Callable
 
@@ -68,9 +69,10 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         for path, data in files:
             path = os.fspath(path)
             real = os.path.realpath(path)
-            if os.path.isdir(real):
+            kind = _file_kind(path)  # through links, /dev/stdout's to a pipe too (realpath names no file there)
+            if kind == "folder":
                 raise IsADirectoryError(errno.EISDIR, "is a folder", path)
-            if os.path.exists(real) and not os.path.isfile(real):
+            if kind == "other":
                 direct.append((path, data))
                 continue
             fd, tmp = _temp_beside(real)
@@ -93,6 +95,16 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         if isinstance(exc, OSError):  # name the destination, not the temporary file
             raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
         raise
+
+
+def _file_kind(path: str) -> str:
+    """``"missing"``, ``"folder"``, ``"file"`` (regular) or ``"other"`` (a device,
+    a FIFO, a pipe or socket behind /dev/stdout), following symbolic links."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return "missing"
+    return "folder" if stat.S_ISDIR(mode) else "file" if stat.S_ISREG(mode) else "other"
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:

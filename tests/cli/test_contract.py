@@ -627,3 +627,16 @@ def test_interruption_typer_swallows_is_reported(monkeypatch, capsys):
         cli_main.main()
     assert stop.value.code == 143 and capsys.readouterr().err.strip() == "error: terminated (SIGTERM)"
     assert entry.unreported_interruption() is None
+
+
+def test_output_linked_to_standard_output_that_is_a_pipe(cli, fixture_dir, tmp_path):
+    # realpath of /dev/stdout on a pipe names no file (/proc/PID/fd/pipe:[N]): the report was
+    # refused with "cannot write: No such file or directory" instead of written through the link
+    link = tmp_path / "so.json"
+    link.symlink_to("/dev/stdout")
+    p = cli("info", fixture_dir / "torus.ply", "--report", link, "-q")  # stdout is a pipe here
+    assert p.returncode == 0, p.stderr
+    text = p.stdout.decode()  # the report, then info's own summary
+    report, _ = json.JSONDecoder().raw_decode(text, text.index('{\n  "command"'))
+    assert report["command"] == "info" and report["metrics"]["genus"] == 1
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["so.json"]
