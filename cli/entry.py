@@ -64,9 +64,11 @@ def _raise_interruption(signum, frame) -> None:
 
 def install_signal_handlers() -> None:
     """SIGINT raises KeyboardInterrupt, SIGTERM and SIGHUP :class:`Terminated`;
-    each is remembered for :func:`unreported_interruption`."""
+    each is remembered for :func:`unreported_interruption`. A signal the
+    process was started with ignored (``nohup`` ignores SIGHUP, a shell's
+    background job SIGINT) stays ignored."""
     for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
-        if sig is not None:
+        if sig is not None and signal.getsignal(sig) in (signal.SIG_DFL, signal.default_int_handler):
             signal.signal(sig, _raise_interruption)
 
 

@@ -640,3 +640,17 @@ def test_output_linked_to_standard_output_that_is_a_pipe(cli, fixture_dir, tmp_p
     report, _ = json.JSONDecoder().raw_decode(text, text.index('{\n  "command"'))
     assert report["command"] == "info" and report["metrics"]["genus"] == 1
     assert sorted(f.name for f in tmp_path.iterdir()) == ["so.json"]
+
+
+def test_signals_started_ignored_stay_ignored():
+    # nohup starts a run with SIGHUP ignored, a shell's background job with SIGINT ignored:
+    # the handlers must not make those signals end the run
+    import subprocess
+    import sys
+
+    code = ("import signal; signal.signal(signal.SIGHUP, signal.SIG_IGN); "
+            "from geoproc_cli.entry import install_signal_handlers as h; h(); "
+            "print(signal.getsignal(signal.SIGHUP) is signal.SIG_IGN, "
+            "signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["True", "True"]
