@@ -248,24 +248,27 @@ def require_method_mesh(V: np.ndarray, F: np.ndarray, method: str, lap: str | No
     triangles, needles (:func:`_refuse_needles`). ``who`` names what needs it in
     the message (default ``method '<method>'``; ``--reference exact`` when the
     exact reference is checked before the chosen method runs)."""
-    who = who or f"method '{method}'"
+    label = who or f"method '{method}'"
     if method in NEEDS_MANIFOLD:
         from geoproc.mesh import Mesh
         from geoproc.mesh.mesh import LoadLog
 
-        require_manifold(Mesh(V, F, log=LoadLog(path=path or "")), f"; {who} needs a manifold mesh")
+        require_manifold(Mesh(V, F, log=LoadLog(path=path or "")), f"; {label} needs a manifold mesh")
     if method in NEEDS_EDGE_MANIFOLD:
-        require_edge_manifold(F, path, f"; {who} needs an edge-manifold mesh")
-    own_triangles = method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan"
-    if not own_triangles:
-        _refuse_needles(V, F, method, lap, ops, path, who)
-        return
+        require_edge_manifold(F, path, f"; {label} needs an edge-manifold mesh")
+    if method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan":  # the input's own triangles
+        _refuse_flat_faces(V, F, path, label, area)
+    _refuse_needles(V, F, method, lap, ops, path, who)  # names the method itself unless who is given
+
+
+def _refuse_flat_faces(V, F, path, who: str, area: np.ndarray | None = None) -> None:
+    """InputError naming the faces of zero area (``area``, computed when None),
+    then those whose edge lengths give zero area (their cotangents are infinite)."""
     area = face_areas(V, F) if area is None else area
     if (area <= 0).any():
         k = int(np.flatnonzero(area <= 0)[0])
         raise InputError(path, f"{int((area <= 0).sum())} faces have zero area (first: face {k}); "
                                f"{who} needs non-degenerate triangles")
-    # faces whose edge lengths give zero area count as zero-area faces
     from geoproc.geodesic.operators import infinite_cotan_faces
 
     thin = infinite_cotan_faces(V, F)  # their cotangents are infinite: heat gave NaN, exact never returned
@@ -273,7 +276,6 @@ def require_method_mesh(V: np.ndarray, F: np.ndarray, method: str, lap: str | No
         raise InputError(path, f"{len(thin)} faces are too thin (first: face {thin[0]}): their edge lengths "
                                f"give zero area, so their cotangents are infinite; {who} needs "
                                "non-degenerate triangles")
-    _refuse_needles(V, F, method, lap, ops, path, who)
 
 
 def _refuse_needles(V, F, method, lap, ops, path, who: str | None = None) -> None:

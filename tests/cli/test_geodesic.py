@@ -176,6 +176,22 @@ def test_cvxpy_step_that_clarabel_cannot_solve_is_refused(cli, fixture_dir, tmp_
     assert not out.exists() and not rep.exists()
 
 
+@pytest.mark.parametrize("args,tail", [
+    (["-m", "exact"], "libigl's exact geodesic (MMP) does not return on some such meshes"),
+    (["-m", "heat", "--reference", "exact"],
+     "libigl's exact geodesic (MMP, --reference exact) does not return on some such meshes"),
+])
+def test_exact_needle_refusal_names_what_needs_it(cli, make_fixtures, tmp_path, args, tail):
+    # the plain -m exact message had come to read "(MMP, method 'exact')" once the
+    # checks also served --reference exact
+    V, F = make_fixtures.grid(8)
+    src = tmp_path / "needles.ply"
+    save_mesh(src, Mesh(V * [3e-6, 1, 1], F))
+    p = cli("geodesic", src, "-s", "0", *args, "-o", tmp_path / "d.ply")
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1 and lines[0].endswith(tail), p.stderr
+
+
 @pytest.mark.parametrize("squash,args,fragment", [
     # libigl's exact geodesic ran for minutes on this 8 x 8 grid (angles 3e-6 rad)
     (3e-6, ["-m", "exact"], "below 0.0001 rad"),
