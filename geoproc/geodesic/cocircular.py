@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoproc.mesh.topology import halfedges, undirected_edge_keys
+from geoproc.mesh.topology import edge_key_base, halfedges, undirected_edge_keys
 
 TOL = 1e-9
 """Cotangent sums within this (relative) of zero are cocircular: translated
@@ -130,7 +130,7 @@ def _cocircular_pairs(Fi: np.ndarray, l: np.ndarray, tol: float):
 
 def _edge_weights(Fi, h, t, a, b, cot, on) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`cocircular_edge_weights` from :func:`_cocircular_pairs`'s output."""
-    n = int(np.max(Fi)) + 1  # the keys' base (undirected_edge_keys's)
+    n = edge_key_base(Fi)
     keys = np.sort(undirected_edge_keys(Fi))
     k = a[on] * n + b[on]
     halves = np.searchsorted(keys, k, side="right") - np.searchsorted(keys, k, side="left")

@@ -27,11 +27,17 @@ def halfedges(F: np.ndarray) -> np.ndarray:
     return np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)
 
 
+def edge_key_base(F: np.ndarray) -> int:
+    """``n = F.max() + 1`` (1 without faces): an undirected edge key is
+    ``min(i, j) * n + max(i, j)``, so ``key // n`` and ``key % n`` give its ends."""
+    return int(np.max(F)) + 1 if np.size(F) else 1
+
+
 def undirected_edge_keys(F: np.ndarray) -> np.ndarray:
     """(3m,) int64 key ``min(i, j) * n + max(i, j)`` of every half-edge (i, j),
-    with ``n = F.max() + 1``: equal for the two halves of an edge."""
+    with ``n`` = :func:`edge_key_base`: equal for the two halves of an edge."""
     F = np.asarray(F, dtype=np.int64)  # keys up to n^2: int32 faces overflow
-    n = int(F.max()) + 1 if F.size else 1
+    n = edge_key_base(F)
     G = np.roll(F, -1, axis=1)
     return (np.minimum(F, G) * n + np.maximum(F, G)).reshape(-1)
 
@@ -51,7 +57,7 @@ def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         boundary, more on a non-manifold edge).
     """
     H = np.sort(halfedges(np.asarray(F, dtype=np.int64)), axis=1)  # keys up to n^2: int32 faces overflowed
-    n = int(F.max()) + 1 if F.size else 1
+    n = edge_key_base(F)
     keys, inverse, counts = np.unique(H[:, 0] * n + H[:, 1], return_inverse=True, return_counts=True)
     E = np.column_stack([keys // n, keys % n])
     return E, inverse.reshape(-1), counts
@@ -61,7 +67,7 @@ def boundary_edges(F: np.ndarray) -> np.ndarray:
     """(b, 2) undirected edges used by exactly one face, in the order of
     :func:`unique_edges` (``E[:, 0] <= E[:, 1]``, sorted)."""
     keys = np.sort(undirected_edge_keys(F))
-    n = int(F.max()) + 1 if F.size else 1
+    n = edge_key_base(F)
     if len(keys):
         differs = keys[1:] != keys[:-1]
         keys = keys[np.r_[True, differs] & np.r_[differs, True]]  # unlike both neighbours
