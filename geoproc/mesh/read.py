@@ -85,7 +85,7 @@ def sniff_format(data: bytes, path: str = "-") -> str:
     # a binary STL's length is exact; its 80-byte header is free text, which may start with
     # digits, 'ply' or 'OFF' (an exporter's name), so this comes first. Text in bytes 80-84
     # would declare over 500 million triangles, so no text file passes it
-    if len(data) >= 84 and len(data) == 84 + 50 * int(np.frombuffer(data[80:84], dtype="<u4")[0]):
+    if _binary_stl_triangles(data) is not None:
         return "stl"
     if data.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark
         data = data[3:]
@@ -727,10 +727,19 @@ def _one_line(exc: BaseException) -> str:
     return text[0] if text else type(exc).__name__
 
 
+def _binary_stl_triangles(data: bytes) -> int | None:
+    """The triangle count a binary STL declares in bytes 80-84, when the length
+    of ``data`` is exactly what that count needs (84 + 50 per triangle), else None."""
+    if len(data) < 84:
+        return None
+    count = int(np.frombuffer(data[80:84], dtype="<u4")[0])
+    return count if len(data) == 84 + 50 * count else None
+
+
 def _stl_without_facets(data: bytes) -> bool:
     """Whether ``data`` is a well-formed STL that holds no facet: a binary one of
     84 bytes declaring 0 triangles, or an ASCII ``solid`` with no ``facet``."""
-    if len(data) == 84 and int(np.frombuffer(data[80:84], dtype="<u4")[0]) == 0:
+    if _binary_stl_triangles(data) == 0:
         return True
     text = data.lstrip().lower()
     return text.startswith(b"solid") and b"facet" not in text and b"endsolid" in text
