@@ -233,10 +233,7 @@ def upper_entries(L: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def negative_offdiagonal_count(L: sp.spmatrix) -> int:
     """Number of undirected edges whose Laplacian weight is negative."""
-    C = sp.csr_matrix(L)
-    if not C.has_canonical_format:  # a weight stored in parts counts once
-        C = C.copy()
-        C.sum_duplicates()
+    C = _canonical(sp.csr_matrix(L))  # a weight stored in parts counts once
     if (C.data < 0).sum() == (C.diagonal() < 0).sum():
         return 0  # the negative entries are all on the diagonal (the usual case, found without the row indices)
     return int((upper_entries(C)[2] < 0).sum())
@@ -341,6 +338,16 @@ def factor_sparse(A: sp.spmatrix):
     return qdldl.Solver(upper_triangle_csc(A), upper=True)
 
 
+def _canonical(C: sp.spmatrix) -> sp.spmatrix:
+    """``C`` (csr or csc) with duplicate entries summed and indices sorted: a copy
+    when it is not so already (``sum_duplicates`` would change the caller's matrix)."""
+    if C.has_canonical_format:
+        return C
+    C = C.copy()
+    C.sum_duplicates()
+    return C
+
+
 def upper_triangle_csc(A: sp.spmatrix) -> sp.csc_matrix:
     """The upper triangle (diagonal included) of a symmetric (n, n) matrix as
     a canonical csc matrix, the input QDLDL factors.
@@ -348,10 +355,7 @@ def upper_triangle_csc(A: sp.spmatrix) -> sp.csc_matrix:
     The entries with row <= column, as ``sp.triu`` keeps them (QDLDL reads
     only those), without its coordinate round trip.
     """
-    C = sp.csc_matrix(A)
-    if not C.has_canonical_format:
-        C = C.copy()
-        C.sum_duplicates()
+    C = _canonical(sp.csc_matrix(A))
     n = C.shape[0]
     cols = np.repeat(np.arange(n, dtype=C.indices.dtype), np.diff(C.indptr))
     keep = C.indices <= cols
