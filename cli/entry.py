@@ -36,15 +36,16 @@ class Terminated(KeyboardInterrupt):
         return 128 + self.signum
 
 
-_received: list[KeyboardInterrupt] = []
-"""The interruptions the handlers raised (:func:`install_signal_handlers`)."""
-_reported: list[KeyboardInterrupt] = []
-"""Those an error line was made for (:func:`interruption_line`)."""
+_pending: KeyboardInterrupt | None = None
+"""The last interruption a handler raised (:func:`install_signal_handlers`)
+that no error line has reported yet (:func:`interruption_line`)."""
 
 
 def interruption_line(exc: KeyboardInterrupt) -> tuple[str, int]:
-    """The error line's text and the exit status for an interruption ``exc``."""
-    _reported.append(exc)
+    """The error line's text and the exit status for an interruption ``exc``,
+    which is then no longer pending."""
+    global _pending
+    _pending = None
     if isinstance(exc, Terminated):
         return f"terminated ({signal.Signals(exc.signum).name})", exc.exit_code
     return "interrupted", 130
@@ -53,13 +54,13 @@ def interruption_line(exc: KeyboardInterrupt) -> tuple[str, int]:
 def unreported_interruption() -> KeyboardInterrupt | None:
     """A signal received that no error line reported: typer turns a Ctrl-C that
     arrives outside a command's body into a silent exit status of 130."""
-    return _received[-1] if _received and not _reported else None
+    return _pending
 
 
 def _raise_interruption(signum, frame) -> None:
-    exc = KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
-    _received.append(exc)
-    raise exc
+    global _pending
+    _pending = KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
+    raise _pending
 
 
 def install_signal_handlers() -> None:
@@ -77,8 +78,9 @@ def main() -> None:
     install_signal_handlers()
     try:
         from geoproc_cli.main import main as run
-    except KeyboardInterrupt as exc:  # while the modules load
+
+        run()
+    except KeyboardInterrupt as exc:  # while the modules load, or once a command's handling is over
         text, code = interruption_line(exc)
         sys.stderr.write(f"error: {text}\n")
         sys.exit(code)
-    run()

@@ -612,8 +612,7 @@ def test_interruption_typer_swallows_is_reported(monkeypatch, capsys):
     from geoproc_cli import entry
     from geoproc_cli import main as cli_main
 
-    monkeypatch.setattr(entry, "_received", [])
-    monkeypatch.setattr(entry, "_reported", [])
+    monkeypatch.setattr(entry, "_pending", None)
 
     def swallowing_app(standalone_mode=False):
         try:
