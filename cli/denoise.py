@@ -359,8 +359,8 @@ def _inliers(run, cloud: Mesh, P: np.ndarray, keep: np.ndarray) -> Mesh:
     whose three corners are inliers, renumbered (with their properties); a note
     counts the faces left out."""
     new = np.cumsum(keep) - 1
-    whole = keep[cloud.F].all(axis=1) if len(cloud.F) else np.zeros(0, dtype=bool)
-    if len(cloud.F) and not whole.all():
+    whole = keep[cloud.F].all(axis=1)  # (0,) for a point cloud's (0, 3) faces
+    if not whole.all():
         run.note(f"{int((~whole).sum())} of {len(cloud.F)} faces use a removed point and are left out")
     return Mesh(P[keep], new[cloud.F[whole]].reshape(-1, 3),
                 {name: v[keep] for name, v in cloud.vertex_fields.items()},
