@@ -17,9 +17,14 @@ import numpy as np
 
 from geoproc.mesh.topology import edge_key_base, halfedges, undirected_edge_keys
 
-TOL = 1e-9
-"""Cotangent sums within this (relative) of zero are cocircular: translated
-coordinates leave ~1e-11 of rounding there, genuine non-cocircular quads far more."""
+TOL = 1e-5
+"""Cotangent sums within this (relative) of zero are cocircular. Translated
+coordinates leave ~1e-11 of rounding there, and storage does more: the torus
+fixture's cocircular quads, written as float32 PLY, come back with sums up to
+1e-6 (an OBJ at 8 decimals, 1e-7), which a tolerance of 1e-9 read as
+non-cocircular, leaving the diagonal to the rounding again. Among the shared
+meshes only cow has sums below 1e-5 (two edges); armadillo has six between
+1e-5 and 1e-4, the others none below 1e-4."""
 
 
 def corner_cotangents(l: np.ndarray) -> np.ndarray:
@@ -144,7 +149,8 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
 
     A quad is cocircular when the cotangents of its two angles opposite the
     diagonal sum to zero, within ``tol`` times the larger of 1 and their sizes
-    (coordinates far from the origin leave about 1e-11 there). Each pass flips
+    (coordinates far from the origin leave about 1e-11 there, float32 storage
+    about 1e-6; see :data:`TOL`). Each pass flips
     quads that share no triangle; passes repeat until none is left to flip (at
     most ``max_passes``: several cocircular quads in a row, as around a regular
     polygon, need more than one).
