@@ -273,6 +273,26 @@ def test_metrics_against_analytic_values(make_fixtures):
     assert new_flipped_faces(V, F, V, expected) == 0
 
 
+def test_hausdorff_is_the_largest_distance_and_both_metrics_use_the_reference_scale(make_fixtures):
+    V, F = make_fixtures.icosphere(2)  # vertices on the unit sphere: the surface is convex, inscribed
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+    le = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()
+    # one vertex pushed out by delta along its radius: the plane x . v = 1 supports the
+    # reference at v, so the pushed vertex is exactly delta from it; every other vertex is
+    # on both surfaces, so the largest distance (not a mean of them) is delta
+    delta = 0.05
+    W = V.copy()
+    W[7] *= 1 + delta
+    e = denoise_errors(W, F, V)
+    assert e["hausdorff"] == pytest.approx(delta / diag, rel=1e-9)
+    assert e["vertex_rmse"] == pytest.approx(delta / np.sqrt(len(V)) / le, rel=1e-9)
+    # a result scaled by 1.1 is divided by the reference's diagonal and edge length, not its own
+    e = denoise_errors(1.1 * V, F, V)
+    assert e["hausdorff"] == pytest.approx(0.1 / diag, rel=1e-9)
+    assert e["vertex_rmse"] == pytest.approx(0.1 / le, rel=1e-9)
+
+
 def test_face_geometry_pieces(make_fixtures):
     V, F = make_fixtures.icosphere(2)
     C = face_centroids(V, F)
