@@ -174,6 +174,25 @@ def test_guidance_of_flat_patches_is_exact(make_fixtures):
     assert np.allclose(H, 0.0) and np.allclose(M, [0, 0, 1])
 
 
+def test_patch_consistency_against_its_definition(make_fixtures):
+    # a jittered torus: curved patches of unequal face areas, where the area weights of the
+    # mean normal matter (on flat patches or equal faces any weighting gives the same)
+    V, F = make_fixtures.torus()
+    V = V + 0.02 * np.random.default_rng(5).standard_normal(V.shape)
+    N, A = face_normals_and_areas(V, F)
+    ring = face_ring_csr(F, len(V))
+    enb = face_edge_neighbors(F)
+    H, M = patch_consistency(N, A, ring, enb)
+    assert A.max() > 1.5 * A.min()
+    for j in range(0, len(F), 37):
+        P = ring[1][ring[0][j]:ring[0][j + 1]]
+        m = (A[P, None] * N[P]).sum(axis=0)
+        assert np.allclose(M[j], m / np.linalg.norm(m), rtol=0, atol=1e-12)
+        phi = max(np.linalg.norm(N[a] - N[b]) for a in P for b in P)
+        sal = [np.linalg.norm(N[a] - N[b]) for a in P for b in enb[a] if b in P and b > a]
+        assert H[j] == pytest.approx(phi * max(sal) / (1e-9 + sum(sal)), rel=1e-12)
+
+
 def test_guidance_picks_one_side_of_a_sharp_edge(dfx):
     V, F = dfx.subdivided_cube(8)
     N, A = face_normals_and_areas(V, F)
