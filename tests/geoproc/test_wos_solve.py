@@ -102,6 +102,25 @@ def test_control_variate_walks_are_unbiased():
     assert (np.abs(mean) <= 3 * se).all(), (mean, se)
 
 
+@pytest.mark.parametrize("eps", [1e-2, 1e-4])
+def test_walks_stop_within_epsilon_and_not_before(eps):
+    # a point closer than epsilon to the boundary scores at once (no step); one farther
+    # takes at least one step in every walk: walks that stopped at 10 epsilon had passed
+    # every accuracy test (rmse 4x larger on the demo's glyph, within its 0.02 bar)
+    pb = WalkProblem(DISK, RE_Z3, None, eps)
+    A, B = DISK.A[0], DISK.B[0]
+    mid, e = (A + B) / 2, B - A
+    inward = np.array([-e[1], e[0]]) / np.linalg.norm(e)
+    inward = inward if DISK.contains((mid + 0.1 * inward)[None])[0] else -inward
+    s = np.array([0.5, 0.9, 1.1, 2.0, 9.0]) * eps
+    X = mid + s[:, None] * inward
+    np.testing.assert_allclose(pb.distance(X), s, rtol=1e-9)
+    walks = 64
+    _, _, steps = pb.estimate(X, walks, pass_seed(3, 7))
+    assert steps[:2].tolist() == [0, 0]
+    assert (steps[2:] >= walks).all(), steps
+
+
 def test_rmse_falls_like_inverse_sqrt_walks():
     walks = np.array([16, 64, 256])
     rmse = np.array([solve_laplace(DISK, RE_Z3, walks=int(w), grid=24, exact=True, seed=3)
