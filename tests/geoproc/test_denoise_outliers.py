@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from geoproc.denoise import detection_scores, rpca_outliers
-from geoproc.denoise.outliers import robust_planes, rpca_animation_outliers
+from geoproc.denoise.outliers import merged_projections, robust_planes, rpca_animation_outliers
 from geoproc.errors import InputError
 from geoproc.perturb import NoiseSpec, perturb_positions
 from tests.conftest import load_fixture_module
@@ -143,3 +143,20 @@ def test_detection_scores_are_nan_where_undefined():
     assert clean["precision"] == 0.0 and np.isnan(clean["recall"]) and clean["f1"] == 0.0
     empty = detection_scores(np.zeros(4, bool), np.zeros(4, bool))
     assert all(np.isnan(v) for v in empty.values())
+
+
+def test_merged_projections_average_the_used_neighbourhoods_by_hand():
+    # three points, three neighbourhoods: planes z = 0, z = 1 (point 0 and 1 in both), and
+    # x = 0 (points 1 and 2) left out by ``use``; point 2 is then in no used neighbourhood
+    P = np.array([[1.0, 2.0, 0.3], [4.0, 0.5, 0.6], [7.0, 7.0, 7.0]])
+    idx = np.array([[0, 1], [0, 1], [1, 2]])
+    nb = P[idx]
+    normal = np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]])
+    center = np.array([[5.0, 5.0, 0.0], [-3.0, 1.0, 1.0], [0.0, 0.0, 0.0]])
+    use = np.array([True, True, False])
+    out = merged_projections(nb, idx, normal, center, use, P)
+    # point 0: mean of (1, 2, 0) and (1, 2, 1); point 1: of (4, 0.5, 0) and (4, 0.5, 1); point 2 kept
+    np.testing.assert_allclose(out, [[1, 2, 0.5], [4, 0.5, 0.5], [7, 7, 7]], atol=1e-15)
+    # with the third neighbourhood used: point 1 also gets (0, 0.5, 0.6), point 2 (0, 7, 7)
+    out = merged_projections(nb, idx, normal, center, np.ones(3, dtype=bool), P)
+    np.testing.assert_allclose(out[1:], [[8 / 3, 0.5, 1.6 / 3], [0, 7, 7]], atol=1e-15)
