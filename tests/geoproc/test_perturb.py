@@ -135,6 +135,27 @@ def test_vertex_normals_of_sphere_are_radial(make_fixtures):
     assert np.array_equal(vertex_normals(V.astype(">f8"), F.astype(">i8")), N)
 
 
+def test_vertex_normals_are_weighted_by_face_area(make_fixtures):
+    # the benchmark protocol's noise runs along area-weighted normals: the sum of the
+    # incident faces' cross products (twice their area times their unit normal), normalised;
+    # on a jittered torus uniform weights tilt them by degrees, so the weighting is seen
+    V, F = make_fixtures.torus()
+    V = V + 0.03 * np.random.default_rng(2).standard_normal(V.shape)
+    X = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    S = np.zeros_like(V)
+    U = np.zeros_like(V)
+    for c in range(3):
+        np.add.at(S, F[:, c], X)
+        np.add.at(U, F[:, c], X / np.linalg.norm(X, axis=1, keepdims=True))
+    S /= np.linalg.norm(S, axis=1, keepdims=True)
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    N = vertex_normals(V, F)
+    dots = np.einsum("ij,ij->i", N, S)
+    assert np.abs(dots).min() > 1 - 1e-12
+    assert (dots > 0).all() or (dots < 0).all()  # one orientation for the whole surface
+    assert np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", S, U)), 0, 1))).max() > 2
+
+
 def test_unknown_direction_is_refused(sphere):
     V, F = sphere
     with pytest.raises(InputError):
