@@ -264,3 +264,13 @@ def test_edges_do_not_depend_on_the_faces_integer_type(make_fixtures, dtype):
     assert mean_edge_length(V, F.astype(dtype)) == mean_edge_length(V, F) == pytest.approx((2 + np.sqrt(2)) / 3)
     E, _, count = unique_edges(F.astype(dtype))
     assert sorted(map(tuple, E.tolist())) == [(n - 3, n - 2), (n - 3, n - 1), (n - 2, n - 1)]
+
+
+def test_mean_edge_length_counts_each_edge_once():
+    # a unit square of two triangles: four sides and one diagonal, (4 + sqrt 2) / 5; counted
+    # per half-edge the diagonal would weigh twice, (4 + 2 sqrt 2) / 6
+    from geoproc.mesh.topology import mean_edge_length
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    assert mean_edge_length(V, F) == pytest.approx((4 + np.sqrt(2)) / 5, rel=1e-15)
