@@ -24,7 +24,9 @@ SERIAL_WALKS = 1024
 CHUNK_WALKS = 1 << 18
 """Walks per call of the compiled walk kernels in :meth:`WalkProblem.estimate_chunked`
 (about a third of a second on two cores on the fixtures): Ctrl-C and the progress bar
-are answered between calls, and a point's walks are not split."""
+are answered between calls, and a point's walks are not split. A call takes at least
+two points per thread, so that every thread has work when the points have many walks
+each (with one point per call, as 400,000 walks per point gave, one core did all)."""
 CHUNK_POINTS = 4096
 """At most this many points per call."""
 _EMPTY2 = np.zeros((0, 2))
@@ -134,11 +136,11 @@ class WalkProblem:
     def estimate_chunked(self, X: np.ndarray, walks: int, stream_seed, kernels: KernelSet | None = None,
                          sigma: np.ndarray | None = None, progress=None):
         """:meth:`estimate` over X in slices of about :data:`CHUNK_WALKS` walks
-        (at most :data:`CHUNK_POINTS` points, at least one), with the same
+        (at most :data:`CHUNK_POINTS` points, at least two per thread), with the same
         numbers (each point keeps its random stream); ``progress(fraction_done)``
         after each slice. Ctrl-C is answered between slices."""
         n = len(X)
-        step = int(min(CHUNK_POINTS, max(1, CHUNK_WALKS // walks)))
+        step = int(min(CHUNK_POINTS, max(CHUNK_WALKS // walks, 2 * numba.get_num_threads())))
         mean, var, steps = np.empty(n), np.empty(n), np.empty(n, dtype=np.int64)
         for i in range(0, n, step):
             sl = slice(i, i + step)

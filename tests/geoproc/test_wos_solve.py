@@ -184,16 +184,21 @@ def test_walks_in_short_calls_give_the_same_numbers(monkeypatch):
     whole = pb.estimate(X, 64, pass_seed(4, 2))
     calls, estimate = [], pb.estimate
     monkeypatch.setattr(pb, "estimate", lambda Y, walks, *a: calls.append(len(Y) * walks) or estimate(Y, walks, *a))
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 1)
     monkeypatch.setattr(wp, "CHUNK_WALKS", 200)
     fractions = []
     parts = pb.estimate_chunked(X, 64, pass_seed(4, 2), progress=fractions.append)
     for u, v in zip(whole, parts, strict=True):
         assert np.array_equal(u, v)
     assert max(calls) == 3 * 64 and sum(calls) == len(X) * 64 and fractions[-1] == 1.0
-    monkeypatch.setattr(wp, "CHUNK_WALKS", 10)  # fewer walks than a point has: one point per call
-    calls.clear()
-    parts = pb.estimate_chunked(X, 64, pass_seed(4, 2))
-    assert np.array_equal(whole[0], parts[0]) and set(calls) == {64}
+    # fewer walks than a point has: two points per thread and call, so that no thread idles
+    monkeypatch.setattr(wp, "CHUNK_WALKS", 10)
+    for threads in (1, 3):
+        monkeypatch.setattr(numba, "get_num_threads", lambda t=threads: t)
+        calls.clear()
+        parts = pb.estimate_chunked(X, 64, pass_seed(4, 2))
+        assert np.array_equal(whole[0], parts[0])
+        assert set(calls[:-1]) == {2 * threads * 64} and 0 < calls[-1] <= 2 * threads * 64
 
 
 def test_grid_points_on_the_boundary_take_the_boundary_value():
