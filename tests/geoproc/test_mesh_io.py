@@ -620,3 +620,17 @@ def test_stl_of_no_facets_has_no_vertices(tmp_path, data):
         load_mesh(path)
     with pytest.raises(InputError, match="unparseable STL"):  # not an STL at all
         read_mesh_bytes(b"solid x\nfacet normal 0 0 1\n", "stl", "bad.stl")
+
+
+def test_vertex_fields_follow_their_vertices_through_the_clean_up(tmp_path):
+    # a copy of vertex 0 stored at index 2 (merged into 0) and an unreferenced vertex 5
+    # (removed): each field value must stay with its own vertex, which the stored index
+    # carried as a field tells; worked by hand, the kept vertices are 0, 1, 3, 4
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 0], [0, 1, 0], [1, 1, 0], [5, 5, 5]], dtype=float)
+    F = np.array([[0, 1, 4], [2, 4, 3]])
+    save_mesh(tmp_path / "d.ply", Mesh(V, F, {"label": np.arange(6, dtype=float)}))
+    m = load_mesh(tmp_path / "d.ply")
+    label = m.vertex_fields["label"]
+    assert label.tolist() == [0, 1, 3, 4]
+    assert np.array_equal(m.V, V[label.astype(int)])
+    assert np.array_equal(m.V[m.F], V[F])  # every face keeps its corners' positions

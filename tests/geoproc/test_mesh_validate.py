@@ -51,3 +51,11 @@ def test_mesh_container_refuses_other_shapes_instead_of_reshaping():
         Mesh(V, [[0, 1, 2.7]])
     assert Mesh(V, [[0.0, 1.0, 2.0]]).F.dtype == np.int64  # integral floats are indices
     assert Mesh(np.zeros((0, 3)), []).F.shape == (0, 3)
+
+
+@pytest.mark.parametrize("face", [[3, 4, 3], [3, 3, 4], [3, 4, 4]])
+def test_a_face_repeating_a_vertex_anywhere_is_refused(face):
+    from geoproc.mesh.validate import require_edge_manifold
+
+    with pytest.raises(InputError, match=r"1 face repeats a vertex \(first: face 1, vertices "):
+        require_edge_manifold(np.array([[0, 1, 2], face]), "m.obj")
