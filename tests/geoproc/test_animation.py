@@ -80,3 +80,14 @@ def test_hidden_files_and_subfolders_are_not_frames(wave, tmp_path):
     anim = load_animation(folder)
     assert np.array_equal(anim.V, V)
     assert [f.rsplit("/", 1)[-1] for f in anim.frame_files] == [f"frame{k}.ply" for k in range(len(V))]
+
+
+@pytest.mark.parametrize("bad", [lambda n: n, lambda n: -1])
+def test_npz_face_index_just_out_of_range_is_refused(wave, tmp_path, bad):
+    V, F = wave
+    n = V.shape[1]
+    F = F.copy()
+    F[-1] = [0, 1, bad(n)]  # n is one past the last vertex
+    p = _npz(tmp_path / "f.npz", vertices=V, faces=F)
+    with pytest.raises(InputError, match=rf"face index out of range \(valid 0\.\.{n - 1}\)"):
+        load_animation(p)
