@@ -35,6 +35,48 @@ def test_torus_x_known_answer_and_outputs(cli, fixture_dir, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_critical_cells_before_simplification_against_the_mesh_and_gudhi(cli, tmp_path, make_fixtures):
+    # a noisy height on a sphere (78 critical cells): every "before" row is checked against the
+    # input's own numbering and values, the mesh's simplices, and gudhi's lower-star pairs
+    gudhi = pytest.importorskip("gudhi")
+    V, F = make_fixtures.icosphere(3)
+    f = V[:, 2] + 0.05 * np.random.default_rng(2).standard_normal(len(V))
+    src, crit = tmp_path / "f.ply", tmp_path / "c.json"
+    save_mesh(src, Mesh(V, F, vertex_fields={"f": f}))
+    p = cli("morse-simplify", src, "--field", "f", "--persistence", "0.05", "-o", tmp_path / "o.ply",
+            "--critical", crit, "--quiet")
+    assert p.returncode == 0, p.stderr
+    rows = json.loads(crit.read_text())["before"]
+    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+    simplices = {1: set(range(len(V))), 2: set(map(tuple, E.tolist())), 3: set(map(tuple, np.sort(F, axis=1).tolist()))}
+    highest = lambda s: max(s, key=lambda i: (f[i], i))  # noqa: E731  the (value, index) order
+    assert len(rows) > 20
+    for r in rows:
+        cell = tuple(sorted(r["simplex"]))
+        assert len(cell) == r["dimension"] + 1 and (cell if len(cell) > 1 else cell[0]) in simplices[len(cell)]
+        assert r["vertex"] == highest(cell) and r["value"] == f[r["vertex"]]
+        pw = r["paired_with"]
+        if pw is not None:
+            assert pw["vertex"] == highest(pw["simplex"]) and abs(pw["dimension"] - r["dimension"]) == 1
+            assert r["persistence"] == pytest.approx(abs(f[pw["vertex"]] - r["value"]), abs=1e-15)
+    keys = [(r["dimension"], r["value"], r["vertex"]) for r in rows]
+    assert keys == sorted(keys)
+    # finite pairs: minimum-saddle from the minima's rows, saddle-maximum from the maxima's
+    st = gudhi.SimplexTree()
+    st.insert_batch(np.arange(len(f))[None, :], f)
+    st.insert_batch(E.T, f[E].max(axis=1))
+    st.insert_batch(F.T, f[F].max(axis=1))
+    st.compute_persistence(homology_coeff_field=2, min_persistence=-1, persistence_dim_max=True)
+    for dim, sign in ((0, 1), (2, -1)):
+        ours = sorted((r["value"], r["value"] + r["persistence"]) if sign > 0 else
+                      (r["value"] - r["persistence"], r["value"])
+                      for r in rows if r["dimension"] == dim and r["paired_with"] is not None)
+        d = st.persistence_intervals_in_dimension(dim // 2).reshape(-1, 2)
+        d = d[np.isfinite(d[:, 1]) & (d[:, 1] > d[:, 0])]
+        assert len(ours) > 5
+        np.testing.assert_allclose(np.array(ours).reshape(-1, 2), d[np.lexsort((d[:, 1], d[:, 0]))], atol=1e-12)
+
+
 def test_chained_property_field_relative(cli, fixture_dir, tmp_path, make_fixtures):
     V, F = make_fixtures.icosphere(3)
     d = V[:, 2] + 0.1 * np.random.default_rng(2).standard_normal(len(V))
