@@ -141,6 +141,9 @@ def test_dynamic_npz(cli, dfx, tmp_path, coherence):
     theta = np.mean([denoise_errors(a.V[t], F, V[t])["mean_normal_angle_deg"] for t in range(3)])
     met = _metrics(rep)
     assert met["mean_normal_angle_deg"] == pytest.approx(theta, rel=1e-9)
+    # the largest angle is the largest of any frame, not a mean of the frames' largest
+    worst = [denoise_errors(a.V[t], F, V[t])["max_normal_angle_deg"] for t in range(3)]
+    assert met["max_normal_angle_deg"] == pytest.approx(max(worst), rel=1e-9) and max(worst) > np.mean(worst)
     assert theta < 0.5 * np.mean([denoise_errors(Vn[t], F, V[t])["mean_normal_angle_deg"] for t in range(3)])
     # face counts are summed over the frames
     before = [flipped_faces(Vn[t], F, V[t]) for t in range(3)]
@@ -237,6 +240,68 @@ def test_open_boundary_is_handled(cli, fixture_dir, tmp_path):
     p = cli("denoise", fixture_dir / "grid.ply", "--rounds", "1", "--pin-boundary", "-o", out)
     assert p.returncode == 0, p.stderr
     assert np.allclose(load_mesh(out).V, load_mesh(fixture_dir / "grid.ply").V)  # flat stays flat
+
+
+def _noisy_grid(fixture_dir, frames=None):
+    """The grid fixture with noise in every direction (frames of it, each its own noise),
+    and its boundary vertices."""
+    from geoproc.mesh.topology import boundary_vertices
+
+    g = load_mesh(fixture_dir / "grid.ply")
+    rng = np.random.default_rng(4)
+    shape = g.V.shape if frames is None else (frames, *g.V.shape)
+    return g.V + 0.01 * rng.standard_normal(shape), g.F, boundary_vertices(g.F)
+
+
+@pytest.mark.parametrize("pin", [True, False])
+def test_pin_boundary_keeps_the_boundary_where_it_was(cli, fixture_dir, tmp_path, pin):
+    # noise in every direction, so that the filter moves the boundary unless it is pinned
+    V, F, b = _noisy_grid(fixture_dir)
+    src, out = tmp_path / "g.ply", tmp_path / "o.ply"
+    save_mesh(src, Mesh(V, F))
+    p = cli("denoise", src, *(["--pin-boundary"] if pin else []), "-o", out)
+    assert p.returncode == 0, p.stderr
+    W = load_mesh(out).V
+    inner = np.setdiff1d(np.arange(len(V)), b)
+    assert np.abs(W[inner] - V[inner]).max() > 1e-3
+    assert np.array_equal(W[b], V[b]) if pin else np.abs(W[b] - V[b]).max() > 1e-3
+
+
+@pytest.mark.parametrize("pin", [True, False])
+def test_pin_boundary_keeps_the_boundary_of_every_frame(cli, fixture_dir, tmp_path, pin):
+    V, F, b = _noisy_grid(fixture_dir, frames=3)
+    src, out = tmp_path / "g.npz", tmp_path / "o.npz"
+    src.write_bytes(animation_to_bytes(Animation(V, F)))
+    p = cli("denoise", src, "--dynamic", *(["--pin-boundary"] if pin else []), "-o", out)
+    assert p.returncode == 0, p.stderr
+    W = load_animation(out).V
+    assert np.array_equal(W[:, b], V[:, b]) if pin else np.abs(W[:, b] - V[:, b]).max() > 1e-3
+
+
+def test_k_reaches_the_outlier_scores(cli, dfx, tmp_path):
+    from geoproc.denoise import rpca_outliers
+
+    P, flag = dfx.cloud_with_outliers(3000, 0.1, 0.05)
+    src, out = tmp_path / "c.ply", tmp_path / "o.ply"
+    save_mesh(src, Mesh(P, np.zeros((0, 3), int)))
+    p = cli("denoise", src, "--outliers", "--k", "7", "--keep-all", "-o", out)
+    assert p.returncode == 0, p.stderr
+    score = load_mesh(out).vertex_fields["outlier_score"]
+    np.testing.assert_array_equal(score, rpca_outliers(P, k=7).score)
+    assert not np.array_equal(score, rpca_outliers(P, k=16).score)
+
+
+def test_feature_angle_sets_the_dihedral_threshold(cli, cube_pair, tmp_path):
+    # the cube's edges are 90 degrees: a threshold above that finds no feature, below it many
+    noisy, _ = cube_pair
+    faces = {}
+    for angle in (30, 100):
+        rep = tmp_path / f"{angle}.json"
+        p = cli("denoise", noisy, "--feature-angle", str(angle), "-o", tmp_path / f"{angle}.ply", "--report", rep)
+        assert p.returncode == 0, p.stderr
+        assert _metrics(rep)["feature_angle_deg"] == angle
+        faces[angle] = _metrics(rep)["feature_faces"]
+    assert faces[100] == 0 and faces[30] > 100
 
 
 def test_cloud_with_fewer_than_k_points(cli, tmp_path):
