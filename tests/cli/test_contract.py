@@ -653,3 +653,36 @@ def test_signals_started_ignored_stay_ignored():
             "signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["True", "True"]
+
+
+def test_a_bug_in_the_body_is_an_internal_error_with_exit_3(capsys):
+    with pytest.raises(typer.Exit) as stop:
+        with command_run("info", {}):
+            raise ValueError("boom\nsecond line")
+    assert stop.value.exit_code == 3
+    assert capsys.readouterr().err.strip() == \
+        "error: internal error: ValueError: boom (rerun with --debug for the traceback)"
+
+
+def test_a_timer_adds_up_its_intervals(monkeypatch):
+    from geoproc_cli import common
+
+    run = common.Run("info", {}, True)
+    clock = iter([0.0, 1.0, 10.0, 12.0])
+    monkeypatch.setattr(common.time, "perf_counter", lambda: next(clock))
+    for _ in range(2):
+        with run.timer("load"):
+            pass
+    assert run.timings == {"load": 3.0}
+
+
+def test_clean_up_counts_are_reported_under_their_names(cli, tmp_path):
+    # one copy of vertex 0 (merged) and two vertices no face uses (dropped), counted by hand
+    src = tmp_path / "m.obj"
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 0\nv 5 5 5\nv 6 6 6\nf 1 2 3\nf 4 3 2\n")
+    rep = tmp_path / "r.json"
+    p = cli("info", src, "--report", rep, "-q")
+    assert p.returncode == 0, p.stderr
+    m = json.loads(rep.read_text())["metrics"]
+    assert (m["input_vertices"], m["merged_vertices"], m["removed_unreferenced_vertices"]) == (6, 1, 2)
+    assert m["vertices"] == 3
