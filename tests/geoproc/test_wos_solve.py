@@ -121,6 +121,34 @@ def test_walks_stop_within_epsilon_and_not_before(eps):
     assert (steps[2:] >= walks).all(), steps
 
 
+def test_npass_first_adam_step_moves_every_coefficient_by_the_learning_rate():
+    # Adam's bias-corrected first step is lr * g / (|g| + 1e-8): each coefficient (in the
+    # fit's scale, the constant included) moves by lr against its gradient's sign; without
+    # the bias correction it moved by 0.1 lr. The walks are replaced by the exact solution.
+    from geoproc.wos.fit import green_kernels
+    from geoproc.wos.kernels import kernel_matrix
+    from geoproc.wos.npass import adam_refine
+
+    pb = WalkProblem(DISK, RE_Z3, None, 1e-3)
+    ks = green_kernels(DISK, 12, pb.distance)
+
+    class Exact:
+        def estimate(self, X, walks, seed, index0, kernels, sigma):
+            return evaluate(RE_Z3, X[:, 0], X[:, 1]), np.zeros(len(X)), np.ones(len(X), dtype=np.int64)
+
+    rng = np.random.default_rng(3)
+    cand = 0.8 * (rng.random((200, 2)) - 0.5)
+    sigma0, b0, scale = 0.1 * rng.standard_normal(ks.M), 0.2, rng.uniform(0.5, 2.0, ks.M)
+    mu = kernel_matrix(cand, ks).mean(axis=0)
+    lr = 0.01
+    sigma, b, walks, _ = adam_refine(Exact(), ks, sigma0, b0, scale, cand, lambda it: pass_seed(1, it),
+                                     steps=1, batch=64, walks=4, lr=lr)
+    before = np.append(sigma0 * scale, b0 + sigma0 @ mu)
+    after = np.append(sigma * scale, b + sigma @ mu)
+    np.testing.assert_allclose(np.abs(after - before), lr, rtol=1e-3)  # a gradient of 1e-5 moves by 0.999 lr
+    assert walks == 64 * 4
+
+
 def test_rmse_falls_like_inverse_sqrt_walks():
     walks = np.array([16, 64, 256])
     rmse = np.array([solve_laplace(DISK, RE_Z3, walks=int(w), grid=24, exact=True, seed=3)
