@@ -149,6 +149,18 @@ def test_npass_first_adam_step_moves_every_coefficient_by_the_learning_rate():
     assert walks == 64 * 4
 
 
+def test_error_points_are_those_farther_than_two_epsilon_from_the_boundary():
+    # the unit square, 20 pixels a side: the distance to the boundary is min(x, 1-x, y, 1-y),
+    # so with epsilon 0.03 the outermost ring of pixel centres (0.025 from a side) is left out
+    sq = build_domain([np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)])
+    res = solve_laplace(sq, parse_expression("x"), walks=2, grid=20, eps=0.03, exact=True, seed=1)
+    c = (np.arange(20) + 0.5) / 20
+    X, Y = np.meshgrid(c, c)
+    far = np.minimum.reduce([X, 1 - X, Y, 1 - Y]) > 0.06
+    assert res.metrics["error_points"] == far.sum() == 18 * 18
+    assert np.array_equal(res.scored, far[::-1])  # rows from the top
+
+
 def test_rmse_falls_like_inverse_sqrt_walks():
     walks = np.array([16, 64, 256])
     rmse = np.array([solve_laplace(DISK, RE_Z3, walks=int(w), grid=24, exact=True, seed=3)
