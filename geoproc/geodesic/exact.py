@@ -24,6 +24,8 @@ def exact_geodesic_distance(V: np.ndarray, F: np.ndarray, sources: np.ndarray) -
     """
     import igl
 
+    from geoproc.mesh.topology import vertex_components
+
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)  # libigl takes native int64 (not big-endian)
     VS = np.atleast_1d(np.ascontiguousarray(sources, dtype=np.int64))
@@ -34,4 +36,9 @@ def exact_geodesic_distance(V: np.ndarray, F: np.ndarray, sources: np.ndarray) -
     U = np.ascontiguousarray((V - lo) / scale)
     d = np.asarray(igl.exact_geodesic(U, np.ascontiguousarray(F), VS, empty, VT, empty), dtype=np.float64)
     d[~np.isfinite(d) | (d > 1e99)] = np.inf
+    # libigl leaves the vertices of components without a source at 0
+    _, comp = vertex_components(F, len(V))  # -1: a vertex no face uses
+    reached = np.isin(comp, comp[VS][comp[VS] >= 0])
+    reached[VS] = True
+    d[~reached] = np.inf
     return d * scale

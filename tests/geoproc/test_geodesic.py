@@ -990,3 +990,17 @@ def test_auto_operators_go_intrinsic_on_a_few_needles(make_fixtures, method):
     assert _mean_error_on_flat(V, res.distance) < 0.01  # measured 0.83 %
     with pytest.raises(InputError, match="extrinsic operators loses its accuracy"):
         gd.geodesic_distance(V, F, [0], method=method, operators="extrinsic")
+
+
+def test_exact_distance_is_infinite_where_no_source_reaches():
+    # two triangles apart, a vertex no face uses: libigl gives 0 beyond the source's component
+    from geoproc.geodesic.exact import exact_geodesic_distance
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 0, 0], [6, 0, 0], [5, 1, 0], [9, 9, 9]], dtype=float)
+    F = np.array([[0, 1, 2], [3, 4, 5]])
+    d = exact_geodesic_distance(V, F, [0])
+    np.testing.assert_allclose(d[:3], [0, 1, 1], atol=1e-12)
+    assert np.isinf(d[3:]).all()
+    d = exact_geodesic_distance(V, F, [0, 4])
+    np.testing.assert_allclose(d[:6], [0, 1, 1, 1, 0, np.sqrt(2)], atol=1e-12)
+    assert np.isinf(d[6])
