@@ -466,3 +466,66 @@ def test_a_check_on_a_metric_the_method_has_not_is_refused_before_the_work(cli, 
     assert cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-m", method, "-o", out, "--report", rep,
                "-q").returncode == 0
     assert metric not in json.loads(rep.read_text())["metrics"]
+
+
+def test_steps_reach_the_backward_euler_loop(cli, fixture_dir, tmp_path):
+    # varadhan with -n 10 against ten backward-Euler steps built here with libigl and scipy:
+    # (M - (T/10) L) u_k+1 = M u_k from u_0 = 1 at the source, d = sqrt(-4 T log u)
+    import igl
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    m = load_mesh(fixture_dir / "grid.ply")
+    E = igl.edges(m.F)
+    T = 3 * np.linalg.norm(m.V[E[:, 0]] - m.V[E[:, 1]], axis=1).mean() ** 2
+    L = sp.csc_matrix(igl.cotmatrix(m.V, m.F))
+    M = sp.diags(igl.massmatrix(m.V, m.F, igl.MASSMATRIX_TYPE_VORONOI).diagonal())
+    u = np.zeros(len(m.V))
+    u[0] = 1.0
+    for _ in range(10):
+        u = spsolve(sp.csc_matrix(M - T / 10 * L), M @ u)
+    ref = np.sqrt(np.maximum(0.0, -4 * T * np.log(u)))
+    out = {}
+    for n in ("1", "10"):
+        out[n] = tmp_path / f"d{n}.ply"
+        p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "-m", "varadhan", "-c", "3", "-n", n, "-o", out[n])
+        assert p.returncode == 0, p.stderr
+    d10, d1 = (load_mesh(out[n]).vertex_fields["distance"] for n in ("10", "1"))
+    np.testing.assert_allclose(d10, ref, rtol=1e-10, atol=1e-12)
+    assert np.abs(d1 - d10).max() > 0.01 * d10.max()
+
+
+def test_sources_from_options_and_a_file_together(cli, fixture_dir, tmp_path):
+    # -s 0 and a file naming 440: both are sources (the grid's opposite corners; exact is planar)
+    f = tmp_path / "s.txt"
+    f.write_text("440\n")
+    out, rep = tmp_path / "d.ply", tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "--sources-file", f, "-m", "exact", "-o", out,
+            "--report", rep)
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(out)
+    ref = np.minimum(np.linalg.norm(m.V - m.V[0], axis=1), np.linalg.norm(m.V - m.V[440], axis=1))
+    assert np.abs(m.vertex_fields["distance"] - ref).max() < 1e-12
+    assert _report(rep)["metrics"]["sources"] == 2
+
+
+@pytest.mark.parametrize("method", ["heat", "varadhan", "log-splitting", "log-ode", "log-heat"])
+def test_default_laplacian_of_each_method(cli, fixture_dir, tmp_path, method):
+    # the defaults the README states: cotan for heat, varadhan and log-splitting,
+    # intrinsic-delaunay for log-ode and log-heat; the same bytes as naming them (a Delaunay
+    # mesh, which every method takes with either Laplacian: they differ in the lumped mass)
+    if method == "log-splitting":
+        pytest.importorskip("clarabel")
+    default = "intrinsic-delaunay" if method in ("log-ode", "log-heat") else "cotan"
+    other = "cotan" if default != "cotan" else "intrinsic-delaunay"
+    outs = {}
+    for name, extra in (("none", []), ("same", ["--laplacian", default]), ("other", ["--laplacian", other])):
+        outs[name], rep = tmp_path / f"{name}.ply", tmp_path / f"{name}.json"
+        p = cli("geodesic", fixture_dir / "icosphere.ply", "-s", "0", "-m", method, *extra, "-o", outs[name],
+                "--report", rep, "--operators" if method in ("heat", "log-heat") else "--quiet",
+                *(["extrinsic"] if method in ("heat", "log-heat") else []))
+        assert p.returncode == 0, p.stderr
+        if name == "none":
+            assert _report(rep)["params"]["laplacian"] == default
+    d = {k: load_mesh(v).vertex_fields["distance"] for k, v in outs.items()}
+    assert np.array_equal(d["none"], d["same"]) and not np.array_equal(d["none"], d["other"])
