@@ -228,3 +228,26 @@ def test_walks_stalled_at_the_step_cap_are_noted(cli, inputs, tmp_path):
     p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "4", "--grid", "4",
             "--epsilon", "1e-12", "-o", tmp_path / "u.exr")
     assert p.returncode == 0 and "10000 steps" not in p.stderr, p.stderr
+
+
+def test_fit_options_reach_the_solver(cli, inputs, tmp_path):
+    # the EXR is the solver's grid in float32, the same numbers for the same seed: options that
+    # the command left out of the call would change them (the report named them all the same)
+    from geoproc.wos.expression import parse_expression
+    from geoproc.wos.load import load_domain
+    from geoproc.wos.solve import solve_laplace
+
+    opts = {"walks": 4, "grid": 24, "kernels": 20, "fit_walks": 64, "ridge": 100.0, "fit_points_n": 90,
+            "eps": 0.01}
+    out = tmp_path / "u.exr"
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--method", "cv-green", "--walks", "4",
+            "--grid", "24", "--kernels", "20", "--fit-walks", "64", "--ridge", "100", "--fit-points", "90",
+            "--epsilon", "0.01", "--seed", "3", "-o", out, "--quiet")
+    assert p.returncode == 0, p.stderr
+    domain = load_domain(str(inputs / "disk.json"))
+    U = solve_laplace(domain, parse_expression("x"), method="cv-green", seed=3, **opts).U
+    np.testing.assert_array_equal(read_exr(str(out)), U.astype(np.float32))
+    for key, other in (("fit_walks", 128), ("ridge", None), ("fit_points_n", None), ("kernels", 80),
+                       ("eps", 1e-3)):
+        V = solve_laplace(domain, parse_expression("x"), method="cv-green", seed=3, **{**opts, key: other}).U
+        assert not np.array_equal(V.astype(np.float32), U.astype(np.float32)), key
