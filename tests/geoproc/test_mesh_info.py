@@ -274,3 +274,31 @@ def test_mean_edge_length_counts_each_edge_once():
     V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
     F = np.array([[0, 1, 2], [0, 2, 3]])
     assert mean_edge_length(V, F) == pytest.approx((4 + np.sqrt(2)) / 5, rel=1e-15)
+
+
+def _klein_bottle(nu=12, nv=10):
+    """A closed, non-orientable grid: (i, nv) is glued to (-i mod nu, 0) (Euler characteristic 0)."""
+    idx = lambda i, j: (i % nu) * nv + j if j < nv else ((-i) % nu) * nv  # noqa: E731
+    F = []
+    for i in range(nu):
+        for j in range(nv):
+            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)
+            F += [[a, b, c], [a, c, d]]
+    V = np.random.default_rng(0).standard_normal((nu * nv, 3))
+    return V, np.array(F)
+
+
+def test_genus_and_euler_characteristic_by_hand(make_fixtures):
+    V, F = make_fixtures.icosphere(1)
+    # two spheres: chi = 2 + 2, genus 0 (genus = (2 * components - chi) / 2)
+    two = mesh_info(Mesh(np.vstack([V, V + 5]), np.vstack([F, F + len(V)])))
+    assert (two["components"], two["euler_characteristic"], two["genus"]) == (2, 4, 0)
+    # a vertex no face uses is not part of the surface: chi stays 2
+    extra = mesh_info(Mesh(np.vstack([V, [[9.0, 9.0, 9.0]]]), F))
+    assert (extra["euler_characteristic"], extra["genus"]) == (2, 0)
+    # a Klein bottle is closed and manifold with chi = 0 but has no genus (not orientable)
+    Vk, Fk = _klein_bottle()
+    k = mesh_info(Mesh(Vk, Fk))
+    assert (k["components"], k["boundary_loops"], k["euler_characteristic"]) == (1, 0, 0)
+    assert k["nonmanifold_edges"] == k["nonmanifold_vertices"] == 0
+    assert k["orientable"] is False and k["genus"] is None
