@@ -41,10 +41,12 @@ def _faces(rng, m: int, k: int, n: int, index_type: str, extra: bool) -> PlyElem
 
 
 def _vertices(rng, n: int) -> PlyElement:
-    rows = np.empty(n, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"), ("red", "u1"), ("t", "f8"), ("id", "u4")])
+    rows = np.empty(n, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"), ("red", "u1"), ("t", "f8"), ("id", "u4"),
+                              ("label", "i1")])  # plyfile writes i1 as "char": signed
     for c in ("x", "y", "z", "t"):
         rows[c] = rng.normal(size=n) * 1e3
     rows["red"] = rng.integers(0, 256, n)
+    rows["label"] = rng.integers(-128, 128, n)
     rows["id"] = rng.integers(0, 2**32 - 1, n, dtype=np.uint64)
     return PlyElement.describe(rows, "vertex")
 
