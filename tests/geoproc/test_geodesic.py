@@ -1004,3 +1004,13 @@ def test_exact_distance_is_infinite_where_no_source_reaches():
     d = exact_geodesic_distance(V, F, [0, 4])
     np.testing.assert_allclose(d[:6], [0, 1, 1, 1, 0, np.sqrt(2)], atol=1e-12)
     assert np.isinf(d[6])
+
+
+def test_isoline_segment_on_one_triangle_by_hand():
+    from geoproc.geodesic.render import isoline_segments
+
+    P = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    seg, faces = isoline_segments(P, np.array([[0, 1, 2]]), np.array([0.0, 1.0, 2.0]), np.array([0.25]))
+    # d = 0.25 a quarter of the way along edge 0-1, and 7/8 of the way from vertex 2 to 0
+    np.testing.assert_allclose(seg, [[[0.25, 0.0], [0.0, 0.125]]], atol=1e-15)
+    assert faces.tolist() == [0]

@@ -458,3 +458,24 @@ def test_grid_points_on_every_neumann_edge_of_a_hole_are_solved():
     edge = ((y == 1.25) | (y == 2.75)) & (x > 1.25) & (x < 2.75)  # both Neumann edges, 2 points each
     assert edge.sum() == 4
     assert (np.abs(r.U[edge] - y[edge]) <= 4 * r.stderr[edge] + 1e-3).all(), (r.U[edge], r.stderr[edge])
+
+
+def test_png_puts_the_top_row_of_the_field_at_the_top():
+    # u = y on a square: in the plot (left of the colour bar) viridis's high end (yellow) lies
+    # above its low end (purple); an image flipped upside down had them the other way round
+    import io
+
+    import matplotlib.image
+
+    from geoproc.wos.images import png_bytes
+
+    n = 32
+    y = 1 - (np.arange(n) + 0.5) / n  # row 0 at the top
+    U = np.repeat(y[:, None], n, axis=1)
+    img = matplotlib.image.imread(io.BytesIO(png_bytes(U, (0, 1, 0, 1), "u = y", contours=0)))[..., :3]
+    plot = img[:, : int(0.6 * img.shape[1])]
+    rows = np.arange(plot.shape[0])[:, None] * np.ones(plot.shape[1])
+    yellow = (plot[..., 0] > 0.85) & (plot[..., 1] > 0.8) & (plot[..., 2] < 0.3)
+    purple = (plot[..., 0] < 0.35) & (plot[..., 1] < 0.1) & (plot[..., 2] > 0.25)
+    assert yellow.sum() > 100 and purple.sum() > 100
+    assert rows[yellow].mean() < rows[purple].mean() - 0.3 * plot.shape[0]
