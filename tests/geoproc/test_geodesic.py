@@ -1014,3 +1014,22 @@ def test_isoline_segment_on_one_triangle_by_hand():
     # d = 0.25 a quarter of the way along edge 0-1, and 7/8 of the way from vertex 2 to 0
     np.testing.assert_allclose(seg, [[[0.25, 0.0], [0.0, 0.125]]], atol=1e-15)
     assert faces.tolist() == [0]
+
+
+def test_poisson_solver_pins_one_vertex_of_every_component(make_fixtures):
+    # two separate grids: a right-hand side summing to zero on each is solved exactly, with
+    # phi = 0 at the first vertex of each (with only the first component pinned, the second
+    # component's block is singular)
+    import igl
+
+    from geoproc.geodesic.poisson import PoissonSolver
+
+    V, F = make_fixtures.grid(6)
+    V2, F2 = np.vstack([V, V + [3.0, 0, 0]]), np.vstack([F, F + len(V)])
+    L = sp.csr_matrix(igl.cotmatrix(V2, F2))
+    b = np.random.default_rng(1).standard_normal(len(V2))
+    b[: len(V)] -= b[: len(V)].mean()
+    b[len(V):] -= b[len(V):].mean()
+    phi = PoissonSolver(L).solve(b)
+    assert phi[0] == 0 and phi[len(V)] == 0
+    assert np.abs(L @ phi - b).max() < 1e-10 * np.abs(b).max()
