@@ -121,6 +121,17 @@ def test_render_writes_a_png(cli, fixture_dir, tmp_path):
     assert p.returncode == 0, p.stderr
     data = png.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10000
+    # the picture is that of the written distances with the source marked (red dots)
+    import io
+
+    import matplotlib.image
+
+    from geoproc.geodesic.render import render_distance_png
+
+    m = load_mesh(out)
+    assert data == render_distance_png(m.V, m.F, m.vertex_fields["distance"], [0], title="torus.ply: heat")
+    img = matplotlib.image.imread(io.BytesIO(data))[..., :3]
+    assert ((img[..., 0] > 0.8) & (img[..., 1] < 0.3) & (img[..., 2] < 0.3)).sum() > 20
 
 
 def test_unreachable_component_is_inf_and_counted(cli, make_fixtures, tmp_path):

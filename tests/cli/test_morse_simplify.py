@@ -35,6 +35,24 @@ def test_torus_x_known_answer_and_outputs(cli, fixture_dir, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_diagram_shows_the_pairs_before_and_after(cli, tmp_path, make_fixtures):
+    # the picture is the diagrams of the input field and of the written, simplified one
+    from geoproc.morse import lower_star_persistence, surface_complex
+    from geoproc.morse.diagram_plot import persistence_diagram_png
+
+    V, F = make_fixtures.icosphere(3)
+    f = V[:, 2] + 0.05 * np.random.default_rng(2).standard_normal(len(V))
+    src, out, png = tmp_path / "f.ply", tmp_path / "o.ply", tmp_path / "d.png"
+    save_mesh(src, Mesh(V, F, vertex_fields={"f": f}))
+    p = cli("morse-simplify", src, "--field", "f", "--persistence", "0.05", "-o", out, "--diagram", png, "--quiet")
+    assert p.returncode == 0, p.stderr
+    g = load_mesh(out).vertex_fields["f"]
+    cx = surface_complex(F, len(V))
+    before, after = lower_star_persistence(cx, f), lower_star_persistence(cx, g)
+    assert png.read_bytes() == persistence_diagram_png(before, after, 0.05, title="f.ply: f, P = 0.05")
+    assert png.read_bytes() != persistence_diagram_png(before, before, 0.05, title="f.ply: f, P = 0.05")
+
+
 def test_critical_cells_before_simplification_against_the_mesh_and_gudhi(cli, tmp_path, make_fixtures):
     # a noisy height on a sphere (78 critical cells): every "before" row is checked against the
     # input's own numbering and values, the mesh's simplices, and gudhi's lower-star pairs

@@ -251,3 +251,25 @@ def test_fit_options_reach_the_solver(cli, inputs, tmp_path):
                        ("eps", 1e-3)):
         V = solve_laplace(domain, parse_expression("x"), method="cv-green", seed=3, **{**opts, key: other}).U
         assert not np.array_equal(V.astype(np.float32), U.astype(np.float32)), key
+
+
+def test_error_image_shows_only_the_scored_pixels(cli, inputs, tmp_path):
+    # |u - exact| on the pixels the metrics use; the band within 2 epsilon of the boundary blank
+    from geoproc.wos.expression import parse_expression
+    from geoproc.wos.images import png_bytes
+    from geoproc.wos.load import load_domain
+    from geoproc.wos.solve import solve_laplace
+
+    err_png = tmp_path / "e.png"
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "4", "--grid", "24", "--epsilon",
+            "0.05", "--exact", "--seed", "3", "-o", tmp_path / "u.exr", "--error-image", err_png, "--quiet")
+    assert p.returncode == 0, p.stderr
+    res = solve_laplace(load_domain(str(inputs / "disk.json")), parse_expression("x"), walks=4, grid=24,
+                        eps=0.05, exact=True, seed=3)
+    err = np.abs(res.U - res.exact)
+    assert (np.isfinite(err) & ~res.scored).sum() > 10  # the band is there to leave out
+    extent = (res.grid.x0, res.grid.x0 + res.grid.nx * res.grid.h, res.grid.y1 - res.grid.ny * res.grid.h, res.grid.y1)
+    title = f"disk.json: |error|, naive, rmse {res.metrics['rmse']:.3g}"
+    kw = {"cmap": "magma", "contours": 0, "label": "|u - exact|"}
+    assert err_png.read_bytes() == png_bytes(np.where(res.scored, err, np.nan), extent, title, **kw)
+    assert err_png.read_bytes() != png_bytes(err, extent, title, **kw)
