@@ -56,7 +56,9 @@ def test_diagram_shows_the_pairs_before_and_after(cli, tmp_path, make_fixtures):
 def test_critical_cells_before_simplification_against_the_mesh_and_gudhi(cli, tmp_path, make_fixtures):
     # a noisy height on a sphere (78 critical cells): every "before" row is checked against the
     # input's own numbering and values, the mesh's simplices, and gudhi's lower-star pairs
-    gudhi = pytest.importorskip("gudhi")
+    pytest.importorskip("gudhi")
+    from tests.geoproc.test_morse import gudhi_diagrams
+
     V, F = make_fixtures.icosphere(3)
     f = V[:, 2] + 0.05 * np.random.default_rng(2).standard_normal(len(V))
     src, crit = tmp_path / "f.ply", tmp_path / "c.json"
@@ -80,16 +82,12 @@ def test_critical_cells_before_simplification_against_the_mesh_and_gudhi(cli, tm
     keys = [(r["dimension"], r["value"], r["vertex"]) for r in rows]
     assert keys == sorted(keys)
     # finite pairs: minimum-saddle from the minima's rows, saddle-maximum from the maxima's
-    st = gudhi.SimplexTree()
-    st.insert_batch(np.arange(len(f))[None, :], f)
-    st.insert_batch(E.T, f[E].max(axis=1))
-    st.insert_batch(F.T, f[F].max(axis=1))
-    st.compute_persistence(homology_coeff_field=2, min_persistence=-1, persistence_dim_max=True)
+    diagrams = gudhi_diagrams(F, f)
     for dim, sign in ((0, 1), (2, -1)):
         ours = sorted((r["value"], r["value"] + r["persistence"]) if sign > 0 else
                       (r["value"] - r["persistence"], r["value"])
                       for r in rows if r["dimension"] == dim and r["paired_with"] is not None)
-        d = st.persistence_intervals_in_dimension(dim // 2).reshape(-1, 2)
+        d = diagrams[dim // 2]
         d = d[np.isfinite(d[:, 1]) & (d[:, 1] > d[:, 0])]
         assert len(ours) > 5
         np.testing.assert_allclose(np.array(ours).reshape(-1, 2), d[np.lexsort((d[:, 1], d[:, 0]))], atol=1e-12)
