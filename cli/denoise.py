@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 from contextlib import contextmanager
-from typing import Annotated
+from typing import Annotated, NamedTuple
 
 import numpy as np
 import typer
@@ -154,9 +154,10 @@ def denoise(
               "k": k, "threshold": threshold, "keep_all": keep_all, "refined": refined, "dynamic": dynamic,
               "coherence": coherence_used,
               "clean": not no_clean}
+    mode = denoise_mode(input, outliers, dynamic)
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output], inputs=[input, reference], metrics=METRICS, text_metrics=TEXT_METRICS,
-                     needs=_metric_needs(reference, outliers, dynamic, features)) as run:
+                     needs=_metric_needs(Choices(mode, method, features, refined, reference))) as run:
         if method not in METHODS:
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:
@@ -186,11 +187,11 @@ def denoise(
                            sigma_s_scale=sigma_s,
                            pin_boundary=pin_boundary, features=features, feature_tau=feature_tau,
                            feature_angle_deg=feature_angle)
-        if dynamic:
+        if mode == DYNAMIC:
             _dynamic(run, input, output, reference, method, dp, coherence_used)
-        elif outliers and input != "-" and is_animation_path(input):
+        elif mode == MOVING_CLOUD:
             _animation_outliers(run, input, output, threshold_set, threshold, refined)
-        elif outliers:
+        elif mode == CLOUD:
             _outliers(run, input, output, k, threshold, keep_all, refined, no_clean)
         else:
             given = options_given(ctx, "sigma_r", "sigma_s", "normal_iterations", "vertex_iterations",
@@ -200,29 +201,64 @@ def denoise(
 
 _FILTER_OPTIONS = ("method", "rounds", "normal_iterations", "vertex_iterations", "fidelity", "sigma_r",
                    "sigma_s", "pin_boundary")
-OUTLIER_METRICS = ("points", "detected_outliers", "threshold", "true_outliers", "precision", "recall", "f1",
-                   "mean_refinement_shift", "motion_basis")
-"""Reported only with ``--outliers``."""
-DYNAMIC_METRICS = ("frames", "coherence", "rpca_iterations", "rpca_converged", "low_rank", "turn_limited_vertices")
-"""Reported only with ``--dynamic`` (``frames`` and ``rpca_iterations`` also by ``--outliers`` on a moving cloud)."""
-L1_METRICS = ("feature_lambda", "feature_tau", "feature_vertices", "feature_admm_iterations")
-"""Reported only by the l1 feature detection (``--features l1``)."""
+MESH, CLOUD, MOVING_CLOUD, DYNAMIC = "mesh", "cloud", "moving cloud", "dynamic"
+"""The four modes of ``denoise``: a single mesh, --outliers on a point cloud or
+on an animation, --dynamic."""
+MODE_METRICS = (
+    # (what reports them, whether a run with these Choices does, the metrics)
+    ("--reference", lambda c: c.reference is not None and c.mode in (MESH, DYNAMIC), REFERENCE_METRICS),
+    ("--outliers", lambda c: c.mode in (CLOUD, MOVING_CLOUD),
+     ("points", "detected_outliers", "threshold", "true_outliers", "precision", "recall", "f1")),
+    ("--outliers --refined on a point cloud (not an animation)", lambda c: c.mode == CLOUD and c.refined,
+     ("mean_refinement_shift",)),
+    ("--outliers on an animation", lambda c: c.mode == MOVING_CLOUD, ("motion_basis",)),
+    ("--dynamic", lambda c: c.mode == DYNAMIC,
+     ("coherence", "low_rank", "rpca_converged", "turn_limited_vertices")),
+    ("--dynamic, or --outliers on an animation", lambda c: c.mode in (DYNAMIC, MOVING_CLOUD),
+     ("frames", "rpca_iterations")),
+    ("a mesh (not --outliers)", lambda c: c.mode in (MESH, DYNAMIC),
+     ("vertices", "faces", "fidelity", "vertex_iterations")),
+    ("a single mesh (not --outliers or --dynamic)", lambda c: c.mode == MESH,
+     ("feature_faces", "feature_method", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
+      "dihedral_tail_ratio", "reoriented_faces", "guidance_mix", "outer_iterations", "normal_iterations",
+      "sigma_r", "sigma_s", "sigma_s_length", "unfold_rounds", "folded_faces", "crease_bisected_faces",
+      "input_side_faces")),
+    ("--method rpca on a single mesh", lambda c: c.mode == MESH and c.method == "rpca",
+     ("rpca_sparse_faces",)),
+    ("--features l1", lambda c: c.mode == MESH and c.features == "l1",
+     ("feature_lambda", "feature_tau", "feature_vertices", "feature_admm_iterations")),
+    ("--features dihedral (the default) on a single mesh",
+     lambda c: c.mode == MESH and c.features != "l1", ("feature_angle_deg",)),
+    ("an input that is not an animation", lambda c: c.mode in (MESH, CLOUD), LOAD_METRICS),
+)
+"""Which metrics each mode and option reports (every name of ``METRICS`` in one
+group): a --check on one that the run's options cannot report is refused before
+the input is read. precision, recall, f1 and true_outliers also need an
+'outlier' property in the input, which only the run can tell."""
 
 
-def _metric_needs(reference, outliers: bool, dynamic: bool, features: str) -> dict[str, tuple[str, ...]]:
-    """For each option not given, the metrics only it reports: a --check on one of them is
-    refused before the input is read."""
-    needs: dict[str, tuple[str, ...]] = {}
-    if reference is None and not outliers:
-        needs["--reference"] = REFERENCE_METRICS
-    if not outliers:
-        needs["--outliers"] = OUTLIER_METRICS
-    if not dynamic:
-        needs["--dynamic"] = (tuple(m for m in DYNAMIC_METRICS if m not in ("frames", "rpca_iterations"))
-                              if outliers else DYNAMIC_METRICS)
-    if features != "l1" and not outliers:
-        needs["--features l1"] = L1_METRICS
-    return needs
+def denoise_mode(input: str, outliers: bool, dynamic: bool) -> str:
+    """MESH, CLOUD, MOVING_CLOUD or DYNAMIC, from the options and the input's path."""
+    if outliers:
+        return MOVING_CLOUD if input != "-" and is_animation_path(input) else CLOUD
+    return DYNAMIC if dynamic else MESH
+
+
+class Choices(NamedTuple):
+    """What decides which metrics a run reports, known before the input is read."""
+
+    mode: str
+    method: str
+    features: str
+    refined: bool
+    reference: str | None
+
+
+def _metric_needs(choices: Choices) -> dict[str, tuple[str, ...]]:
+    """For each way of running not taken, the metrics only it reports (for
+    ``command_run``'s ``needs``: a --check on one of them is refused before the
+    input is read)."""
+    return {what: names for what, reports, names in MODE_METRICS if not reports(choices)}
 
 
 _FEATURE_OPTIONS = ("features", "feature_tau", "feature_angle")

@@ -143,7 +143,7 @@ def geodesic(
     }
     with command_run("geodesic", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, render], inputs=[mesh, sources_file], metrics=METRICS, text_metrics=TEXT_METRICS,
-                     needs=_metric_needs(m_name, reference)) as run:
+                     needs=_metric_needs(m_name, solver.value, reference)) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
         if output != "-" and not output.lower().endswith(".ply"):
@@ -220,16 +220,32 @@ def geodesic(
 
 
 
-def _metric_needs(method: str, reference) -> dict[str, tuple[str, ...]]:
+METHOD_METRICS = (
+    # (what reports them, the methods that do, with the log-ode solver where it matters, the metrics)
+    ("a diffusion method (not -m exact)", ("heat", "varadhan", "log-splitting", "log-ode", "log-heat"),
+     ("t", "t_over_h2")),
+    ("-m varadhan, log-splitting, log-ode or log-heat (time steps)",
+     ("varadhan", "log-splitting", "log-ode", "log-heat"), ("steps",)),
+    ("-m heat or log-heat", ("heat", "log-heat"), ("negative_distance_vertices", "operators")),
+    ("-m heat or varadhan", ("heat", "varadhan"), ("zero_heat_vertices", "negative_heat_vertices")),
+    ("-m log-splitting, log-ode or log-heat", ("log-splitting", "log-ode", "log-heat"),
+     ("min_log_heat", "log_heat_below_double", "nonfinite_log_heat")),
+    ("-m log-ode --solver lu or newton", ("log-ode lu", "log-ode newton"), ("iterations",)),
+    ("-m log-ode --solver cvxpy", ("log-ode cvxpy",), ("solver_inaccurate_steps",)),
+)
+"""The metrics only some methods report: a --check on one that the chosen method
+does not report is refused before the input is read."""
+
+
+def _metric_needs(method: str, solver: str, reference) -> dict[str, tuple[str, ...]]:
     """The metrics this run will not report, by what would report them (for
     ``command_run``'s ``needs``: a --check on them is refused before the work)."""
     needs: dict[str, tuple[str, ...]] = {}
     if reference is None:
         needs["--reference"] = REFERENCE_METRICS
-    if method == "exact":
-        needs["a diffusion method (not -m exact)"] = ("t", "t_over_h2")
-    if method in UNSTEPPED:
-        needs["-m varadhan, log-splitting, log-ode or log-heat (time steps)"] = ("steps",)
+    for what, methods, names in METHOD_METRICS:
+        if method not in methods and f"{method} {solver}" not in methods:
+            needs[what] = names
     return needs
 
 

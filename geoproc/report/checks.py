@@ -119,8 +119,8 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     unknown = [c.metric for c in checks if c.metric not in metrics]
     if unknown:
         names = ", ".join(sorted(k for k, v in metrics.items() if not isinstance(v, str)))
-        raise UsageError(f"--check: unknown metric '{unknown[0]}': not reported by this run (the command's "
-                         f"other options may report it); this run reports: {names}")
+        raise UsageError(f"--check: metric '{unknown[0]}' was not reported by this run (it depends on the "
+                         f"input's content); this run reports: {names}")
     text = [c for c in checks if isinstance(metrics[c.metric], str)]
     if text:
         raise UsageError(f"--check '{text[0].text}': metric '{text[0].metric}' is not a number "

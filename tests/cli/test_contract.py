@@ -124,10 +124,18 @@ def test_unknown_metric_and_malformed_check_are_usage_errors(cli, fixture_dir, t
     out = tmp_path / "g.ply"
     p = cli("geodesic", tmp_path / "missing.ply", "-s", "0", "-o", out, "--check", "rmse<1")
     assert p.returncode == 2 and p.stderr == "error: --check 'rmse<1': geodesic reports 'rmse' only with --reference\n"
-    # one that depends on the method (iterations: log-ode only) is judged after the run, and nothing is written
-    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--check", "iterations<9", "--report", report)
-    assert p.returncode == 2 and "unknown metric 'iterations': not reported by this run" in p.stderr, p.stderr
-    assert "mean_distance" in p.stderr and not out.exists() and not report.exists()
+    # so is one that depends on the method (iterations: log-ode with lu or newton only)
+    p = cli("geodesic", tmp_path / "missing.ply", "-s", "0", "-o", out, "--check", "iterations<9")
+    assert p.returncode == 2 and p.stderr == ("error: --check 'iterations<9': geodesic reports 'iterations' only "
+                                              "with -m log-ode --solver lu or newton\n")
+    # one that depends on the input's content (f1 needs an 'outlier' property) is judged after the run,
+    # and nothing is written
+    cloud = tmp_path / "cloud.ply"
+    cloud.write_text("ply\nformat ascii 1.0\nelement vertex 20\nproperty float x\nproperty float y\n"
+                     "property float z\nend_header\n" + "".join(f"{i} {i % 3} {i % 5}\n" for i in range(20)))
+    p = cli("denoise", cloud, "--outliers", "--k", "8", "-o", out, "--check", "f1>=0.9", "--report", report)
+    assert p.returncode == 2 and "metric 'f1' was not reported by this run" in p.stderr, p.stderr
+    assert "detected_outliers" in p.stderr and not out.exists() and not report.exists()
     p = cli("info", fixture_dir / "torus.ply", "--check", "genus=1")
     assert p.returncode == 2 and "--check 'genus=1'" in p.stderr
 

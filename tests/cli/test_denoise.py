@@ -95,9 +95,9 @@ def test_outliers_f1_and_outputs(cli, dfx, tmp_path):
     p = cli("denoise", src, "--outliers", "--k", "16", "-o", out, "--report", rep)
     assert p.returncode == 0, p.stderr
     met = _metrics(rep)
-    from geoproc_cli.denoise import _metric_needs
+    from geoproc_cli.denoise import CLOUD, Choices, _metric_needs
 
-    gated = {m for names in _metric_needs(None, True, False, "dihedral").values() for m in names}
+    gated = {m for names in _metric_needs(Choices(CLOUD, "guided", "dihedral", False, None)).values() for m in names}
     assert set(met) & gated == set()  # no metric this mode reports is refused as a --check
     kept = load_mesh(out)
     assert len(kept.V) == met["points"] - met["detected_outliers"]
@@ -155,18 +155,19 @@ def test_dynamic_npz(cli, dfx, tmp_path, coherence):
     ([], "f1>=0.9", "--outliers"),
     ([], "frames==1", "--dynamic"),
     ([], "feature_tau>=0", "--features l1"),
-    (["--features", "l1"], "feature_angle_deg>=0", None),  # reported by the dihedral rule only: after the run
+    (["--features", "l1"], "feature_angle_deg>=0", "--features dihedral"),
     (["--outliers"], "low_rank>=1", "--dynamic"),
     (["--dynamic"], "precision>=0", "--outliers"),
+    ([], "rpca_sparse_faces<=0", "--method rpca"),
+    (["--outliers"], "sigma_r>=0", "a single mesh"),
+    (["--outliers"], "mean_refinement_shift<=1", "--outliers --refined"),
+    (["--dynamic"], "noise_roughness<=1", "a single mesh"),
 ])
 def test_a_check_that_the_mode_cannot_report_is_refused_before_reading(cli, tmp_path, args, gate, option):
     missing = tmp_path / "missing.ply"  # never read when the check is refused first
     p = cli("denoise", missing, *args, "-o", tmp_path / "o.ply", "--check", gate)
     assert _one_line_error(p)
-    if option is None:
-        assert "missing.ply" in p.stderr
-    else:
-        assert f"only with {option}" in p.stderr and "missing.ply" not in p.stderr
+    assert f"only with {option}" in p.stderr and "missing.ply" not in p.stderr
 
 
 def test_outliers_of_a_triangle_mesh_keep_the_faces_among_inliers(cli, make_fixtures, tmp_path):

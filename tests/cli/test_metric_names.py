@@ -86,16 +86,22 @@ def test_denoise_checks_refused_early_are_not_reported_by_that_mode(method, feat
     Vn, F, V = load_fixture_module("denoise_fixtures").noisy_cube(n=4, sigma=0.3, seed=0)
     res = denoise_mesh(Vn, F, method, DenoiseParams(features=features))
     reported = _scalars(res.info) | {"vertices", "faces"}
-    assert reported & _gated(denoise._metric_needs(None, False, False, features)) == set()
+    mesh = denoise.Choices(denoise.MESH, method, features, False, None)
+    assert reported & _gated(denoise._metric_needs(mesh)) == set()
     with_reference = reported | set(reference_metrics(res.V, Vn, F, V))
-    assert with_reference & _gated(denoise._metric_needs("clean.ply", False, False, features)) == set()
+    assert with_reference & _gated(denoise._metric_needs(mesh._replace(reference="clean.ply"))) == set()
     frames = np.stack([Vn * (1 + 0.01 * t) for t in range(3)])
     for coherence in ("heights", "normals"):
         _, info = denoise_animation(frames, F, coherence=coherence, params=DenoiseParams(features=features))
         assert (_scalars(info) | {"frames", "vertices", "faces"}) & _gated(
-            denoise._metric_needs(None, False, True, features)) == set()
-    for needs in (denoise._metric_needs(None, o, d, features) for o in (False, True) for d in (False, True)):
-        assert _gated(needs) <= set(denoise.METRICS)
+            denoise._metric_needs(mesh._replace(mode=denoise.DYNAMIC))) == set()
+
+
+def test_denoise_metric_groups_cover_every_metric_once():
+    names = [m for _, _, group in denoise.MODE_METRICS for m in group]
+    assert sorted(names) == sorted(denoise.METRICS) and len(names) == len(set(names))
+    names = [m for _, _, group in geodesic.METHOD_METRICS for m in group]
+    assert set(names) <= set(geodesic.METRICS) and len(names) == len(set(names))
 
 
 @pytest.mark.parametrize("method", WOS_METHODS)

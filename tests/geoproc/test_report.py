@@ -100,7 +100,7 @@ def test_an_unknown_operator_is_named(text, op):
 
 
 def test_unknown_metric_is_a_usage_error_listing_names():
-    with pytest.raises(UsageError, match="unknown metric 'nope'.*rmse"):
+    with pytest.raises(UsageError, match="metric 'nope' was not reported by this run.*rmse"):
         evaluate_checks([parse_check("nope<1")], {"rmse": 0.1})
 
 
