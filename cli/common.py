@@ -400,6 +400,12 @@ def _require_finite_options(params: dict) -> None:
             raise UsageError(f"--{key.replace('_', '-')} {value}: must be a finite number")
 
 
+def choices_metavar(names: Sequence[str]) -> str:
+    """How --help shows an option that takes one of ``names``: ``<a|b|c>``, as
+    Typer shows the options typed as enumerations."""
+    return "<" + "|".join(names) + ">"
+
+
 def options_given(ctx: typer.Context, *names: str) -> list[str]:
     """The long flags (``--k``) of the parameters ``names`` (``k``) that the
     command line or the environment set, in the order given; defaults do not

@@ -23,6 +23,7 @@ from geoproc_cli.common import (
     NoCleanOpt,
     QuietOpt,
     ReportOpt,
+    choices_metavar,
     command_run,
     metrics_epilog,
     options_given,
@@ -52,6 +53,8 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
 )
 """Every metric ``denoise`` can report (which ones a run reports depends on its mode and options)."""
 TEXT_METRICS = ("feature_method", "coherence")
+FEATURE_RULES = ("dihedral", "l1")
+"""The values of --features."""
 """The metrics among them that are text (names), which ``--check`` cannot compare."""
 
 
@@ -63,7 +66,8 @@ def denoise(
     output: Annotated[str, typer.Option("--output", "-o", help="Output: a mesh (.ply keeps the per-face "
                                         "'feature' property; - is binary PLY on stdout), the inlier cloud "
                                         "with --outliers, .npz with --dynamic.", metavar="OUT")],
-    method: Annotated[str, typer.Option("--method", help=f"Normal filter: {', '.join(METHODS)}.")]
+    method: Annotated[str, typer.Option("--method", help=f"Normal filter: {', '.join(METHODS)}.",
+                                        metavar=choices_metavar(METHODS))]
     = DEFAULT_METHOD,
     reference: Annotated[str | None, typer.Option("--reference", help="Clean version with the same "
                                                   "faces in the same order (mesh, or .npz with --dynamic; "
@@ -95,7 +99,8 @@ def denoise(
     features: Annotated[str, typer.Option("--features", help="How the per-face 'feature' output is found: "
                                           "l1 (support of the l1-sparse normal Laplacian n.(Lv) of the "
                                           "result) or dihedral (filtered normals of edge neighbours more "
-                                          "than --feature-angle apart).")] = "dihedral",
+                                          "than --feature-angle apart).",
+                                          metavar=choices_metavar(FEATURE_RULES))] = "dihedral",
     feature_tau: Annotated[float, typer.Option("--feature-tau", help="--features l1: cut on the sparse "
                                                "normal Laplacian, in local mean edge lengths (0.12 is a "
                                                "crease of about 24 degrees).")] = 0.12,
@@ -129,7 +134,8 @@ def denoise(
                                                   "heights over a smooth base; lower error) or normals "
                                                   "(the stacked face normals, then 3 vertex-update sweeps "
                                                   "per frame: the review's Algorithm 4 as written). "
-                                                  "Default: heights.", show_default=False)] = None,
+                                                  "Default: heights.", show_default=False,
+                                                  metavar=choices_metavar(COHERENCE))] = None,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,
@@ -176,7 +182,7 @@ def denoise(
             raise UsageError(f"--sigma-r {sigma_r:g} is too small: its square underflows")
         if not 0.0 <= fidelity <= 1.0:
             raise UsageError(f"--fidelity {fidelity}: must be within [0, 1]")
-        if features not in ("l1", "dihedral"):
+        if features not in FEATURE_RULES:
             raise UsageError(f"--features {features}: use l1 or dihedral")
         if feature_tau < 0:
             raise UsageError(f"--feature-tau {feature_tau:g}: must be >= 0")

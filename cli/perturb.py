@@ -11,7 +11,7 @@ from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.errors import InputError, UsageError, frame_error
 from geoproc.fileio import file_extension
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
-from geoproc.perturb import NoiseSpec, noise_scale, outlier_flags, perturb_positions
+from geoproc.perturb import DIRECTIONS, NoiseSpec, noise_scale, outlier_flags, perturb_positions
 from geoproc_cli.common import (
     LOAD_METRICS,
     CheckOpt,
@@ -19,6 +19,7 @@ from geoproc_cli.common import (
     NoCleanOpt,
     QuietOpt,
     ReportOpt,
+    choices_metavar,
     command_run,
     metrics_epilog,
     refuse_options,
@@ -45,7 +46,8 @@ def perturb(
                                          metavar="SIGMA")] = 0.3,
     direction: Annotated[str, typer.Option("--direction", help="normal: along vertex normals of the "
                                            "consistently oriented faces (the benchmark protocol); random: along "
-                                           "random unit directions.")] = "normal",
+                                           "random unit directions.", metavar=choices_metavar(DIRECTIONS))]
+    = "normal",
     impulsive: Annotated[float, typer.Option("--impulsive", help="Apply the Gaussian noise to only this "
                                              "fraction of the vertices (impulsive noise), 0 to 1; 0 = all.",
                                              metavar="FRACTION")] = 0.0,
@@ -72,7 +74,7 @@ def perturb(
                      outputs=[output], inputs=[input], metrics=METRICS) as run:
         if noise < 0:
             raise UsageError(f"--noise {noise}: must be >= 0")
-        if direction not in ("normal", "random"):
+        if direction not in DIRECTIONS:
             raise UsageError(f"--direction {direction}: use normal or random")
         for name, v in (("--impulsive", impulsive), ("--outliers", outliers)):
             if not 0.0 <= v <= 1.0:

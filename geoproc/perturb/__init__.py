@@ -2,6 +2,7 @@
 (the standard denoising benchmark protocol)."""
 
 from geoproc.perturb.noise import (
+    DIRECTIONS,
     NoiseSpec,
     noise_scale,
     outlier_flags,
@@ -10,4 +11,5 @@ from geoproc.perturb.noise import (
     vertex_normals,
 )
 
-__all__ = ["NoiseSpec", "noise_scale", "outlier_flags", "perturb_positions", "point_cloud_normals", "vertex_normals"]
+__all__ = ["DIRECTIONS", "NoiseSpec", "noise_scale", "outlier_flags", "perturb_positions", "point_cloud_normals",
+           "vertex_normals"]

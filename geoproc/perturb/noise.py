@@ -20,6 +20,10 @@ from geoproc.mesh.clean import unique_rows
 from geoproc.mesh.read import MAX_COORDINATE
 from geoproc.mesh.validate import mesh_arrays
 
+DIRECTIONS = ("normal", "random")
+"""Directions of the Gaussian noise: along the vertex normals (the benchmark
+protocol) or along random unit vectors."""
+
 
 @dataclass(frozen=True)
 class NoiseSpec:
@@ -136,7 +140,7 @@ def perturb_positions(
         raise TypeError(f"rng must be a numpy Generator (np.random.default_rng(seed)), not {type(rng).__name__}")
     V, F = mesh_arrays(V, F, path, allow_point_cloud=True)
     n = len(V)
-    if spec.direction not in ("normal", "random"):
+    if spec.direction not in DIRECTIONS:
         raise InputError(path, f"unknown noise direction '{spec.direction}' (normal or random)")
     if len(F) == 0 and len(unique_rows(V)[0]) < 3:
         raise InputError(path, "a point cloud needs at least 3 distinct points (the noise unit is their "

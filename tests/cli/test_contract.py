@@ -266,6 +266,19 @@ def test_every_option_of_every_command_has_help():
             assert (f" {metric}," in command.epilog or f" {metric}." in command.epilog), (name, metric)
 
 
+def test_options_taking_one_of_a_few_names_show_them_in_help():
+    from geoproc.denoise import COHERENCE, METHODS
+    from geoproc.perturb import DIRECTIONS
+    from geoproc_cli.denoise import FEATURE_RULES
+
+    root = typer.main.get_command(app)
+    shown = {(name, p.opts[0]): p.metavar for name, c in root.commands.items() for p in c.params}
+    assert shown[("denoise", "--method")] == "<bilateral|guided|rpca>" == "<" + "|".join(METHODS) + ">"
+    assert shown[("denoise", "--features")] == "<" + "|".join(FEATURE_RULES) + ">"
+    assert shown[("denoise", "--coherence")] == "<" + "|".join(COHERENCE) + ">"
+    assert shown[("perturb", "--direction")] == "<normal|random>" == "<" + "|".join(DIRECTIONS) + ">"
+
+
 # ---- the harness itself, on a small command that writes a mesh -------------
 
 def _toy_app() -> typer.Typer:
