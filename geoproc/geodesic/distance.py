@@ -232,8 +232,9 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         d2[s2] = 0.0
         if len(np.unique(s2)) < len(d2) and not (d2 > 0).any():
             # many steps to a long time leave the heat uniform to rounding: no direction is left
-            raise UsageError(f"the heat at t = {t:.3g} ({t / h**2:.3g} h^2) in {steps} step(s) is uniform in double "
-                             "precision, so every distance came out 0; use a shorter time or fewer --steps")
+            raise InputError(path, f"the heat at t = {t:.3g} ({t / h**2:.3g} h^2) in {steps} step(s) is uniform "
+                             "in double precision, so every distance came out 0; use a shorter time or fewer "
+                             "--steps")
     d = np.full(n, np.inf)
     d[keep] = d2
     return GeodesicResult(d, t, h, timings, stats)

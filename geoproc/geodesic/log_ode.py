@@ -94,8 +94,8 @@ class LogStepSystem:
         self.rows = np.repeat(np.arange(n), np.diff(off.indptr))
         weights = dt * off.data
         if not (weights > 0).all():
-            raise UsageError(f"time step {dt:g} is too small: t times the Laplacian's weights "
-                             "underflows to 0 in double precision")
+            raise InputError(None, f"time step {dt:g} is too small for this mesh: t times the Laplacian's "
+                             "weights underflows to 0 in double precision")
         self.a = np.log(weights)
         self.c = np.log(M - dt * diag)
         with np.errstate(divide="ignore"):

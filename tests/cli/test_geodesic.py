@@ -278,7 +278,8 @@ BAD = [
     (["-s", "0", "-m", "heat", "-n", "3"], "grid.ply", "--steps: not used by -m heat"),
     (["-s", "0", "-m", "varadhan", "--operators", "intrinsic"], "grid.ply", "--operators: only with -m heat"),
     # diffusion times double precision cannot carry
-    (["-s", "0", "-m", "log-ode", "-t", "5e-324"], "grid.ply", "t times the Laplacian's weights underflows"),
+    (["-s", "0", "-m", "log-ode", "-t", "5e-324"], "grid.ply", "grid.ply: time step 4.94066e-324 is too small"),
+    (["-s", "0", "-m", "log-heat", "-c", "1e4", "-n", "20"], "grid.ply", "grid.ply: the heat at t = "),
     (["-s", "0", "-m", "log-heat", "-c", "1e13"], "grid.ply", "--time-factor 1e+13 is more than 1e+12"),
     (["-s", "0", "-m", "heat", "-t", "1e300"], "grid.ply", "is more than 1e+12 h^2"),
     (["--sources-file", "-", "-s", "0"], "-", "standard input can feed only one input"),

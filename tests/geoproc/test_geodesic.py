@@ -769,11 +769,11 @@ def test_unweighted_vertex_is_named_by_its_input_index_and_file(make_fixtures, m
 def test_heat_uniform_to_rounding_is_refused_not_returned_as_zeros(make_fixtures):
     # 20 steps to 1e4 h^2 leave log-heat constant to the last bit: every
     # distance was 0 with no warning; one step to the same time still works
-    from geoproc.errors import UsageError
+    from geoproc.errors import InputError
 
     V, F = make_fixtures.grid(16)
-    with pytest.raises(UsageError, match="uniform in double precision"):
-        gd.geodesic_distance(V, F, [0], "log-heat", time_factor=1e4, steps=20)
+    with pytest.raises(InputError, match="^grid.ply: the heat .* is uniform in double precision"):
+        gd.geodesic_distance(V, F, [0], "log-heat", time_factor=1e4, steps=20, path="grid.ply")
     d = gd.geodesic_distance(V, F, [0], "log-heat", time_factor=1e4, steps=1).distance
     assert d.max() > 0
 
