@@ -15,7 +15,8 @@ from geoproc_cli.entry import interruption_line, unreported_interruption
 app = typer.Typer(
     name="geoproc",
     help="Geometry-processing research methods as pipeline-friendly tools. "
-    "Exit codes: 0 success, 1 a --check failed, 2 bad input or usage, 3 internal error.",
+    "Exit codes: 0 success, 1 a --check failed, 2 bad input or usage, 3 internal error, "
+    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM), 129 hung up (SIGHUP).",
     no_args_is_help=True,
     add_completion=False,
     rich_markup_mode="markdown",

@@ -266,6 +266,19 @@ def test_every_option_of_every_command_has_help():
             assert (f" {metric}," in command.epilog or f" {metric}." in command.epilog), (name, metric)
 
 
+def test_top_level_help_lists_every_exit_status():
+    import signal
+
+    from geoproc_cli.entry import Terminated
+
+    codes = {0, 1, 2, 3, 128 + signal.SIGINT, Terminated(signal.SIGTERM).exit_code,
+             Terminated(signal.SIGHUP).exit_code}
+    assert codes == {0, 1, 2, 3, 129, 130, 143}
+    text = " ".join(app.info.help.split())
+    for code in codes:
+        assert f" {code} " in text, code
+
+
 def test_options_taking_one_of_a_few_names_show_them_in_help():
     from geoproc.denoise import COHERENCE, METHODS
     from geoproc.perturb import DIRECTIONS
