@@ -23,6 +23,7 @@ import numpy as np
 from geoproc.errors import InputError
 from geoproc.fileio import file_extension, read_input_bytes, sha256_bytes
 from geoproc.mesh.read import require_coordinates_in_range
+from geoproc.mesh.validate import require_indices_below
 
 GEOMETRY_KEYS = ("vertices", "faces")
 """The ``.npz`` names of the positions and triangles: no field can take them."""
@@ -156,8 +157,7 @@ def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
         t, i = (int(x) for x in np.argwhere(~np.isfinite(V).all(axis=2))[0])
         raise InputError(name, f"non-finite position (frame {t}, vertex {i})")
     require_coordinates_in_range(V, name)
-    if len(F) and (F.min() < 0 or F.max() >= V.shape[1]):
-        raise InputError(name, f"face index out of range (valid 0..{V.shape[1] - 1})")
+    require_indices_below(F, V.shape[1], name)
 
 
 def natural_key(name: str) -> tuple[list, str]:
