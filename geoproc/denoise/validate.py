@@ -48,7 +48,8 @@ def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np
         raise InputError(path, "the reference is degenerate: all its vertices coincide (in some frame)")
     if n_ref != n or len(F_ref) != len(F):
         raise InputError(path, f"reference connectivity differs from the input ({n_ref} vertices, "
-                         f"{len(F_ref)} faces vs {n}, {len(F)}); load both with the same --no-clean setting")
+                         f"{len(F_ref)} faces vs {n}, {len(F)}): it must be the same mesh, with the same faces "
+                         "in the same order (if it is, load both with the same --no-clean setting)")
     for t in range(len(P)):
         if not (face_areas(P[t], F_ref) > 0).any():
             where = f" (frame {t})" if V_ref.ndim == 3 else ""
