@@ -113,7 +113,8 @@ def geodesic(
     reference: Annotated[Reference | None, typer.Option("--reference", help="Compare with exact "
                          "geodesics: pearson_r, rmse, mae, mean/max_relative_error in the report.",
                          show_default=False)] = None,
-    field_name: Annotated[str, typer.Option("--field-name", help="Name of the output vertex property.")]
+    field_name: Annotated[str, typer.Option("--field-name", help="Name of the output vertex property: an identifier "
+                                          "(letters, digits, _) other than x, y, z.")]
     = "distance",
     render: Annotated[str | None, typer.Option("--render", help="Also draw the mesh colored by distance "
                       "with isolines into this PNG.", metavar="PNG", show_default=False)] = None,

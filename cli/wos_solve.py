@@ -66,7 +66,8 @@ def wos_solve(
              "image (any format OpenImageIO reads; foreground = first channel > 0.5, traced to "
              "polylines in pixel units, y up); - reads the JSON from stdin.", metavar="DOMAIN", show_default=False)],
     output: Annotated[str, typer.Option("--output", "-o", help="Solution image: one-channel float "
-                                        "EXR over the domain's bounding box, NaN outside.",
+                                        "EXR over the domain's bounding box, NaN outside (a file; EXR "
+                                        "cannot stream to standard output).",
                                         metavar="U.exr", show_default=False)],
     boundary: Annotated[str | None, typer.Option(
         "--boundary", help="Dirichlet data as an expression in x and y: numbers, + - * / **, "
