@@ -53,9 +53,9 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
 )
 """Every metric ``denoise`` can report (which ones a run reports depends on its mode and options)."""
 TEXT_METRICS = ("feature_method", "coherence")
+"""The metrics among them that are text (names), which ``--check`` cannot compare."""
 FEATURE_RULES = ("dihedral", "l1")
 """The values of --features."""
-"""The metrics among them that are text (names), which ``--check`` cannot compare."""
 
 
 def denoise(
