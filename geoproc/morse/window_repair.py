@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import coo_matrix
 
+from geoproc.c_output import c_stdout_silenced
 from geoproc.morse.refine import vertex_type, vertex_types
 
 
@@ -219,8 +220,9 @@ def _solve_window(W, g, f, P, need, cx, vf_ptr, vf_tri, node_limit=200):
     A = coo_matrix((vals, (rows, cols)), shape=(len(rlo), n)).tocsr()
     cost = np.zeros(n)
     cost[k] = 1.0
-    res = milp(cost, constraints=LinearConstraint(A, rlo, rhi), integrality=np.array(integ),
-               bounds=Bounds(np.array(lo_b), np.array(hi_b)), options={"node_limit": node_limit})
+    with c_stdout_silenced():  # HiGHS's MIP solver prints debug lines on C stdout, even with disp off
+        res = milp(cost, constraints=LinearConstraint(A, rlo, rhi), integrality=np.array(integ),
+                   bounds=Bounds(np.array(lo_b), np.array(hi_b)), options={"node_limit": node_limit})
     if res.x is None or res.status not in (0, 1):
         return None
     below = [(b, a) if (col == -2 if col < 0 else res.x[col] > 0.5) else (a, b)

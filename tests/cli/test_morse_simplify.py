@@ -266,6 +266,20 @@ def test_exact_windows_option(cli, shared_data, tmp_path):
     assert p.returncode == 2 and "--exact-windows" in p.stderr and not (tmp_path / "bad.ply").exists()
 
 
+def test_a_ply_on_stdout_carries_nothing_the_window_solver_prints(cli, shared_data, tmp_path):
+    # noisy fandisk, z, P = 5 %: HiGHS's MIP solver in the exact windows printed
+    # "HighsMipSolverData::..." debug lines on C stdout, ahead of the binary PLY
+    noisy = tmp_path / "n.ply"
+    p = cli("perturb", shared_data / "meshes" / "fandisk.off", "--noise", "0.3", "--seed", "1", "-o", noisy)
+    assert p.returncode == 0, p.stderr
+    out = tmp_path / "o.ply"
+    args = ("morse-simplify", noisy, "-f", "z", "-p", "0.05", "--relative", "-q")
+    p = cli(*args, "-o", "-")
+    assert p.returncode == 0, p.stderr
+    assert cli(*args, "-o", out).returncode == 0
+    assert p.stdout == out.read_bytes()
+
+
 def test_barycentric_reaches_half_threshold_and_chains(cli, shared_data, tmp_path):
     # bunny, height + 2% noise, P = 1% of the range: no vertex function on the mesh
     # stays within P/2 (certified 0.802 P in test_morse_bound); on the subdivision g does
