@@ -35,6 +35,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+from geoproc.c_output import c_stdout_silenced
 from geoproc.errors import GeoprocError, InputError, UsageError
 from geoproc.fileio import read_input_bytes, sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
@@ -328,6 +329,25 @@ class Run:
             raise UsageError(f"{name}: cannot write: {exc.strerror or exc}") from None
 
 
+def _stray_stdout_dropped() -> contextlib.AbstractContextManager:
+    """While a run that writes its result to standard output works, whatever
+    else reaches file descriptor 1 (a compiled library's own prints) is
+    discarded: the result must be all that standard output gets. (Sent to
+    standard error instead, such lines could fail a run whose standard error
+    is full.) The result itself is written after this, at commit."""
+    if sys.__stdout__ is None or not _open_descriptor(1):
+        return contextlib.nullcontext()  # a closed standard output: nothing to keep clean
+    return c_stdout_silenced()
+
+
+def _open_descriptor(fd: int) -> bool:
+    try:
+        os.fstat(fd)
+    except OSError:
+        return False
+    return True
+
+
 def _write_stdout(data: bytes) -> None:
     """Write ``data`` to standard output; OSError when it is closed or full."""
     if sys.stdout is None:
@@ -482,7 +502,8 @@ def command_run(
         named = [os.fspath(p) for p in (*outputs, report) if p is not None]
         _require_output_folders(named)
         _require_distinct_outputs(named, [os.fspath(p) for p in inputs if p is not None], report)
-        yield run
+        with _stray_stdout_dropped() if "-" in named else contextlib.nullcontext():
+            yield run
         failures = evaluate_checks(parsed, run.metrics)  # raises on unknown metric names
         run._commit(report)
         run._flush_notes()

@@ -15,15 +15,23 @@ from contextlib import contextmanager
 
 @contextmanager
 def c_stdout_silenced() -> Iterator[None]:
-    """Discard what compiled code prints on file descriptor 1 inside the block
-    (wurlitzer's redirect; Python's own ``print`` is not affected once the block
-    ends, and standard error is left alone). Where wurlitzer does not run
-    (Windows), the block runs as it is."""
+    """Discard what is written on file descriptor 1 inside the block, by
+    compiled code or by Python (wurlitzer's redirect to the null device);
+    standard error is left alone. Where wurlitzer does not run (Windows), the
+    block runs as it is."""
     try:
         from wurlitzer import pipes
     except ImportError:  # pragma: no cover - POSIX only
         yield
         return
-    sys.stdout.flush()
+    _flush_stdout()
     with open(os.devnull, "w") as null, pipes(stdout=null, stderr=None):
-        yield
+        try:
+            yield
+        finally:
+            _flush_stdout()  # what Python buffered in the block is dropped with the rest
+
+
+def _flush_stdout() -> None:
+    if sys.stdout is not None:
+        sys.stdout.flush()

@@ -720,3 +720,39 @@ def test_clean_up_counts_are_reported_under_their_names(cli, tmp_path):
     m = json.loads(rep.read_text())["metrics"]
     assert (m["input_vertices"], m["merged_vertices"], m["removed_unreferenced_vertices"]) == (6, 1, 2)
     assert m["vertices"] == 3
+
+
+STRAY_PRINT_APP = """
+import ctypes, sys
+import typer
+from geoproc.mesh import load_mesh
+from geoproc_cli.common import command_run
+
+app = typer.Typer()
+
+@app.command()
+def copy(mesh: str, output: str = typer.Option(..., "-o")) -> None:
+    with command_run("copy", {}, outputs=[output]) as run:
+        ctypes.CDLL(None).printf(b"a compiled library's own line\\n")  # as HiGHS's MIP solver printed
+        print("a Python line", flush=True)
+        run.write_mesh(output, run.load_mesh(mesh))
+
+app()
+"""
+
+
+@pytest.mark.skipif(os.name != "posix", reason="libc printf through ctypes")
+def test_with_its_result_on_stdout_a_run_lets_no_other_print_reach_it(fixture_dir, tmp_path):
+    import subprocess
+    import sys
+
+    src = fixture_dir / "torus.ply"
+    piped = subprocess.run([sys.executable, "-c", STRAY_PRINT_APP, str(src), "-o", "-"], capture_output=True,
+                           timeout=120)
+    assert piped.returncode == 0, piped.stderr
+    assert read_mesh_bytes(piped.stdout, "ply").V.shape == load_mesh(src).V.shape
+    assert b"a compiled library's own line" not in piped.stderr + piped.stdout
+    # written to a file, the run leaves standard output as it is
+    to_file = subprocess.run([sys.executable, "-c", STRAY_PRINT_APP, str(src), "-o", str(tmp_path / "o.ply")],
+                             capture_output=True, timeout=120)
+    assert to_file.returncode == 0 and b"a compiled library's own line" in to_file.stdout
