@@ -166,8 +166,9 @@ def refine_types(g, f, half, want, adj_ptr, adj_nbr, vf_ptr, vf_tri, F, boundary
     n = g.shape[0]
     span = 0.0
     if n:
-        span = (np.max(f) - np.min(f)) + (np.max(g) - np.min(g)) + 4.0 * half + 1.0
-    weight = 4.0 * span * (n + 1)
+        span = (np.max(f) - np.min(f)) + (np.max(g) - np.min(g)) + 4.0 * half
+    unit = span if span > 0.0 else 1.0  # the field's own scale: costs are compared in it, never in absolute units
+    weight = 4.0 * unit * (n + 1)
     queue = np.empty(n, np.int64)
     inq = np.zeros(n, np.bool_)
     head = 0
@@ -214,7 +215,7 @@ def refine_types(g, f, half, want, adj_ptr, adj_nbr, vf_ptr, vf_tri, F, boundary
             tick += 1
             c = _set_cost(S, 1, stamp, tick, g, f, half, want, weight, adj_ptr, adj_nbr, vf_ptr, vf_tri, F,
                           boundary)
-            if c < best_c - 1e-12 * (1.0 + abs(best_c)):
+            if c < best_c - 1e-12 * (unit + abs(best_c)):
                 best_c = c
                 best_x = x
         g[v] = old
@@ -239,7 +240,7 @@ def refine_types(g, f, half, want, adj_ptr, adj_nbr, vf_ptr, vf_tri, F, boundary
                         tick += 1
                         c = _set_cost(S, 2, stamp, tick, g, f, half, want, weight, adj_ptr, adj_nbr, vf_ptr,
                                       vf_tri, F, boundary)
-                        if c < base - 1e-12 * (1.0 + abs(base)) and (best_u == -1 or c - base < best_y):
+                        if c < base - 1e-12 * (unit + abs(base)) and (best_u == -1 or c - base < best_y):
                             best_u = u
                             best_y = c - base
                             cv_best = cv[i]

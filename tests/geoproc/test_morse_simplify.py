@@ -349,3 +349,21 @@ def test_simplification_summary_refuses_pairs_that_miss_the_gradient(make_fixtur
     res.pairs = lower_star_persistence(res.cx, np.random.default_rng(6).random(len(V)))
     with pytest.raises(RuntimeError, match="do not match"):
         simplification_summary(res, f, 0.25)
+
+
+def test_simplified_field_follows_a_change_of_unit(make_fixtures):
+    # g(s f) = s g(f) up to rounding: the local search compared costs with an absolute 1e-12,
+    # which accepted rounding-level moves at s = 1e6 and refused real ones at 1e-6
+    from tests.conftest import load_fixture_module
+
+    V, F = make_fixtures.icosphere(4)
+    cx = surface_complex(F, len(V))
+    for seed in range(6):
+        for axis in (0, 2):
+            f = load_fixture_module("morse_fixtures").noisy_height(V, axis=axis, noise=0.05, seed=seed)
+            P = 0.05 * np.ptp(f)
+            g = simplify_function(cx, f, P, exact_windows=0).g
+            for s in (1e-6, 1e6):
+                scaled = simplify_function(cx, s * f, s * P, exact_windows=0).g / s
+                assert np.abs(scaled - g).max() <= 1e-8 * np.ptp(f), (seed, axis, s)
+
