@@ -323,7 +323,8 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
     dist, _ = cKDTree(V[0]).query(V[0], k=2, workers=-1)
     pos = dist[:, 1] > 0
     spacing = float(np.median(dist[pos, 1])) if pos.any() else 1.0
-    X = V.transpose(1, 0, 2) / spacing  # (n, T, 3)
+    origin = V[0].mean(axis=0)  # centred first: far from 0 the positions' own digits would be lost
+    X = (V - origin).transpose(1, 0, 2) / spacing  # (n, T, 3)
     D = X.reshape(n, 3 * T)
     med = np.median(D, axis=0, keepdims=True)
     res = rpca(D - med, lam=lam, tol=1e-7, max_iter=500)
@@ -338,5 +339,5 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
     if threshold is None:
         threshold = max(0.5, 3.0 * float(np.median(score)))
     return AnimationOutlierResult(score=score, outlier=score > threshold, threshold=float(threshold),
-                                  refined=fit.transpose(1, 0, 2) * spacing, rank=B.shape[2],
+                                  refined=fit.transpose(1, 0, 2) * spacing + origin, rank=B.shape[2],
                                   rpca_iterations=res.iterations)

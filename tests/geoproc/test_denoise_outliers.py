@@ -118,6 +118,17 @@ def test_animation_outliers_f1(dfx, sigma):
     assert rms_out < 0.15 * rms_in  # measured 0.02 and 0.07
 
 
+def test_animation_outliers_do_not_depend_on_where_the_cloud_is(dfx):
+    # trajectories were divided by the spacing without being centred: moved by 1e4
+    # diagonals, the scores moved by 5e-6 spacings (the input's own rounding is 1e-10)
+    V, flag, _ = dfx.animated_cloud_with_outliers(count=1500, frames=12, sigma=0.3)
+    T = 1e4 * np.linalg.norm(np.ptp(V.reshape(-1, 3), axis=0)) * np.array([1.0, -3.0, 2.0])
+    a, b = rpca_animation_outliers(V), rpca_animation_outliers(V + T)
+    assert np.array_equal(a.outlier, b.outlier) and a.rank == b.rank
+    assert np.abs(a.score - b.score).max() < 1e-8
+    assert np.abs(a.refined - (b.refined - T)).max() < 1e-9 * np.abs(T).max()
+
+
 def test_static_detection_misses_what_the_motion_reveals(dfx):
     # an outlier moved along the surface is invisible in its frame but not in time
     V, flag, _ = dfx.animated_cloud_with_outliers(count=4000, frames=40, sigma=0.0)
