@@ -47,6 +47,35 @@ def test_distance_lower_bound_in_cells_with_many_candidates():
     assert (exact[far] - lower[far] > 10 * grid[9]).mean() > 0.5  # most of the middle took the bound, not a scan
 
 
+@pytest.mark.parametrize("offset", [1e6, 1e9])
+def test_distance_lower_bound_far_from_the_origin(offset):
+    # the single-precision scan's margin covered p - origin's rounding with 1e-9 |origin|,
+    # a million times that rounding: 1e6 units from 0 the free disks shrank by 1e-3 of the
+    # domain and walks took 27 % more steps; the bound must stay a bound
+    import numba
+
+    from geoproc.wos.closest import distance_lower_bound
+
+    shift = np.array([offset, -2 * offset])
+    d = build_domain([np.asarray(loop) + shift for loop in wf.disk(256)["loops"]])
+    grid = build_segment_grid(d.A, d.B)
+    P = np.random.default_rng(2).uniform(-0.99, 0.99, (4000, 2))
+    P = P[np.linalg.norm(P, axis=1) < 0.99] + shift
+    exact = closest_points(P, d.A, d.B, grid)[0]
+    lower = np.array(numba.njit(lambda P, grid: [distance_lower_bound(p[0], p[1], grid) for p in P])(P, grid))
+    assert (lower <= exact).all()
+    assert grid[9] <= 1e-6 * 2.0 + 1e-11 * offset  # 2.2e-16 |origin| of rounding, with room to spare
+    assert (exact - lower).max() <= 1e-5 + 3e-11 * offset
+
+
+def test_walks_far_from_the_origin_take_as_many_steps():
+    def steps(offset):
+        sq = build_domain([[[offset, offset], [offset + 1, offset], [offset + 1, offset + 1], [offset, offset + 1]]])
+        return solve_laplace(sq, parse_expression("1"), walks=64, grid=32, seed=1).metrics["mean_steps_per_walk"]
+
+    assert steps(1e6) == pytest.approx(steps(0.0), rel=0.02)  # 8.59 both; 10.89 with the old margin
+
+
 def test_closest_points_match_brute_force():
     d = build_domain(wf.square_with_holes(200)["loops"])
     rng = np.random.default_rng(0)
