@@ -8,6 +8,12 @@ centred on their mean over the candidate points and divided by the fit's
 standard deviations, so that a constant added to every kernel, as a change of
 length unit adds to the Green kernels, changes nothing):
 ``grad_s = -2 mean_j r_j Phi_n(x_j)``, ``grad_b = -2 mean_j r_j``.
+
+The result is the mean of the iterates of the second half of the steps
+(Polyak-Ruppert averaging): with a constant learning rate the last iterate
+keeps moving with the batches' noise, and on the Neumann rectangle a third of
+the seeds had ended above 0.005 RMSE (mean 0.0050 over 40 seeds, against
+0.0012 averaged, none above 0.005).
 """
 
 from __future__ import annotations
@@ -52,6 +58,7 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
     s = np.append(sigma * scale, b + sigma @ mu)  # b: the constant of the centred columns
     m1 = np.zeros_like(s)
     m2 = np.zeros_like(s)
+    mean_s = np.zeros_like(s)  # the average of the iterates from step `steps // 2` on
     beta1, beta2, tiny = 0.9, 0.999, 1e-8
     walks_total = steps_total = 0
     for it in range(steps):
@@ -71,9 +78,13 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
         mh = m1 / (1 - beta1 ** (it + 1))
         vh = m2 / (1 - beta2 ** (it + 1))
         s = s - lr * mh / (np.sqrt(vh) + tiny)
+        if it >= steps // 2:
+            mean_s += (s - mean_s) / (it - steps // 2 + 1)
         walks_total += batch * walks
         steps_total += int(st.sum())
         if progress is not None:
             progress((it + 1) / steps)
+    if steps > 0:
+        s = mean_s
     sigma = s[:-1] / scale
     return sigma, float(s[-1] - sigma @ mu), walks_total, steps_total
