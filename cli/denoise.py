@@ -168,7 +168,7 @@ def denoise(
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:
             raise UsageError("--outliers and --dynamic cannot be combined")
-        _refuse_unused_options(ctx, input, outliers, dynamic, features)
+        _refuse_unused_options(ctx, mode, features)
         if coherence is not None and coherence not in COHERENCE:
             raise UsageError(f"--coherence {coherence}: use one of {', '.join(COHERENCE)}")
         threshold_set = threshold is not None
@@ -271,18 +271,18 @@ _FEATURE_OPTIONS = ("features", "feature_tau", "feature_angle")
 _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 
 
-def _refuse_unused_options(ctx: typer.Context, input: str, outliers: bool, dynamic: bool, features: str) -> None:
+def _refuse_unused_options(ctx: typer.Context, mode: str, features: str) -> None:
     """Options the chosen mode would ignore are refused (exit 2), not dropped."""
-    if outliers:
+    if mode in (CLOUD, MOVING_CLOUD):
         refuse_options(ctx, _FILTER_OPTIONS + _FEATURE_OPTIONS, "not used by --outliers")
         refuse_options(ctx, ("reference",), "not used by --outliers (precision, recall and F1 come from the "
                        "input's 'outlier' property)")
-        if input != "-" and is_animation_path(input):
+        if mode == MOVING_CLOUD:
             refuse_options(ctx, ("k", "keep_all", "no_clean"), "not used for an animation (its outliers come "
                            "from the animation matrix, every point is written, frames are read as stored)")
     else:
         refuse_options(ctx, _OUTLIER_OPTIONS, "only with --outliers")
-    if dynamic:
+    if mode == DYNAMIC:
         refuse_options(ctx, _FEATURE_OPTIONS + ("no_clean",), "not used by --dynamic (the .npz output has no "
                        "feature property; frames are read as stored)")
     else:

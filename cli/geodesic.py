@@ -223,10 +223,9 @@ def geodesic(
 
 METHOD_METRICS = (
     # (what reports them, the methods that do, with the log-ode solver where it matters, the metrics)
-    ("a diffusion method (not -m exact)", ("heat", "varadhan", "log-splitting", "log-ode", "log-heat"),
-     ("t", "t_over_h2")),
+    ("a diffusion method (not -m exact)", tuple(m for m in METHODS if m != "exact"), ("t", "t_over_h2")),
     ("-m varadhan, log-splitting, log-ode or log-heat (time steps)",
-     ("varadhan", "log-splitting", "log-ode", "log-heat"), ("steps",)),
+     tuple(m for m in METHODS if m not in UNSTEPPED), ("steps",)),
     ("-m heat or log-heat", ("heat", "log-heat"), ("negative_distance_vertices", "operators")),
     ("-m heat or varadhan", ("heat", "varadhan"), ("zero_heat_vertices", "negative_heat_vertices")),
     ("-m log-splitting, log-ode or log-heat", ("log-splitting", "log-ode", "log-heat"),
