@@ -13,6 +13,7 @@ import pytest
 
 from geoproc.mesh import Mesh, load_mesh, save_mesh
 from geoproc_cli import denoise, geodesic
+from tests.cli.test_metric_names import _gated
 
 # the 'outlier' property of the input decides these; no option does
 NEEDS_OUTLIER_PROPERTY = {"precision", "recall", "f1", "true_outliers"}
@@ -23,10 +24,6 @@ def _reported(cli, command, *args, tmp_path):
     p = cli(command, *args, "--report", rep, "-q")
     assert p.returncode == 0, p.stderr
     return set(json.loads(rep.read_text())["metrics"])
-
-
-def _gated(needs: dict) -> set[str]:
-    return {m for names in needs.values() for m in names}
 
 
 GEODESIC_RUNS = [("exact", "lu"), ("heat", "lu"), ("varadhan", "lu"), ("log-heat", "lu"),

@@ -96,8 +96,9 @@ def test_outliers_f1_and_outputs(cli, dfx, tmp_path):
     assert p.returncode == 0, p.stderr
     met = _metrics(rep)
     from geoproc_cli.denoise import CLOUD, Choices, _metric_needs
+    from tests.cli.test_metric_names import _gated
 
-    gated = {m for names in _metric_needs(Choices(CLOUD, "guided", "dihedral", False, None)).values() for m in names}
+    gated = _gated(_metric_needs(Choices(CLOUD, "guided", "dihedral", False, None)))
     assert set(met) & gated == set()  # no metric this mode reports is refused as a --check
     kept = load_mesh(out)
     assert len(kept.V) == met["points"] - met["detected_outliers"]
