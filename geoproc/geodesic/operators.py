@@ -49,7 +49,8 @@ def flat_within_rounding(Xf: np.ndarray, floor: float = 0.0) -> np.ndarray:
     rounding difference; normalized, its direction is noise (the heat method
     on a tetrahedron scaled by 1e20 gave 1.04, 0.38 and 0.71 x 1e20 for three
     vertices its symmetry makes equidistant)."""
-    hi, lo = Xf.max(axis=1), Xf.min(axis=1)
+    a, b, c = Xf[:, 0], Xf[:, 1], Xf[:, 2]  # column-wise: max(axis=1) over 3 is 7x slower
+    hi, lo = np.maximum(np.maximum(a, b), c), np.minimum(np.minimum(a, b), c)
     with np.errstate(invalid="ignore"):
         spread = hi - lo
         scale = np.maximum(np.maximum(hi, -lo), floor)  # max |Xf|
