@@ -245,9 +245,34 @@ def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
     return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
 
 
+def face_cross_products(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m, 3) ``(v1 - v0) x (v2 - v0)`` per triangle: the normal direction
+    (counter-clockwise orientation) with length twice the area, in squared
+    length units.
+
+    Built column by column: ``np.cross`` on gathered rows makes several
+    (m, 3) temporaries and took four times as long on a 70k-face mesh.
+    """
+    P0 = V[F[:, 0]]
+    a, b = V[F[:, 1]] - P0, V[F[:, 2]] - P0
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
+def row_norms(X: np.ndarray) -> np.ndarray:
+    """(m,) Euclidean length of each row of ``X`` (m, 3): the squares summed in
+    column order, the same bits as ``np.linalg.norm(X, axis=1)`` in a sixth
+    of its time."""
+    x, y, z = X[:, 0], X[:, 1], X[:, 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(m,) triangle areas, in squared length units."""
-    return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    return 0.5 * row_norms(face_cross_products(V, F))
 
 
 def degenerate_faces(V: np.ndarray, F: np.ndarray, rel_tol: float = 1e-12) -> np.ndarray:
