@@ -23,6 +23,9 @@ import scipy.sparse as sp
 from geoproc.geodesic.operators import upper_triangle_csc
 
 
+_NORMAL_FLOOR = 2.0 ** -969  # 2^53 times the smallest normal double
+
+
 @numba.njit(cache=True, inline="always")
 def _log_row(indptr, indices, logabs, x, start, i):
     """log(exp(start) + sum_k |a_ik| x_k) over row i's stored entries, from logs,
@@ -78,7 +81,8 @@ class LogMMatrixSolver:
     def __init__(self, A: sp.spmatrix):
         import qdldl
 
-        Lf, D, P = qdldl.Solver(upper_triangle_csc(A), upper=True).factors()
+        self._linear = qdldl.Solver(upper_triangle_csc(A), upper=True)
+        Lf, D, P = self._linear.factors()
         Lf = sp.csc_matrix(Lf)
         Lf.eliminate_zeros()
         if (D <= 0).any() or (Lf.data > 0).any():
@@ -94,6 +98,25 @@ class LogMMatrixSolver:
         self._U = (Ut.indptr, Ut.indices, np.log(-Ut.data) + logD[rows], logD)
         self.n = A.shape[0]
         self.factor_nnz = int(Lf.nnz)
+
+    def solve_log_in_range(self, log_b: np.ndarray) -> np.ndarray | None:
+        """``log x`` for ``A x = exp(log_b)`` by an ordinary solve with the same
+        factors, or None when ``b`` or ``x`` leaves the normal double range.
+
+        Where both stay well inside it, the substitutions add non-negative
+        terms either way, so this is as accurate as :meth:`solve_log` and
+        about a fifth of its time (one ``exp`` per factor entry is what the
+        log-space back substitution spends). Any ``x`` below ``2^-969`` (near
+        the subnormals, or a vertex the heat cannot reach) gives None.
+        """
+        log_b = np.asarray(log_b, dtype=np.float64)
+        finite = log_b[np.isfinite(log_b)]
+        if np.isnan(log_b).any() or not len(finite) or finite.min() < -700.0 or finite.max() > 700.0:
+            return None
+        x = self._linear.solve(np.exp(log_b))
+        if not (np.isfinite(x).all() and x.min() >= _NORMAL_FLOOR):
+            return None
+        return np.log(x)
 
     def solve_log(self, log_b: np.ndarray) -> np.ndarray:
         """``log x`` for ``A x = exp(log_b)`` (entries of ``log_b`` may be -inf)."""

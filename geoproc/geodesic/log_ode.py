@@ -222,17 +222,36 @@ class LogODESolver:
     def step(self, w_prev: np.ndarray, rtol: float = 1e-14, max_refine: int = 3) -> tuple[np.ndarray, int]:
         """One backward-Euler step: ``w`` (n,) from ``w_prev`` (-inf allowed).
 
-        The log-space LU result is checked by its log-sum-exp residual and
-        polished by simplified Newton (``J ~ diag(e^-lse) (M - dt L)
-        diag(e^w)``, the same factors). If the residual is not small (the
-        factorization itself lost entries below the double range, which
-        happens only at extremely small ``dt``), the step is redone by
-        :func:`log_ode_step` (Newton, exact) and ``self.fallbacks`` counts it.
+        Where the heat stays in the normal double range the factors solve in
+        ordinary arithmetic (:meth:`LogMMatrixSolver.solve_log_in_range`);
+        otherwise, or when that result's residual is not small, they solve on
+        logs. The result is checked by its log-sum-exp residual and polished
+        by simplified Newton (``J ~ diag(e^-lse) (M - dt L) diag(e^w)``, the
+        same factors). If the residual is still not small (the factorization
+        itself lost entries below the double range, which happens only at
+        extremely small ``dt``), the step is redone by :func:`log_ode_step`
+        (Newton, exact) and ``self.fallbacks`` counts it.
 
         Returns ``w`` and the number of refinement passes (or Newton
         iterations after a fallback).
         """
-        w = self.lu.solve_log(self.system.logM + w_prev)
+        log_b = self.system.logM + w_prev
+        w = self.lu.solve_log_in_range(log_b)
+        if w is not None:
+            done = self._refine(w, w_prev, rtol, max_refine)
+            if done is not None:
+                return done
+        done = self._refine(self.lu.solve_log(log_b), w_prev, rtol, max_refine)
+        if done is not None:
+            return done
+        self.fallbacks += 1
+        return log_ode_step(self.system, w_prev)
+
+    def _refine(self, w: np.ndarray, w_prev: np.ndarray, rtol: float,
+                max_refine: int) -> tuple[np.ndarray, int] | None:
+        """``(w, passes)`` after up to ``max_refine`` simplified-Newton passes
+        from a solve's ``w``, or None when its residual stays above 1e-10
+        (relative to ``max(1, max |w|)``)."""
         fin = np.isfinite(w)
         for k in range(max_refine + 1):
             g, val = self.residual(w, w_prev)
@@ -248,8 +267,7 @@ class LogODESolver:
             w = np.where(fin, w + np.nan_to_num(delta, nan=0.0, posinf=0.0, neginf=0.0), w)
         if err.max() <= 1e-10 * max(1.0, float(np.abs(w[fin]).max())):
             return w, max_refine
-        self.fallbacks += 1
-        return log_ode_step(self.system, w_prev)
+        return None
 
 
 def log_ode_steps(L: sp.spmatrix, M: np.ndarray, sources: np.ndarray, T: float, steps: int = 1,

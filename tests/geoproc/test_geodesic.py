@@ -375,6 +375,7 @@ def test_log_ode_step_polishes_a_slightly_wrong_factorization(make_fixtures):
     V, F, L, M, h = _sphere_operators(make_fixtures, 3)
     dt = h * h
     solver = LogODESolver(L, M, dt)
+    solver.lu.solve_log_in_range = lambda log_b: None  # the log-space path, as outside the double range
     indptr, indices, logabs, logdiag = solver.lu._U
     solver.lu._U = (indptr, indices, logabs + 1e-9, logdiag + 1e-9)
     b = np.zeros(len(M))
@@ -384,6 +385,48 @@ def test_log_ode_step_polishes_a_slightly_wrong_factorization(make_fixtures):
     w, passes = solver.step(w_prev)
     u = spsolve((sp.diags(M) - dt * L).tocsc(), M * b)
     assert passes >= 1 and solver.fallbacks == 0
+    assert np.abs(np.exp(w) - u).max() < 1e-12 * u.max()
+
+
+def test_log_lu_solves_in_ordinary_arithmetic_only_within_the_double_range(make_fixtures):
+    V, F, L, M, h = _sphere_operators(make_fixtures, 3)
+    lu = LogMMatrixSolver(sp.diags(M) - h * h * L)
+    lb = np.full(len(M), -np.inf)
+    lb[[0, 7]] = [0.0, -3.0]
+    w = lu.solve_log_in_range(lb)
+    assert w is not None
+    assert np.abs(w - lu.solve_log(lb)).max() < 1e-13 * np.abs(w).max()
+    # the tiny-time path graph of test_log_lu_solve_far_below_double_range: declined
+    n, a = 400, 1e-6
+    rows = np.arange(n - 1)
+    Lp = sp.coo_matrix((np.full(n - 1, a), (rows, rows + 1)), shape=(n, n))
+    Lp = (Lp + Lp.T).tocsr()
+    path = LogMMatrixSolver(sp.diags(1.0 + np.asarray(Lp.sum(axis=1)).ravel()) - Lp)
+    lb = np.full(n, -np.inf)
+    lb[0] = 0.0
+    assert path.solve_log_in_range(lb) is None
+    # a vertex the heat cannot reach (two separate blocks), or b beyond exp's range: declined
+    two = LogMMatrixSolver(sp.block_diag([sp.diags(M) - h * h * L] * 2))
+    lb = np.full(2 * len(M), -np.inf)
+    lb[0] = 0.0
+    assert two.solve_log_in_range(lb) is None
+    lb[len(M)] = -800.0
+    assert two.solve_log_in_range(lb) is None
+
+
+def test_log_ode_step_redoes_a_bad_ordinary_solve_on_logs(make_fixtures):
+    # an ordinary-arithmetic result whose residual is not small is replaced by
+    # the log-space solve (not polished from, and not sent to the Newton fallback)
+    V, F, L, M, h = _sphere_operators(make_fixtures, 3)
+    dt = h * h
+    solver = LogODESolver(L, M, dt)
+    exact = solver.lu.solve_log_in_range
+    solver.lu.solve_log_in_range = lambda log_b: exact(log_b) + np.linspace(0.0, 1e-3, len(M))
+    w_prev = np.full(len(M), -np.inf)
+    w_prev[0] = -np.log(M[0])
+    w, passes = solver.step(w_prev)
+    u = spsolve((sp.diags(M) - dt * L).tocsc(), np.eye(len(M))[0])
+    assert solver.fallbacks == 0 and passes <= 1
     assert np.abs(np.exp(w) - u).max() < 1e-12 * u.max()
 
 
