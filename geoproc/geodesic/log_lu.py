@@ -22,7 +22,6 @@ import scipy.sparse as sp
 
 from geoproc.geodesic.operators import upper_triangle_csc
 
-
 _NORMAL_FLOOR = 2.0 ** -969  # 2^53 times the smallest normal double
 
 
