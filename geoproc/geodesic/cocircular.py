@@ -7,8 +7,10 @@ come out with the other diagonal. The Laplacian does not notice (the diagonal's
 weight is zero either way), but the barycentric mass and the gradient and
 divergence on the triangles do, by up to a third of a vertex's mass on a grid.
 :func:`canonical_cocircular_diagonals` flips every such quad to the diagonal
-that holds the quad's smallest vertex index, which depends on the numbering
-alone.
+that is an edge of the input mesh, which depends on its connectivity alone (not
+on the coordinates, nor on how the vertices or faces are numbered); a quad with
+no input edge across it (made by earlier flips) takes the diagonal that holds
+its smallest vertex index.
 """
 
 from __future__ import annotations
@@ -142,10 +144,27 @@ def _edge_weights(Fi, h, t, a, b, cot, on) -> tuple[np.ndarray, np.ndarray, np.n
     return np.stack([a[on], b[on]], axis=1), 0.5 * (cot[h[on]] + cot[t[on]]), halves == 2
 
 
+def _input_edge_test(F: np.ndarray | None):
+    """``is_input(a, b)`` (arrays of vertex ids of F's mesh) -> bool array:
+    whether each pair is an edge of the faces ``F`` (all False when F is None)."""
+    if F is None or len(F) == 0:
+        return lambda a, b: np.zeros(len(a), dtype=bool)
+    n, keys = edge_key_base(F), np.unique(undirected_edge_keys(F))
+
+    def is_input(a, b):
+        k = np.minimum(a, b) * n + np.maximum(a, b)
+        at = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
+        return (np.maximum(a, b) < n) & (keys[at] == k)
+
+    return is_input
+
+
 def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = TOL,
-                                   max_passes: int = 64) -> tuple[np.ndarray, np.ndarray, int, tuple]:
+                                   max_passes: int = 64,
+                                   F: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int, tuple]:
     """Flip every cocircular quad of an intrinsic Delaunay triangulation to the
-    diagonal that holds its smallest vertex index.
+    diagonal that is an edge of the input faces ``F``; where neither or both
+    diagonals are, to the one that holds the quad's smallest vertex index.
 
     A quad is cocircular when the cotangents of its two angles opposite the
     diagonal sum to zero, within ``tol`` times the larger of 1 and their sizes
@@ -159,6 +178,10 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
     ----------
     Fi : (m, 3) int64 triangles; l : (m, 3) float64 edge lengths, ``l[f, c]``
         opposite corner c (libigl's ``intrinsic_delaunay_cotmatrix`` output).
+    F : (m, 3) int array, optional
+        The mesh the triangulation was made from (same vertex ids). Without
+        it every quad takes its smallest vertex's diagonal, which depends on
+        the numbering.
 
     Returns
     -------
@@ -171,11 +194,13 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
     if len(Fi) == 0:
         return Fi, l, 0, cocircular_edge_weights(Fi, l, tol)
     total = 0
+    is_input = _input_edge_test(F)
     for _ in range(max_passes):
         pairs = _cocircular_pairs(Fi, l, tol)
         h, t, a, b, _, on = pairs
         p, q = Fi.ravel()[h], Fi.ravel()[t]
-        want = on & (np.minimum(p, q) < np.minimum(a, b))
+        now, other = is_input(a, b), is_input(p, q)
+        want = on & np.where(now == other, np.minimum(p, q) < np.minimum(a, b), other)
         if not want.any():
             return Fi, l, total, _edge_weights(Fi, *pairs)
         if total == 0:

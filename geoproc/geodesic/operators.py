@@ -128,9 +128,10 @@ def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
 def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bool = False):
     """libigl's intrinsic Delaunay triangulation of an edge-manifold mesh with its operators.
 
-    Cocircular quads get the diagonal that holds their smallest vertex index
+    Cocircular quads get the diagonal that is an edge of ``F``
     (:func:`geoproc.geodesic.cocircular.canonical_cocircular_diagonals`), so
-    that the triangulation does not depend on the coordinates' rounding.
+    that the triangulation depends neither on the coordinates' rounding nor on
+    the numbering of the vertices.
 
     ``boundary_negatives``: also return the triangulation when its only
     negative weights are on boundary edges (an obtuse angle facing one, which
@@ -153,9 +154,9 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bo
     import igl
 
     Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
-    # cocircular quads: the diagonal fixed by the numbering, not by rounding (the mass and the
+    # cocircular quads: the input's diagonal, not the one rounding picks (the mass and the
     # face operators would otherwise change with the mesh's scale and position)
-    Fi, l, flips, cocircular = canonical_cocircular_diagonals(Fi, l)
+    Fi, l, flips, cocircular = canonical_cocircular_diagonals(Fi, l, F=F)
     if flips or len(cocircular[0]):
         Li = igl.cotmatrix_intrinsic(l, Fi)
         Li.resize((len(V), len(V)))  # vertices after the last one a face uses
