@@ -138,6 +138,23 @@ def _build_edges(F, n):
     return E, FE, ET, adj_ptr, adj_nbr, adj_edge, boundary, too_many
 
 
+def require_distinct_corners(F: np.ndarray, path: str | None = None) -> None:
+    """Raise InputError naming the first triangle of ``F`` (m, 3) that repeats a vertex."""
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    if rep.any():
+        raise InputError(path, f"triangle {int(np.flatnonzero(rep)[0])} repeats a vertex")
+
+
+def canonical_faces(F: np.ndarray) -> np.ndarray:
+    """``F`` (m, 3) with each triangle's corners rotated to start at its smallest
+    vertex (orientation kept) and the triangles in lexicographic order: the
+    same array however the input ordered its faces and their corners."""
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    first = np.argmin(F, axis=1)
+    G = F[np.arange(len(F))[:, None], (first[:, None] + np.arange(3)) % 3]
+    return np.ascontiguousarray(G[np.lexsort((G[:, 2], G[:, 1], G[:, 0]))])
+
+
 def surface_complex(F: np.ndarray, n: int, path: str | None = None) -> SurfaceComplex:
     """Build the edges and incidences of a triangle mesh.
 
@@ -158,9 +175,7 @@ def surface_complex(F: np.ndarray, n: int, path: str | None = None) -> SurfaceCo
         A triangle repeats a vertex, or an edge has more than two triangles.
     """
     F = np.ascontiguousarray(F, dtype=np.int64).reshape(-1, 3)
-    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
-    if rep.any():
-        raise InputError(path, f"triangle {int(np.flatnonzero(rep)[0])} repeats a vertex")
+    require_distinct_corners(F, path)
     E, FE, ET, ap, an, ae, bnd, bad = _build_edges(F, int(n))
     if bad >= 0:
         raise InputError(

@@ -9,7 +9,7 @@ import numpy as np
 
 from geoproc.errors import UsageError
 from geoproc.mesh.validate import require_indices_below, triangle_array, vertex_field_values
-from geoproc.morse.complex import SurfaceComplex, surface_complex
+from geoproc.morse.complex import SurfaceComplex, canonical_faces, require_distinct_corners, surface_complex
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
 from geoproc.morse.order import vertex_order
 from geoproc.morse.persistence import PersistencePairs, lower_star_persistence
@@ -26,7 +26,8 @@ class MorseSimplification:
         ``order[i]`` is the input vertex with relabelled index i (vertices
         sorted by (value, index)); map a relabelled vertex id back with it.
     cx : SurfaceComplex
-        The complex of the relabelled mesh (faces ``rank[F]``).
+        The complex of the relabelled mesh (faces ``rank[F]`` in
+        :func:`~geoproc.morse.complex.canonical_faces` order).
     gradient, pairs : DiscreteGradient, PersistencePairs
         Of the input field (relabelled: ``f[order]``).
     simplification : Simplification
@@ -66,8 +67,11 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
     n = len(f)
     F = triangle_array(F, path)
     require_indices_below(F, n, path)
+    require_distinct_corners(F, path)  # before the faces are reordered: the message names the input's triangle
     order, rank = vertex_order(f)
-    cx = surface_complex(rank[F], n, path)
+    # faces and corners in a canonical order: the exact windows' programs, and so
+    # what HiGHS finds within its node limit, do not depend on how the input lists them
+    cx = surface_complex(canonical_faces(rank[F]), n, path)
     fr = f[order]
     grad = discrete_gradient(cx, fr)
     pairs = lower_star_persistence(cx, fr)
