@@ -328,15 +328,34 @@ def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
     cannot parse the file."""
     from plyfile import PlyData
 
+    stream = _NonNegativeReads(data)
     try:
         with warnings.catch_warnings():  # plyfile warns (multi-line) about empty list rows
             warnings.simplefilter("ignore")
-            ply = PlyData.read(io.BytesIO(data))
+            ply = PlyData.read(stream)
     except UnicodeDecodeError:
         raise InputError(path, "unparseable PLY: the header is not ASCII text") from None
     except Exception as exc:  # plyfile raises several types for malformed data
+        if stream.negative_read:
+            raise InputError(path, "unparseable PLY: a binary list row has a negative count") from None
         raise InputError(path, f"unparseable PLY: {_one_line(exc)}") from exc
     return {e.name: e.data for e in ply.elements}
+
+
+class _NonNegativeReads(io.BytesIO):
+    """The bytes of a PLY file for plyfile, refusing reads of a negative size.
+
+    plyfile reads a binary list row's items as ``stream.read(count * size)``;
+    a negative count there reads the rest of the file, so a last row with a
+    count of -100 became one polygon of whatever bytes followed it."""
+
+    negative_read = False
+
+    def read(self, size: int | None = -1) -> bytes:
+        if size is not None and size < 0:
+            self.negative_read = True
+            raise ValueError("a read of negative size")
+        return super().read(size)
 
 
 def _index_lists(rows: np.ndarray, key: str, path: str, element: str = "face") -> tuple[np.ndarray, np.ndarray]:

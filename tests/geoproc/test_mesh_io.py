@@ -220,6 +220,24 @@ def test_ascii_ply_text_after_the_declared_rows_is_refused(tmp_path):
     assert len(load_mesh(p, clean=False).F) == 1
 
 
+@pytest.mark.parametrize("last", [-100, -3])
+def test_binary_ply_list_with_a_negative_count_is_refused(tmp_path, last):
+    # plyfile read a negative count as "the rest of the file": a last face row of
+    # count -100 followed by four indices came back as a quad, fanned into two triangles
+    import struct
+
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 2\nproperty list int int vertex_indices\nend_header\n")
+    V = struct.pack("<12f", 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0)
+    p = tmp_path / "n.ply"
+    p.write_bytes(head.encode() + V + struct.pack("<4i", 3, 0, 1, 2) + struct.pack("<5i", last, 0, 2, 3, 1))
+    with pytest.raises(InputError) as err:
+        load_mesh(p)
+    assert err.value.problem == "unparseable PLY: a binary list row has a negative count"
+    p.write_bytes(head.encode() + V + struct.pack("<4i", 3, 0, 1, 2) + struct.pack("<5i", 4, 0, 2, 3, 1))
+    assert len(load_mesh(p, clean=False).F) == 3  # the same file with a count of 4: one triangle and a quad
+
+
 def test_ply_rows_that_fit_the_counts_keep_plyfiles_message(tmp_path):
     p = tmp_path / "t.ply"
     p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n=3) + "0 0 0\n1 0 0\n0 a 0\n3 0 1 2\n")
