@@ -626,6 +626,10 @@ def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -
     if have < nv + nf:
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
                          f"but only {max(have, 0)} lines follow it (one per vertex, then one per face)")
+    if have > nv + nf:
+        raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
+                         f"but {have} non-empty lines follow it (one per vertex, then one per face): "
+                         "data after the declared faces")
     V = _off_vertices(lines[:nv], path, homogeneous)
     face_lines = lines[nv: nv + nf]
     F = _off_triangles(face_lines)
@@ -715,6 +719,8 @@ def _off_free_form(lines: list, nv: int, nf: int, per_vertex: int,
             return None
         faces.append(face)
         pos = len(cur)  # the rest of the line is the face's colour
+    if nxt < len(lines):
+        return None  # lines after the declared faces
     return X[:, :3].copy(), faces
 
 

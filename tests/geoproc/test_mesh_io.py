@@ -370,6 +370,10 @@ def test_off_free_form(text, V, F):
     (b"OFF\n3 1 0\n0 0 0 1 0 0 0 1\n3 0 1 2\n", "but only 2 lines follow"),  # a value short
     (b"OFF\n3 1 0\n0 0 0 1 0 0 0 1 0 2 0 1\n", "but only 1 lines follow"),  # a face of two corners
     (b"OFF\n-3 1 0\n0 0 0 1 0 0 0 1 0 3 0 1 2\n", "declares -3 vertices and 1 face: counts cannot be negative"),
+    # face lines beyond the count (a closed tetrahedron read as an open one before), by lines and wrapped
+    (b"OFF\n4 3 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n",
+     "but 8 non-empty lines follow it (one per vertex, then one per face): data after the declared faces"),
+    (b"OFF\n3 1 0\n0 0 0 1\n0 0 0 1\n0\n3 0 1 2\n3 0 2 1\n", "but 5 non-empty lines follow it"),
 ])
 def test_off_free_form_refused(text, fragment):
     with pytest.raises(InputError) as err:
