@@ -203,6 +203,11 @@ def geodesic(
         if res.stats["unreachable_vertices"]:
             run.note(f"{res.stats['unreachable_vertices']} vertices are not connected to a source "
                      "(distance +inf)")
+        if run.metrics["nonfinite_distance_vertices"]:
+            why = (" (the heat there is 0 or negative, and Varadhan's formula takes its log; a larger "
+                   "--time-factor or -m log-heat gives them one)" if m_name == "varadhan" else "")
+            run.note(f"{run.metrics['nonfinite_distance_vertices']} vertices connected to a source have no "
+                     f"finite distance{why}: nonfinite_distance_vertices counts them")
         if reference is not None:
             with run.timer("reference"):
                 ref = geodesic_distance(m.V, m.F, srcs, "exact", path=m.log.path).distance

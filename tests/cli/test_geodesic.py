@@ -344,6 +344,22 @@ def test_non_ply_output_is_refused(cli, fixture_dir, tmp_path):
     assert p.returncode == 2 and "only PLY keeps" in p.stderr and not out.exists()
 
 
+def test_varadhan_infinities_on_a_connected_mesh_are_noted(cli, fixture_dir, tmp_path):
+    # t = 1e-20 h^2 on the (connected) torus: the heat underflows or goes negative on
+    # most vertices and Varadhan's formula leaves them at +inf; only the metric said so
+    out, rep = tmp_path / "v.ply", tmp_path / "v.json"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-m", "varadhan", "-c", "1e-20", "-o", out,
+            "--report", rep)
+    assert p.returncode == 0, p.stderr
+    met = _report(rep)["metrics"]
+    d = load_mesh(out).vertex_fields["distance"]
+    assert met["unreachable_vertices"] == 0 and met["nonfinite_distance_vertices"] == np.isinf(d).sum() > 100
+    assert (f"note: {met['nonfinite_distance_vertices']} vertices connected to a source have no finite "
+            "distance (the heat there is 0 or negative") in p.stderr
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-m", "varadhan", "-o", out)
+    assert p.returncode == 0 and "no finite distance" not in p.stderr
+
+
 def test_tiny_time_on_armadillo(cli, shared_data, tmp_path):
     """t = 1e-4 h^2: u underflows for heat and varadhan (the report counts it),
     while log-ode and log-heat stay finite everywhere."""
