@@ -47,6 +47,42 @@ def _root(
     """Geometry-processing research methods as pipeline-friendly tools."""
 
 
+def _refusing_repeats(make_parser):
+    """Wrap a command's ``make_parser`` so that an option taking one value,
+    given more than once, is a usage error: the parser keeps the last one, so
+    ``-o a.ply -o b.ply`` wrote only b.ply and ``--seed 1 --seed 2`` ran seed 2,
+    without a word. Repeatable options (``-s``, ``--check``) and flags are not
+    affected."""
+    def make(ctx):
+        parser = make_parser(ctx)
+        parse = parser.parse_args
+
+        def parse_args(args):
+            opts, rest, order = parse(args=args)
+            seen = set()
+            for param in order:
+                single = (getattr(param, "param_type_name", "") == "option"
+                          and not (param.multiple or param.count or param.is_flag))
+                if single and param.name in seen:
+                    ctx.fail(f"{' / '.join(param.opts)} given more than once; it takes one value")
+                seen.add(param.name)
+            return opts, rest, order
+
+        parser.parse_args = parse_args
+        return parser
+
+    return make
+
+
+def command():
+    """The click group of :data:`app`, its subcommands refusing repeated
+    single-value options (:func:`_refusing_repeats`)."""
+    group = typer.main.get_command(app)
+    for sub in group.commands.values():
+        sub.make_parser = _refusing_repeats(sub.make_parser)
+    return group
+
+
 def _stop(exc: KeyboardInterrupt) -> None:
     """Exit with the error line and status of an interruption (Ctrl-C, termination)."""
     text, status = interruption_line(exc)
@@ -66,7 +102,7 @@ def main() -> None:
             "(see 'geoproc --help')")
         sys.exit(EXIT_BAD_INPUT)
     try:
-        code = app(standalone_mode=False)
+        code = command()(standalone_mode=False)
     except KeyboardInterrupt as exc:  # while typer builds the commands from their signatures
         _stop(exc)
     except typer.Abort as exc:

@@ -266,6 +266,39 @@ def test_every_option_of_every_command_has_help():
             assert (f" {metric}," in command.epilog or f" {metric}." in command.epilog), (name, metric)
 
 
+def test_every_single_value_option_given_twice_is_refused():
+    # the parser kept the last one: -o a -o b wrote only b, --seed 1 --seed 2 ran seed 2
+    from geoproc_cli.main import command
+
+    root = command()
+    checked = 0
+    for name, sub in root.commands.items():
+        for param in sub.params:
+            if param.param_type_name != "option" or param.is_flag:
+                continue
+            opt = param.opts[-1]
+            if param.multiple or param.count:
+                continue
+            with pytest.raises(Exception) as err:
+                sub.make_context(name, [opt, "1", param.opts[0], "2"])
+            assert " ".join(err.value.format_message().split()) == (
+                f"{' / '.join(param.opts)} given more than once; it takes one value"), (name, opt)
+            checked += 1
+    assert checked >= 60  # 60 when this test was written
+
+
+def test_repeatable_options_and_repeated_flags_stay_allowed(cli, fixture_dir, tmp_path):
+    out, r1, r2 = tmp_path / "d.ply", tmp_path / "r1.json", tmp_path / "r2.json"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-s", "5", "--check", "max_distance<=100",
+            "--check", "mean_distance<=100", "-q", "-q", "-o", out)
+    assert p.returncode == 0, p.stderr
+    p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", tmp_path / "a.ply", "--report", r1,
+            "--report", r2)
+    assert p.returncode == 2 and p.stderr.startswith(
+        "error: --report given more than once; it takes one value (see '") and p.stderr.count("\n") == 1
+    assert not any(f.exists() for f in (tmp_path / "a.ply", r1, r2))
+
+
 def test_top_level_help_lists_every_exit_status():
     import signal
 
@@ -654,7 +687,7 @@ def test_interruption_typer_swallows_is_reported(monkeypatch, capsys):
         except KeyboardInterrupt:
             return 130  # as typer.core does: raise Exit(130) from the interrupt
 
-    monkeypatch.setattr(cli_main, "app", swallowing_app)
+    monkeypatch.setattr(cli_main, "command", lambda: swallowing_app)
     monkeypatch.setattr("sys.argv", ["geoproc", "info", "x.ply"])
     with pytest.raises(SystemExit) as stop:
         cli_main.main()
