@@ -529,7 +529,7 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         msg = _one_line(exc)
         if "index" in msg.lower() and "range" in msg.lower():
             raise InputError(path, f"face index out of range ({msg})") from exc
-        raise InputError(path, f"unparseable {fmt.upper()}: {msg}") from exc
+        raise InputError(path, f"unparseable {fmt.upper()}: {_stl_problem(data) or msg}") from exc
     finally:
         log.setLevel(level)
     V = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
@@ -537,7 +537,7 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     if V.size == 0 and fmt == "stl" and _stl_without_facets(data):
         raise InputError(path, "mesh has no vertices (an STL of no facets)")
     if V.size == 0 and len(data.strip()) > 0:
-        raise InputError(path, f"unparseable {fmt.upper()}: no vertices could be read")
+        raise InputError(path, f"unparseable {fmt.upper()}: {_stl_problem(data) or 'no vertices could be read'}")
     if len(V) != 3 * len(F) and len(F) and F.min() >= 0 and F.max() < len(V):
         # an ASCII STL of several solids comes back with each solid's corners merged:
         # give the file's corners as stored, three per facet, as for a single solid
@@ -759,6 +759,31 @@ def _binary_stl_triangles(data: bytes) -> int | None:
         return None
     count = int(np.frombuffer(data[80:84], dtype="<u4")[0])
     return count if len(data) == 84 + 50 * count else None
+
+
+def _stl_problem(data: bytes) -> str | None:
+    """What is wrong with an STL that trimesh could not read, when its layout
+    tells: an ASCII one (``solid`` first, no NUL byte) without ``endsolid`` or
+    with a facet of other than three vertices, a binary one whose length is not
+    84 bytes plus 50 per facet it declares. None when neither tells."""
+    text = data.lstrip()
+    if text[:5].lower() == b"solid" and b"\0" not in data[:4096]:
+        low = text.lower()
+        if b"endsolid" not in low:
+            return "an ASCII STL without 'endsolid' (cut short?)"
+        facets = len(re.findall(rb"^\s*facet\b", low, re.M))
+        corners = len(re.findall(rb"^\s*vertex\b", low, re.M))
+        if corners != 3 * facets:
+            return f"an ASCII STL of {facets} facet{'s' * (facets != 1)} lists {corners} vertices; each facet has 3"
+        return None
+    if len(data) < 84:
+        return f"a binary STL has an 84-byte header, but the file has only {len(data)} bytes"
+    count = int(np.frombuffer(data[80:84], dtype="<u4")[0])
+    need = 84 + 50 * count
+    if len(data) != need:
+        return (f"a binary STL that declares {count} facet{'s' * (count != 1)} takes {need} bytes, "
+                f"but the file has {len(data)}")
+    return None
 
 
 def _stl_without_facets(data: bytes) -> bool:

@@ -644,6 +644,32 @@ def test_stl_of_no_facets_has_no_vertices(tmp_path, data):
         read_mesh_bytes(b"solid x\nfacet normal 0 0 1\n", "stl", "bad.stl")
 
 
+def _binary_stl(facets: int, declared: int | None = None) -> bytes:
+    tri = np.zeros(12, dtype="<f4")
+    tri[3:] = [0, 0, 0, 1, 0, 0, 0, 1, 0]
+    body = (tri.tobytes() + b"\0\0") * facets
+    return b" " * 80 + np.array([facets if declared is None else declared], dtype="<u4").tobytes() + body
+
+
+@pytest.mark.parametrize("data, problem", [
+    # trimesh's messages were numpy's ("cannot reshape array of size 2 into shape (3)")
+    # or "no vertices could be read" for any broken STL
+    (b"solid a\nfacet normal 0 0 0\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid a\n",
+     "an ASCII STL of 1 facet lists 2 vertices; each facet has 3"),
+    (b"solid a\nfacet normal 0 0 0\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n",
+     "an ASCII STL without 'endsolid' (cut short?)"),
+    (_binary_stl(1) + bytes(5), "a binary STL that declares 1 facet takes 134 bytes, but the file has 139"),
+    (_binary_stl(4)[:-20], "a binary STL that declares 4 facets takes 284 bytes, but the file has 264"),
+    (_binary_stl(4, declared=1000), "a binary STL that declares 1000 facets takes 50084 bytes, but the file has 284"),
+    (bytes(70), "a binary STL has an 84-byte header, but the file has only 70 bytes"),
+])
+def test_broken_stl_says_what_is_wrong(data, problem):
+    with pytest.raises(InputError) as err:
+        read_mesh_bytes(data, "stl", "b.stl")
+    assert err.value.problem == f"unparseable STL: {problem}"
+    assert len(read_mesh_bytes(_binary_stl(4), "stl", "b.stl", clean=False).F) == 4
+
+
 def test_vertex_fields_follow_their_vertices_through_the_clean_up(tmp_path):
     # a copy of vertex 0 stored at index 2 (merged into 0) and an unreferenced vertex 5
     # (removed): each field value must stay with its own vertex, which the stored index
