@@ -149,7 +149,7 @@ def wos_solve(
         if domain != "-":  # a missing domain is refused before numba and matplotlib load
             require_input_file(domain, "domain file")
         from geoproc.wos import load_domain, solve_laplace
-        from geoproc.wos.images import exr_bytes, png_bytes
+        from geoproc.wos.images import exr_bytes, float32_steps, png_bytes
         from geoproc.wos.solve import default_ridge
 
         if fitted and ridge is None:  # the report names the weight used
@@ -191,6 +191,14 @@ def wos_solve(
             except UsageError as exc:  # boundary data too large for float32: name the domain
                 raise UsageError(f"{domain}: {exc}") from None
             run.write_bytes(output, encoded)
+            steps = float32_steps(res.U)
+            if 0 < steps < 1000:
+                fin = res.U[np.isfinite(res.U)]
+                lo, hi = float(fin.min()), float(fin.max())
+                levels = "less than one step" if steps < 1 else f"only {steps:.0f} steps"
+                run.note(f"the solution varies by {hi - lo:.3g} around {max(abs(lo), abs(hi)):.3g}, which the "
+                         f"float32 EXR resolves in {levels}; subtract a constant from --boundary (a value it "
+                         "takes on the domain) to keep its digits")
             name = os.path.basename(domain)
             if image:
                 run.write_bytes(image, png_bytes(res.U, extent, f"{name}: {method.value}, "

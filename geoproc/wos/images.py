@@ -11,6 +11,18 @@ import numpy as np
 from geoproc.errors import UsageError
 
 
+def float32_steps(U: np.ndarray) -> float:
+    """How many float32 steps (units in the last place at the largest |U|)
+    the finite values of ``U`` span: the levels a float EXR can show of it.
+    0 when U is constant or has no finite value."""
+    fin = U[np.isfinite(U)]
+    if fin.size == 0:
+        return 0.0
+    lo, hi = float(fin.min()), float(fin.max())
+    big = np.float32(max(abs(lo), abs(hi)))
+    return (hi - lo) / float(np.spacing(big)) if big > 0 else 0.0
+
+
 def exr_bytes(U: np.ndarray) -> bytes:
     """Encode a (H, W) float array as a one-channel float32 OpenEXR file (NaN kept).
 

@@ -28,6 +28,7 @@ def inputs(tmp_path_factory):
         "huge": {"loops": [[[0, 0], [1e20, 0], [1e20, 1e20], [0, 1e20]]]},
         "neu_int": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": 1},
         "neu_zero": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": 0},
+        "square": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]]},
         "big_values": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "values": [[1e308] * 4]},
         "typo": {"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "Neumann": [[0, 1]]},
     }
@@ -73,6 +74,18 @@ def test_same_seed_same_bytes(cli, inputs, tmp_path):
         outs.append((o.read_bytes(), i.read_bytes()))
     assert outs[0] == outs[1]
     assert outs[0][0] != outs[2][0]
+
+
+def test_a_solution_float32_cannot_resolve_is_noted(cli, inputs, tmp_path):
+    # u = 1e9 + x on the unit square: the EXR (float32, steps of 64 there) showed a constant
+    args = ["wos-solve", inputs / "square.json", "--walks", "4", "--grid", "8", "-o", tmp_path / "u.exr"]
+    p = cli(*args, "--boundary", "1e9 + x")
+    assert p.returncode == 0, p.stderr
+    assert ("note: the solution varies by 1 around 1e+09, which the float32 EXR resolves in less than one step; "
+            "subtract a constant from --boundary") in " ".join(p.stderr.split())
+    assert np.ptp(read_exr(str(tmp_path / "u.exr"))[np.isfinite(read_exr(str(tmp_path / "u.exr")))]) == 0
+    p = cli(*args, "--boundary", "x")
+    assert p.returncode == 0 and "float32" not in p.stderr
 
 
 def test_mask_domain(cli, inputs, tmp_path):
