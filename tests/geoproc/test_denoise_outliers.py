@@ -73,6 +73,18 @@ def test_coincident_points_are_scored_once(dfx):
         rpca_outliers(np.repeat(P[:3], 10, axis=0))
 
 
+def test_scores_do_not_depend_on_the_point_order(make_fixtures):
+    # the torus fixture's regular sampling has equidistant k-th and (k+1)-th neighbours
+    # everywhere, which the k-d tree returned in its own order: shuffled, 123 scores
+    # moved by up to 0.41 of their range and refined positions by 1.3e-3 of the diagonal
+    V, _ = make_fixtures.torus()
+    perm = np.random.default_rng(5).permutation(len(V))
+    a = rpca_outliers(V, k=16, refine_passes=1)
+    b = rpca_outliers(V[perm], k=16, refine_passes=1)
+    assert np.array_equal(b.score, a.score[perm]) and np.array_equal(b.outlier, a.outlier[perm])
+    assert np.array_equal(b.refined, a.refined[perm])
+
+
 def test_too_few_points_is_refused():
     P = np.random.default_rng(0).standard_normal((10, 3))
     with pytest.raises(InputError, match="fewer than"):
