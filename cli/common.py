@@ -207,8 +207,9 @@ class Run:
                 self.inputs[-1]["frames"] = [{"path": f, "sha256": h}
                                              for f, h in zip(anim.frame_files, anim.frame_sha256, strict=True)]
         if anim.unread:
-            self.note(f"{name}: not carried (only real numeric arrays shaped (frames, n) travel): "
-                      + ", ".join(anim.unread))
+            travel = ("per-vertex scalar properties of every frame" if anim.frame_files
+                      else "real numeric arrays shaped (frames, n)")
+            self.note(f"{name}: not carried (only {travel} travel): " + ", ".join(anim.unread))
         return anim
 
     def note_load(self, mesh: Mesh) -> None:

@@ -46,8 +46,11 @@ class Animation:
         SHA-256 (empty when not read from disk).
     frame_sha256 : list of str, for a folder the hex SHA-256 of each frame file, as ``frame_files``.
     unread : list of str
-        Arrays of a ``.npz`` not carried (not numeric, or not shaped (frames, n)),
-        each as its name and shape.
+        What the input holds and the animation does not carry: arrays of a
+        ``.npz`` (not numeric, or not shaped (frames, n)), each as its name and
+        shape; for a folder, the frames' face properties, vertex properties
+        not in every frame (or named ``vertices`` or ``faces``), and what no
+        frame's reader carries (list properties, other elements).
     """
 
     V: np.ndarray
@@ -175,6 +178,7 @@ def _load_frame_folder(name: str) -> Animation:
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
     frames, per_frame_fields, digests = [], [], []
+    dropped: dict[str, None] = {}  # what a frame holds that the animation does not carry, in order seen
     F0 = None
     for f in files:
         # as stored, but an STL frame holds separate triangles: its coincident corners are merged
@@ -188,14 +192,19 @@ def _load_frame_folder(name: str) -> Animation:
         frames.append(mesh.V)
         per_frame_fields.append({k: np.asarray(v, dtype=np.float64).reshape(len(mesh.V), -1)
                                  for k, v in mesh.vertex_fields.items()})
+        dropped.update(dict.fromkeys(f"face {k}" for k in mesh.face_fields))
+        dropped.update(dict.fromkeys(mesh.log.unread_properties))
     common = set.intersection(*(set(d) for d in per_frame_fields))
     fields = {k: np.stack([d[k][:, 0] for d in per_frame_fields]) for k in sorted(common - set(GEOMETRY_KEYS))
               if all(d[k].shape[1] == 1 for d in per_frame_fields)}
+    seen = dict.fromkeys(k for d in per_frame_fields for k in d)
+    unread = [f"vertex {k}" + (" (not in every frame)" if k not in common else "") for k in seen if k not in fields]
+    unread += list(dropped)
     folder = hashlib.sha256()
     for f, digest in sorted(zip(files, digests, strict=True)):
         folder.update(os.fsencode(f) + b"\0" + digest.encode())
     return Animation(np.stack(frames), F0, fields, name, [os.path.join(name, f) for f in files],
-                     sha256=folder.hexdigest(), frame_sha256=digests)
+                     sha256=folder.hexdigest(), frame_sha256=digests, unread=unread)
 
 
 def animation_to_bytes(anim: Animation) -> bytes:

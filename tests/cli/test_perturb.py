@@ -255,6 +255,20 @@ def test_npz_members_not_carried_are_noted(cli, tmp_path):
     assert p.returncode == 0, p.stderr
     assert f"note: {src}: not carried (only real numeric arrays shaped (frames, n) travel): scale (3,)" in p.stderr
     assert sorted(np.load(out).files) == ["faces", "tag", "vertices"]
+    # a folder of frames: a face property and a vertex property of one frame only
+    from geoproc.mesh import Mesh, save_mesh
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    for k, Vk in enumerate(V):
+        save_mesh(folder / f"f{k}.ply", Mesh(Vk, F, {"tag": np.ones(4)} | ({"only0": np.ones(4)} if k == 0 else {}),
+                                             {"quality": np.ones(2)}))
+    p = cli("perturb", folder, "--noise", "0.1", "--seed", "1", "-o", out)
+    assert p.returncode == 0, p.stderr
+    assert (f"note: {folder}: not carried (only per-vertex scalar properties of every frame travel): "
+            "vertex only0 (not in every frame), face quality") in " ".join(p.stderr.split())
+    assert sorted(np.load(out).files) == ["faces", "tag", "vertices"]
 
 
 def test_outlier_flags_need_a_ply_output(cli, fixture_dir, tmp_path):

@@ -83,6 +83,31 @@ def test_hidden_files_and_subfolders_are_not_frames(wave, tmp_path):
     assert [f.rsplit("/", 1)[-1] for f in anim.frame_files] == [f"frame{k}.ply" for k in range(len(V))]
 
 
+def test_frame_properties_a_folder_does_not_carry_are_named(wave, tmp_path):
+    # face properties, vertex properties missing from a frame (an OBJ frame has none) and
+    # list properties were dropped without a word: an outlier flag could vanish that way
+    V, F = wave
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    n, m = V.shape[1], len(F)
+    for k, Vk in enumerate(V):
+        fields = {"outlier": np.zeros(n), "tag": np.full(n, float(k))} | ({"only0": np.ones(n)} if k == 0 else {})
+        save_mesh(folder / f"frame{k}.ply", Mesh(Vk, F, fields, {"quality": np.ones(m)}))
+    anim = load_animation(folder)
+    assert sorted(anim.fields) == ["outlier", "tag"]
+    assert anim.unread == ["vertex only0 (not in every frame)", "face quality"]
+    save_mesh(folder / "frame1.obj", Mesh(V[1], F))
+    (folder / "frame1.ply").unlink()
+    anim = load_animation(folder)
+    assert anim.fields == {} and anim.unread[:3] == ["vertex outlier (not in every frame)",
+                                                      "vertex tag (not in every frame)",
+                                                      "vertex only0 (not in every frame)"]
+    for k in range(len(V)):  # the same fields in every frame, nothing else: nothing to name
+        (folder / f"frame{k}.obj").unlink(missing_ok=True)
+        save_mesh(folder / f"frame{k}.ply", Mesh(V[k], F, {"outlier": np.zeros(n)}))
+    assert load_animation(folder).unread == []
+
+
 @pytest.mark.parametrize("bad", [lambda n: n, lambda n: -1])
 def test_npz_face_index_just_out_of_range_is_refused(wave, tmp_path, bad):
     V, F = wave
