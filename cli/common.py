@@ -367,9 +367,17 @@ def _write_stdout(data: bytes) -> None:
 
 
 def _require_distinct_outputs(names: list[str], inputs: list[str], report: str | None) -> None:
-    """Refuse two outputs on one path (standard output included) and an output
-    that would overwrite an input."""
-    if sum(name == "-" for name in names) > 1:
+    """Refuse two outputs on one path (standard output included, by ``-`` or by
+    any name of the file or pipe it is, such as ``/dev/stdout`` or a link to
+    it) and an output that would overwrite an input."""
+    try:
+        stdout = os.fstat(1)
+        stdout_id = (stdout.st_dev, stdout.st_ino)
+    except OSError:  # closed
+        stdout_id = None
+    if stdout_id is not None and stdout_id == _file_id(os.devnull):
+        stdout_id = None  # what goes to the null device cannot mix
+    if sum(name == "-" or (stdout_id is not None and _file_id(name) == stdout_id) for name in names) > 1:
         what = "--report - and another output" if report is not None and os.fspath(report) == "-" \
             else "two outputs"
         raise UsageError(f"{what} both write to standard output; give all but one a file name")

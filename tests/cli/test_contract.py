@@ -700,12 +700,27 @@ def test_output_linked_to_standard_output_that_is_a_pipe(cli, fixture_dir, tmp_p
     # refused with "cannot write: No such file or directory" instead of written through the link
     link = tmp_path / "so.json"
     link.symlink_to("/dev/stdout")
-    p = cli("info", fixture_dir / "torus.ply", "--report", link, "-q")  # stdout is a pipe here
+    out = tmp_path / "p.ply"
+    p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", out, "--report", link, "-q")  # a pipe here
     assert p.returncode == 0, p.stderr
-    text = p.stdout.decode()  # the report, then info's own summary
-    report, _ = json.JSONDecoder().raw_decode(text, text.index('{\n  "command"'))
-    assert report["command"] == "info" and report["metrics"]["genus"] == 1
-    assert sorted(f.name for f in tmp_path.iterdir()) == ["so.json"]
+    report = json.loads(p.stdout.decode())
+    assert report["command"] == "perturb" and report["metrics"]["vertices"] == 1152
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["p.ply", "so.json"]
+
+
+def test_two_outputs_on_standard_output_by_any_name_are_refused(cli, fixture_dir, tmp_path):
+    # a link to /dev/stdout was not counted as standard output: the PLY and the report went
+    # to the pipe one after the other (and info's summary after its report)
+    so_ply, so_json = tmp_path / "so.ply", tmp_path / "so.json"
+    so_ply.symlink_to("/dev/stdout")
+    so_json.symlink_to("/dev/stdout")
+    torus = fixture_dir / "torus.ply"
+    for args in (["perturb", torus, "--seed", "1", "-o", so_ply, "--report", "-"],
+                 ["perturb", torus, "--seed", "1", "-o", "-", "--report", so_json],
+                 ["info", torus, "--report", so_json]):
+        p = cli(*args)
+        assert p.returncode == 2 and p.stdout == b"", args
+        assert "both write to standard output; give all but one a file name" in p.stderr, args
 
 
 def test_signals_started_ignored_stay_ignored():
