@@ -455,6 +455,22 @@ def require_extension(path: str | os.PathLike, ext: str, option: str, stdout_ok:
     raise UsageError(f"{option} {name}: must end in {ext}" + (" (or be -)" if stdout_ok else ""))
 
 
+def require_ply_output(output: str, what: str, also: tuple[str, ...] = ()) -> None:
+    """UsageError unless the mesh output ``output`` is ``-`` or a ``.ply``
+    file (or ends in one of ``also``, e.g. ``("npz",)``): ``what`` says what
+    only PLY keeps (``"the distance is a vertex property"``). A name without
+    a mesh extension gets the writer's own message (no extension, or one it
+    cannot write), not this one."""
+    from geoproc.fileio import file_extension
+    from geoproc.mesh.write import write_format
+
+    ext = file_extension(output)
+    if output == "-" or ext == "ply" or ext in also:
+        return
+    write_format(output)  # raises for a name without a mesh format
+    raise UsageError(f"{output}: {what}, which only PLY keeps; use a .ply output")
+
+
 def refuse_options(ctx: typer.Context, names: tuple[str, ...], why: str) -> None:
     """UsageError when any parameter of ``names`` was given, e.g.
     ``refuse_options(ctx, ("k", "keep_all"), "only with --outliers")`` gives

@@ -28,6 +28,7 @@ from geoproc_cli.common import (
     metrics_epilog,
     options_given,
     refuse_options,
+    require_ply_output,
 )
 
 REFERENCE_METRICS = (
@@ -280,6 +281,9 @@ def _refuse_unused_options(ctx: typer.Context, mode: str, features: str) -> None
         if mode == MOVING_CLOUD:
             refuse_options(ctx, ("k", "keep_all", "no_clean"), "not used for an animation (its outliers come "
                            "from the animation matrix, every point is written, frames are read as stored)")
+        elif ctx.params.get("keep_all"):
+            require_ply_output(ctx.params["output"], "--keep-all marks the outliers in vertex properties "
+                               "(outlier_score, outlier_detected)")
     else:
         refuse_options(ctx, _OUTLIER_OPTIONS, "only with --outliers")
     if mode == DYNAMIC:

@@ -25,6 +25,7 @@ from geoproc_cli.common import (
     options_given,
     refuse_options,
     require_extension,
+    require_ply_output,
 )
 
 Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
@@ -147,9 +148,7 @@ def geodesic(
                      needs=_metric_needs(m_name, solver.value, reference)) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
-        if output != "-" and not output.lower().endswith(".ply"):
-            raise UsageError(f"{output}: the distance is a vertex property, which only PLY keeps; "
-                             "use a .ply output")
+        require_ply_output(output, "the distance is a vertex property")
         if render is not None:
             require_extension(render, ".png", "--render")
         _refuse_unused_options(ctx, m_name, operators.value if operators else None)

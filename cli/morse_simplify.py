@@ -26,6 +26,7 @@ from geoproc_cli.common import (
     metrics_epilog,
     refuse_options,
     require_extension,
+    require_ply_output,
 )
 
 BARYCENTRIC_METRICS = ("subdivision_vertices",)
@@ -129,8 +130,7 @@ def morse_simplify(
             refuse_options(ctx, ("exact_windows",), "not used with --barycentric (which holds P/2 exactly)")
         if exact_windows < -1:
             raise UsageError(f"--exact-windows must be -1, 0 or a positive count, got {exact_windows}")
-        if output != "-" and os.path.splitext(output)[1].lower() != ".ply":
-            raise UsageError(f"{output}: the output must be a .ply file (or -) to carry the fields")
+        require_ply_output(output, "the fields are vertex properties")
         if diagram is not None:
             require_extension(diagram, ".png", "--diagram", stdout_ok=True)
         if critical is not None:

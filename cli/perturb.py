@@ -9,7 +9,6 @@ import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.errors import InputError, UsageError, frame_error
-from geoproc.fileio import file_extension
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import DIRECTIONS, NoiseSpec, noise_scale, outlier_flags, perturb_positions
 from geoproc_cli.common import (
@@ -23,6 +22,7 @@ from geoproc_cli.common import (
     command_run,
     metrics_epilog,
     refuse_options,
+    require_ply_output,
 )
 
 METRICS = LOAD_METRICS + (
@@ -83,9 +83,8 @@ def perturb(
             refuse_options(ctx, ("direction", "impulsive"), "not used with --noise 0")
         if outliers == 0:
             refuse_options(ctx, ("outlier_range",), "only with --outliers FRACTION > 0")
-        elif output != "-" and file_extension(output) not in ("ply", "npz"):
-            raise UsageError(f"{output}: the outliers are flagged in a vertex property, which only PLY keeps; "
-                             "use a .ply output")
+        else:
+            require_ply_output(output, "the outliers are flagged in a vertex property", also=("npz",))
         if not outlier_range > 0:  # reached only with --outliers > 0 (refused above otherwise)
             raise UsageError(f"--outlier-range {outlier_range}: must be > 0 (0 would move no outlier)")
         spec = NoiseSpec(sigma=noise, direction=direction, impulsive=impulsive, outliers=outliers,

@@ -281,6 +281,34 @@ def test_outlier_flags_need_a_ply_output(cli, fixture_dir, tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+def test_outputs_that_must_be_ply_name_the_real_problem(cli, fixture_dir, tmp_path):
+    # a name with no or an unknown extension was told "only PLY keeps" the property;
+    # denoise --outliers --keep-all wrote an .obj without its scores, with a note only
+    torus = fixture_dir / "torus.ply"
+    cloud = tmp_path / "c.ply"
+    assert cli("perturb", torus, "--seed", "1", "--noise", "0", "--outliers", "0.1", "--outlier-range", "0.05",
+               "-o", cloud).returncode == 0
+    cases = [
+        (["geodesic", torus, "-s", "0"], "noext", "no file extension to choose the format by"),
+        (["geodesic", torus, "-s", "0"], "d.xyz", "cannot write '.xyz'"),
+        (["geodesic", torus, "-s", "0"], "d.obj", "the distance is a vertex property, which only PLY keeps"),
+        (["perturb", torus, "--seed", "1", "--outliers", "0.1", "--outlier-range", "0.01"], "p.xyz",
+         "cannot write '.xyz'"),
+        (["morse-simplify", torus, "-f", "z", "-p", "0.1"], "m", "no file extension to choose the format by"),
+        (["morse-simplify", torus, "-f", "z", "-p", "0.1"], "m.off",
+         "the fields are vertex properties, which only PLY keeps"),
+        (["denoise", cloud, "--outliers", "--keep-all"], "o.obj",
+         "--keep-all marks the outliers in vertex properties (outlier_score, outlier_detected), which only PLY keeps"),
+    ]
+    for args, name, problem in cases:
+        out = tmp_path / name
+        p = cli(*args, "-o", out)
+        assert p.returncode == 2 and p.stderr.startswith(f"error: {out}: {problem}"), (name, p.stderr)
+        assert not out.exists()
+    p = cli("denoise", cloud, "--outliers", "-o", tmp_path / "o.obj", "-q")  # the inliers only: any format
+    assert p.returncode == 0, p.stderr
+
+
 def test_properties_a_geometry_format_drops_are_noted(cli, fixture_dir, tmp_path):
     src = tmp_path / "g.ply"
     assert cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", src, "-q").returncode == 0
