@@ -130,10 +130,47 @@ def test_animation_outliers_f1(dfx, sigma):
     assert rms_out < 0.15 * rms_in  # measured 0.02 and 0.07
 
 
+@pytest.mark.skipif((__import__("os").cpu_count() or 1) < 2, reason="needs two cores for two BLAS threads")
+def test_animation_outliers_do_not_depend_on_the_blas_thread_count():
+    # np.linalg.svd of the (points, 3 frames) matrix gave other last bits with two
+    # OpenBLAS threads than with one, and every score and refined position with them
+    # (OpenBLAS uses no more threads than cores: one core cannot show it)
+    import hashlib
+    import os
+    import subprocess
+    import sys
+
+    code = ("import hashlib, numpy as np; from tests.conftest import load_fixture_module as f; "
+            "from geoproc.denoise.outliers import rpca_animation_outliers as r; "
+            "V, _, _ = f('denoise_fixtures').animated_cloud_with_outliers(sigma=0.3); "
+            "res = r(V); print(hashlib.sha256(res.score.tobytes() + res.refined.tobytes()).hexdigest())")
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = []
+    for threads in ("1", "2"):
+        env = dict(os.environ, OMP_NUM_THREADS=threads, OPENBLAS_NUM_THREADS=threads)
+        p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root,
+                           timeout=300)
+        assert p.returncode == 0, p.stderr
+        out.append(p.stdout.strip())
+    assert out[0] == out[1] and len(out[0]) == len(hashlib.sha256().hexdigest())
+
+
+def test_right_singular_pairs_match_the_svd():
+    from geoproc.denoise.outliers import _right_singular_pairs
+
+    rng = np.random.default_rng(3)
+    P = rng.normal(size=(500, 4)) @ rng.normal(size=(4, 30)) + 1e-9 * rng.normal(size=(500, 30))
+    s, W = _right_singular_pairs(P)
+    _, s_ref, Wt = np.linalg.svd(P, full_matrices=False)
+    assert np.abs(s[:4] - s_ref[:4]).max() < 1e-10 * s_ref[0] and (np.diff(s) <= 0).all()
+    # the leading right singular vectors, up to sign
+    assert np.abs(np.abs(np.einsum("ij,ij->j", W[:, :4], Wt[:4].T)) - 1).max() < 1e-10
+
+
 def test_animation_outliers_do_not_depend_on_where_the_cloud_is(dfx):
     # trajectories were divided by the spacing without being centred: moved by 1e4
     # diagonals, the scores moved by 5e-6 spacings (the input's own rounding is 1e-10)
-    V, flag, _ = dfx.animated_cloud_with_outliers(count=1500, frames=12, sigma=0.3)
+    V, flag, _ = dfx.animated_cloud_with_outliers(sigma=0.3)
     T = 1e4 * np.linalg.norm(np.ptp(V.reshape(-1, 3), axis=0)) * np.array([1.0, -3.0, 2.0])
     a, b = rpca_animation_outliers(V), rpca_animation_outliers(V + T)
     assert np.array_equal(a.outlier, b.outlier) and a.rank == b.rank
