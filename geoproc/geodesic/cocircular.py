@@ -149,9 +149,12 @@ def _input_edge_test(F: np.ndarray | None):
     whether each pair is an edge of the faces ``F`` (all False when F is None)."""
     if F is None or len(F) == 0:
         return lambda a, b: np.zeros(len(a), dtype=bool)
-    n, keys = edge_key_base(F), np.unique(undirected_edge_keys(F))
+    n, sorted_keys = edge_key_base(F), []
 
     def is_input(a, b):
+        if not sorted_keys:  # built on first use: most meshes have no cocircular quad to ask about
+            sorted_keys.append(np.unique(undirected_edge_keys(F)))
+        keys = sorted_keys[0]
         k = np.minimum(a, b) * n + np.maximum(a, b)
         at = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
         return (np.maximum(a, b) < n) & (keys[at] == k)
@@ -199,8 +202,11 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
         pairs = _cocircular_pairs(Fi, l, tol)
         h, t, a, b, _, on = pairs
         p, q = Fi.ravel()[h], Fi.ravel()[t]
-        now, other = is_input(a, b), is_input(p, q)
-        want = on & np.where(now == other, np.minimum(p, q) < np.minimum(a, b), other)
+        want = np.zeros(len(on), dtype=bool)
+        at = np.flatnonzero(on)
+        if len(at):
+            now, other = is_input(a[at], b[at]), is_input(p[at], q[at])
+            want[at] = np.where(now == other, np.minimum(p[at], q[at]) < np.minimum(a[at], b[at]), other)
         if not want.any():
             return Fi, l, total, _edge_weights(Fi, *pairs)
         if total == 0:
