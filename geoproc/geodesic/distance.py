@@ -227,7 +227,9 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         # the Poisson step fixes one constant, the mean over the sources: with several
         # sources, or near one on a coarse mesh, values dip below 0. A distance is 0 at
         # its sources and never negative (clipping never moves a value away from it)
-        stats["negative_distance_vertices"] = int((d2 < 0).sum())
+        negative = d2 < 0
+        negative[s2] = False  # a source is set to 0 whatever it came out as: not clipped
+        stats["negative_distance_vertices"] = int(negative.sum())
         d2 = np.maximum(d2, 0.0)
         d2[s2] = 0.0
         if len(np.unique(s2)) < len(d2) and not (d2 > 0).any():

@@ -36,14 +36,16 @@ def mesh_info(mesh: Mesh) -> dict:
         ``nonmanifold_edges, nonmanifold_vertices, degenerate_faces,
         duplicate_vertices`` (vertices at a position already taken by a lower index),
         ``unreferenced_vertices, mean_edge_length`` (length unit),
-        ``bbox_diagonal`` (length unit), ``vertex_properties, face_properties``
+        ``bbox_diagonal`` (length unit; of the vertices the faces use, of every
+        point for a point cloud), ``vertex_properties, face_properties``
         (names), ``unread_properties`` (PLY properties not read, as
         :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`), ``point_cloud``.
         Topology entries are None for a point cloud.
     """
     V, F = mesh.V, mesh.F
     n = len(V)
-    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) if n else 0.0
+    used = V[np.unique(F)] if len(F) else V  # a point cloud: every point
+    diag = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0))) if len(used) else 0.0
     duplicates = n - (int(position_groups(V).max()) + 1) if n else 0
     info: dict = {
         "vertices": n,

@@ -277,8 +277,10 @@ def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def degenerate_faces(V: np.ndarray, F: np.ndarray, rel_tol: float = 1e-12) -> np.ndarray:
     """Indices of degenerate faces: a repeated vertex index, or an area at most
-    ``rel_tol`` times the squared bounding-box diagonal."""
-    diag2 = float(np.sum((V.max(axis=0) - V.min(axis=0)) ** 2)) if len(V) else 0.0
+    ``rel_tol`` times the squared diagonal of the bounding box of the vertices
+    the faces use (a stray vertex no face uses does not move the cut-off)."""
+    P = V[np.unique(F)] if len(F) else V
+    diag2 = float(np.sum((P.max(axis=0) - P.min(axis=0)) ** 2)) if len(P) else 0.0
     repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
     tiny = face_areas(V, F) <= rel_tol * max(diag2, np.finfo(float).tiny)
     return np.flatnonzero(repeated | tiny)

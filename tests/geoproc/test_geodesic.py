@@ -388,6 +388,34 @@ def test_log_ode_step_polishes_a_slightly_wrong_factorization(make_fixtures):
     assert np.abs(np.exp(w) - u).max() < 1e-12 * u.max()
 
 
+def test_negative_distance_vertices_counts_clipped_vertices_not_sources(make_fixtures):
+    # the count took the sources too, which are set to 0 whatever they came out as:
+    # every other torus vertex a source gave 288, all of them sources, none clipped
+    from geoproc.geodesic.heat import HeatMethodSolver
+
+    V, F = make_fixtures.torus()
+    h = gd.mean_edge_length(V, F)
+    src = np.random.default_rng(0).choice(len(V), 200, replace=False)
+    raw, _ = HeatMethodSolver(V, F, h * h).solve(src)  # before the clipping
+    others = np.setdiff1d(np.arange(len(V)), src)
+    res = gd.geodesic_distance(V, F, src, "heat")
+    assert res.stats["negative_distance_vertices"] == int((raw[others] < 0).sum()) > 0
+    assert (res.distance >= 0).all() and (res.distance[src] == 0).all()
+    every_other = np.arange(0, len(V), 2)
+    raw, _ = HeatMethodSolver(V, F, h * h).solve(every_other)
+    assert (raw[every_other] < 0).sum() > 100  # sources below 0: not counted
+    assert gd.geodesic_distance(V, F, every_other, "heat").stats["negative_distance_vertices"] == \
+        int((raw[1::2] < 0).sum())
+
+
+def test_pearson_r_stays_within_one():
+    from geoproc.geodesic.compare import compare_to_reference
+
+    ref = np.array([1.6, 0.9, 1.5, 2.7, 2.8, 1.1, 1.7])  # d == ref: rounding gave 1.0000000000000002
+    assert compare_to_reference(ref.copy(), ref)["pearson_r"] == 1.0
+    assert compare_to_reference(-ref + 5, ref)["pearson_r"] == -1.0
+
+
 def test_log_lu_solves_in_ordinary_arithmetic_only_within_the_double_range(make_fixtures):
     V, F, L, M, h = _sphere_operators(make_fixtures, 3)
     lu = LogMMatrixSolver(sp.diags(M) - h * h * L)

@@ -51,6 +51,21 @@ def test_degenerate_face_is_counted(fixture_dir):
     assert info["faces"] == 9
 
 
+def test_a_vertex_no_face_uses_moves_neither_the_box_nor_the_degenerate_cut(tmp_path):
+    # with --no-clean, one stray vertex at (1e6, 1e6, 1e6) took the diagonal from 1.73 to
+    # 1.7e6, and with it the area cut-off of degenerate_faces (1e-12 of its square) past
+    # a small real triangle's
+    path = tmp_path / "stray.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 0 0 1e-3\nv 1e-3 0 0\nv 1e6 1e6 1e6\n"
+                    "f 1 2 3\nf 1 3 4\nf 1 5 6\n")
+    info = mesh_info(load_mesh(path, clean=False))
+    assert info["unreferenced_vertices"] == 1
+    assert info["bbox_diagonal"] == pytest.approx(np.sqrt(3), rel=1e-15)
+    assert info["degenerate_faces"] == 0  # the small triangle: area 5e-7, not below 1e-12 x 3
+    trimesh_box = trimesh.Trimesh(load_mesh(path).V, load_mesh(path).F).bounds
+    assert info["bbox_diagonal"] == pytest.approx(np.linalg.norm(trimesh_box[1] - trimesh_box[0]), rel=1e-15)
+
+
 def test_cube_fixture_is_outward_and_closed(fixture_dir):
     m = load_mesh(fixture_dir / "cube.ply")
     tm = trimesh.Trimesh(m.V, m.F, process=False)
