@@ -406,7 +406,7 @@ def _torus_distance(P, R=1.0, r=0.35):
 
 def test_readme_cloud_example_removes_outliers(cli, dfx, tmp_path):
     # the README's example: the fixture cloud, perturb's outliers (20 % within 1/50 of the
-    # diagonal), then --outliers; F1 0.88 there, the sparser cloud's recall cap (README)
+    # diagonal), then --outliers; F1 0.90 there, the sparser cloud's recall cap (README)
     dfx.make_all(tmp_path)
     dirty, rep = tmp_path / "dirty.ply", tmp_path / "r.json"
     p = cli("perturb", tmp_path / "torus_points.ply", "--noise", "0", "--outliers", "0.2", "--outlier-range",
