@@ -155,7 +155,9 @@ def coherent_heights(
 
 def coherent_normals(V: np.ndarray, F: np.ndarray, lam: float | None = None) -> tuple[np.ndarray, dict]:
     """Temporally coherent face normals of every frame: the low-rank part of the
-    (3m, T) matrix whose columns are the frames' stacked face normals.
+    (3m, T) matrix whose columns are the frames' stacked face normals, taken
+    in the principal axes of all the normals so that the result turns with
+    the animation.
 
     Parameters
     ----------
@@ -170,13 +172,15 @@ def coherent_normals(V: np.ndarray, F: np.ndarray, lam: float | None = None) -> 
     info : dict (RPCA iterations, convergence, rank of the low-rank part).
     """
     T, m = len(V), len(F)
-    D = np.empty((3 * m, T))
-    for t in range(T):
-        D[:, t] = face_normals_and_areas(V[t], F)[0].reshape(-1)
+    N0 = np.stack([face_normals_and_areas(V[t], F)[0] for t in range(T)])  # (T, m, 3)
+    # in the principal axes of all the normals (eigenvectors of sum n n^T), which turn with
+    # the animation: RPCA's sparse term is entrywise, so in world axes its result did not
+    _, R = np.linalg.eigh(np.einsum("tmi,tmj->ij", N0, N0))
+    D = np.ascontiguousarray((N0 @ R).reshape(T, 3 * m).T)
     res = rpca(D, lam=lam, tol=1e-7, max_iter=500)
-    P = res.P.T.reshape(T, m, 3)
+    P = res.P.T.reshape(T, m, 3) @ R.T
     norm = np.linalg.norm(P, axis=2, keepdims=True)
-    N = np.where(norm > 1e-12, P / np.maximum(norm, 1e-300), D.T.reshape(T, m, 3))
+    N = np.where(norm > 1e-12, P / np.maximum(norm, 1e-300), N0)
     return N, _rpca_info(res)
 
 

@@ -97,6 +97,19 @@ def test_coherent_normals_remove_sparse_errors(make_fixtures):
     assert _angles_deg(N, N_clean).max() < 1e-3  # measured: 2.5e-5 degrees
 
 
+def test_coherent_normals_turn_with_the_animation(dfx):
+    # RPCA's entrywise sparse term saw the world axes of the stacked normals: turning
+    # the animation changed its coherent normals beyond rounding
+    from scipy.spatial.transform import Rotation
+
+    V, F = dfx.wave_animation(6)
+    V = V + 0.02 * np.random.default_rng(3).standard_normal(V.shape)
+    Q = Rotation.random(random_state=2).as_matrix()
+    a, _ = coherent_normals(V, F)
+    b, _ = coherent_normals(V @ Q.T, F)
+    assert np.abs(a @ Q.T - b).max() < 1e-9
+
+
 def test_coherent_normal_fit_moves_the_frames_towards_them(make_fixtures):
     V, F, N_clean, hit = _translated_with_sparse_errors(make_fixtures)
     out, _ = coherent_normal_fit(V, F)
