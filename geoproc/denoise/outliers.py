@@ -365,6 +365,10 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
     spacing = float(np.median(dist[pos, 1])) if pos.any() else 1.0
     origin = V[0].mean(axis=0)  # centred first: far from 0 the positions' own digits would be lost
     X = (V - origin).transpose(1, 0, 2) / spacing  # (n, T, 3)
+    # in the principal axes of all the positions, which turn with the animation: RPCA's
+    # sparse term is entrywise, so in world axes its result did not
+    _, R = np.linalg.eigh(np.einsum("nti,ntj->ij", X, X))
+    X = X @ R
     D = X.reshape(n, 3 * T)
     med = np.median(D, axis=0, keepdims=True)
     res = rpca(D - med, lam=lam, tol=1e-7, max_iter=500)
@@ -379,5 +383,5 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
     if threshold is None:
         threshold = max(0.5, 3.0 * float(np.median(score)))
     return AnimationOutlierResult(score=score, outlier=score > threshold, threshold=float(threshold),
-                                  refined=fit.transpose(1, 0, 2) * spacing + origin, rank=B.shape[2],
+                                  refined=(fit @ R.T).transpose(1, 0, 2) * spacing + origin, rank=B.shape[2],
                                   rpca_iterations=res.iterations)

@@ -190,6 +190,19 @@ def test_right_singular_pairs_match_the_svd():
     assert np.abs(np.abs(np.einsum("ij,ij->j", W[:, :4], Wt[:4].T)) - 1).max() < 1e-10
 
 
+def test_animation_outliers_turn_with_the_animation(dfx):
+    # RPCA's entrywise sparse term saw the world axes of the trajectories
+    from scipy.spatial.transform import Rotation
+
+    V, flag, _ = dfx.animated_cloud_with_outliers(count=1500, frames=12, sigma=0.3)
+    Q = Rotation.random(random_state=4).as_matrix()
+    a = rpca_animation_outliers(V)
+    b = rpca_animation_outliers(V @ Q.T)
+    assert np.array_equal(a.outlier, b.outlier) and a.outlier.sum() > 1000
+    assert np.abs(a.score - b.score).max() < 1e-9 * a.score.max()
+    assert np.abs(a.refined @ Q.T - b.refined).max() < 1e-9 * np.ptp(V[0], axis=0).max()
+
+
 def test_animation_outliers_do_not_depend_on_where_the_cloud_is(dfx):
     # trajectories were divided by the spacing without being centred: moved by 1e4
     # diagonals, the scores moved by 5e-6 spacings (the input's own rounding is 1e-10)
