@@ -102,8 +102,8 @@ def robust_planes(nb: np.ndarray, spacing: float = 1.0,
     RPCA splits it into a low-rank part and sparse outlying entries, and the
     normal is the low-rank part's least singular direction (outlying rows go
     to the sparse part and do not tilt the plane). RPCA's sparse term is
-    entrywise, so in world axes its result turned with the input: a fandisk
-    cloud under a generic rotation changed 133 of its flags. The frame turns
+    entrywise, so in world axes its result did not turn with the input: a
+    fandisk cloud under a generic rotation changed 133 of its flags. The frame turns
     with the points, and the entrywise term does not see the signs or the
     order of its axes, so the planes now turn with the input."""
     mean, R = robust_frames(nb)
