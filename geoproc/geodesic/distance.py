@@ -259,8 +259,10 @@ def require_method_mesh(V: np.ndarray, F: np.ndarray, method: str, lap: str | No
         require_manifold(Mesh(V, F, log=LoadLog(path=path or "")), f"; {label} needs a manifold mesh")
     if method in NEEDS_EDGE_MANIFOLD:
         require_edge_manifold(F, path, f"; {label} needs an edge-manifold mesh")
-    if method in ("exact", "heat", "log-splitting", "log-heat") or lap == "cotan":  # the input's own triangles
-        _refuse_flat_faces(V, F, path, label, area)
+    # every method starts from the input's own triangles: the cotan ones use them, the
+    # intrinsic Delaunay flips start from their edge lengths (faces whose lengths give zero
+    # area, with a cross product that does not, kept libigl's flips allocating until killed)
+    _refuse_flat_faces(V, F, path, label, area)
     _refuse_needles(V, F, method, lap, ops, path, who)  # names the method itself unless who is given
 
 

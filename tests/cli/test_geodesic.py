@@ -454,13 +454,13 @@ def test_faces_too_thin_for_cotan_weights_are_refused(cli, tmp_path):
     src = tmp_path / "sliver.obj"
     src.write_text("v 0 0 0\nv 1 0 0\nv 0.5 1e-9 0\nv 0.5 1 0\nf 1 2 3\nf 1 3 4\nf 3 2 4\n")
     out = tmp_path / "d.ply"
-    for method in ("heat", "varadhan", "log-heat", "log-splitting", "exact"):
+    # log-ode's intrinsic flips took this one away, but on a bunny with 20 such faces they
+    # allocated without end: every method refuses them
+    for method in ("heat", "varadhan", "log-heat", "log-splitting", "exact", "log-ode"):
         p = cli("geodesic", src, "-s", "0", "-m", method, "-o", out)
         assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
         assert "1 faces are too thin (first: face 0): their edge lengths give zero area" in p.stderr
         assert not out.exists()
-    p = cli("geodesic", src, "-s", "0", "-m", "log-ode", "-o", out)  # the robust intrinsic Laplacian
-    assert p.returncode == 0, p.stderr
 
 
 def test_report_params_of_options_the_method_does_not_use_are_null(cli, fixture_dir, tmp_path):

@@ -388,6 +388,29 @@ def test_log_ode_step_polishes_a_slightly_wrong_factorization(make_fixtures):
     assert np.abs(np.exp(w) - u).max() < 1e-12 * u.max()
 
 
+@pytest.mark.parametrize("method,lap", [("log-ode", "intrinsic-delaunay"), ("varadhan", "intrinsic-delaunay"),
+                                        ("log-heat", "intrinsic-delaunay"), ("heat", "cotan")])
+def test_faces_whose_edge_lengths_give_zero_area_are_refused_by_every_method(make_fixtures, method, lap):
+    # a point 2e-12 edge lengths off an edge's midpoint: the cross product gives an area, the
+    # edge lengths none; the intrinsic methods were let through, and libigl's intrinsic
+    # Delaunay flips then allocated without end (a bunny with 20 such faces was killed)
+    from geoproc.geodesic.distance import require_method_mesh
+
+    V, F = make_fixtures.icosphere(2)
+    V, F = [tuple(v) for v in V], [list(f) for f in F]
+    for i in (10, 50, 90, 130):
+        a, b, c = F[i]
+        A, B, C = map(np.array, (V[a], V[b], V[c]))
+        mid, h = (A + B) / 2, np.linalg.norm(B - A)
+        V.append(tuple(mid + (C - mid) / np.linalg.norm(C - mid) * h * 2e-12))
+        p = len(V) - 1
+        F[i] = [a, b, p]
+        F += [[b, c, p], [c, a, p]]
+    V, F = np.array(V), np.array(F)
+    with pytest.raises(InputError, match="faces are too thin .* their edge lengths give zero area"):
+        require_method_mesh(V, F, method, lap=lap, ops="intrinsic" if method == "log-heat" else None, path="m.ply")
+
+
 def test_negative_distance_vertices_counts_clipped_vertices_not_sources(make_fixtures):
     # the count took the sources too, which are set to 0 whatever they came out as:
     # every other torus vertex a source gave 288, all of them sources, none clipped
