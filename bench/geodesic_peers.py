@@ -86,7 +86,7 @@ def peer_rows(name, k, rng):
             lambda s, i: igl.heat_geodesics_solve(s, np.array([i], dtype=np.int64))),
         run("geoproc heat (cotan)", lambda: gd.HeatMethodSolver(V, F, h * h, operators="extrinsic"),
             lambda s, i: s.solve([i])[0]),
-        run("geoproc heat (default operators: auto)", lambda: gd.HeatMethodSolver(V, F, h * h),
+        run("geoproc heat (defaults: intrinsic-Delaunay heat step, operators auto)", lambda: gd.HeatMethodSolver(V, F, h * h),
             lambda s, i: s.solve([i])[0]),
         run("geoproc log-heat", lambda: gd.LogHeatSolver(V, F, h * h),
             lambda s, i: s.solve([i])[0]),

@@ -100,8 +100,8 @@ def geodesic(
                     show_default=False)] = None,
     steps: Annotated[int, typer.Option("--steps", "-n", help="Backward-Euler steps to reach t "
                      "(varadhan, log-ode, log-splitting, log-heat), 1 to 100000.", min=1, max=100000)] = 1,
-    laplacian: Annotated[Laplacian | None, typer.Option("--laplacian", help="Default: cotan for heat, "
-                         "varadhan, log-splitting; intrinsic-delaunay for log-ode and log-heat.",
+    laplacian: Annotated[Laplacian | None, typer.Option("--laplacian", help="Default: intrinsic-delaunay for "
+                         "heat, log-ode and log-heat (for heat, its heat step); cotan for varadhan and log-splitting.",
                          show_default=False)] = None,
     operators: Annotated[Operators | None, typer.Option("--operators", help="heat and log-heat: gradient, "
                          "divergence and Poisson Laplacian on the mesh (extrinsic), on its intrinsic Delaunay "

@@ -29,9 +29,12 @@ class HeatMethodSolver:
         Every vertex must be used by a face.
     t : float
         Heat time step (area unit), > 0.
-    laplacian : {"cotan", "intrinsic-delaunay"}
-        Laplacian of the heat step; with extrinsic operators the Poisson step
-        uses the cotan Laplacian, the one consistent with the face gradient.
+    laplacian : {"intrinsic-delaunay", "cotan"}
+        Laplacian of the heat step (default intrinsic-delaunay: its weights
+        are non-negative, so the heat stays positive; with the cotan weights of
+        a mesh whose density changes, it went negative on up to half the
+        vertices); with extrinsic operators the Poisson step uses the cotan
+        Laplacian, the one consistent with the face gradient.
     operators : {"auto", "extrinsic", "intrinsic"}
         Gradient, divergence and Poisson Laplacian on the mesh (the paper's
         operators) or on its intrinsic Delaunay triangulation, as in
@@ -40,7 +43,7 @@ class HeatMethodSolver:
         ``self.operators``.
     """
 
-    def __init__(self, V: np.ndarray, F: np.ndarray, t: float, laplacian: str = "cotan",
+    def __init__(self, V: np.ndarray, F: np.ndarray, t: float, laplacian: str = "intrinsic-delaunay",
                  operators: str = "auto"):
         self.n = len(V)
         ops = heat_operators(V, F, laplacian, operators)
@@ -93,6 +96,6 @@ class HeatMethodSolver:
 
 
 def heat_method_distance(V: np.ndarray, F: np.ndarray, sources: np.ndarray, t: float,
-                         laplacian: str = "cotan", operators: str = "auto") -> np.ndarray:
+                         laplacian: str = "intrinsic-delaunay", operators: str = "auto") -> np.ndarray:
     """(n,) heat-method distance from ``sources`` (see :class:`HeatMethodSolver`)."""
     return HeatMethodSolver(V, F, t, laplacian, operators).solve(sources)[0]
