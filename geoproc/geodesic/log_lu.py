@@ -82,21 +82,32 @@ class LogMMatrixSolver:
 
         self._linear = qdldl.Solver(upper_triangle_csc(A), upper=True)
         Lf, D, P = self._linear.factors()
-        Lf = sp.csc_matrix(Lf)
-        Lf.eliminate_zeros()
         if (D <= 0).any() or (Lf.data > 0).any():
             raise ValueError("matrix is not an M-matrix (LDL^T factors lost the sign pattern)")
         self.perm = np.asarray(P, dtype=np.int64)
-        logD = np.log(D)
-        Lr = Lf.tocsr()
-        Lr.sort_indices()
-        Ut = Lf.T.tocsr()  # row i holds L_ji for j > i
-        Ut.sort_indices()
-        rows = np.repeat(np.arange(len(D)), np.diff(Ut.indptr))
-        self._L = (Lr.indptr, Lr.indices, np.log(-Lr.data))
-        self._U = (Ut.indptr, Ut.indices, np.log(-Ut.data) + logD[rows], logD)
         self.n = A.shape[0]
-        self.factor_nnz = int(Lf.nnz)
+        self.factor_nnz = int(np.count_nonzero(Lf.data))
+        self._L = self._U = None  # the factors on logarithms, built when first needed
+
+    def log_factors(self) -> tuple[tuple, tuple]:
+        """The factors as the log-space substitutions read them: ``L`` (strict
+        lower, row-wise: indptr, indices, log |L_ij|) and ``U`` (row-wise, with
+        log D and log |U_ij|). Built on first use: where every solve stays in the
+        double range (:meth:`solve_log_in_range`) they are never needed, and
+        they take about as much memory as the factorization itself."""
+        if self._L is None:
+            Lf, D, _ = self._linear.factors()
+            Lf = sp.csc_matrix(Lf)
+            Lf.eliminate_zeros()
+            logD = np.log(D)
+            Lr = Lf.tocsr()
+            Lr.sort_indices()
+            Ut = Lf.T.tocsr()  # row i holds L_ji for j > i
+            Ut.sort_indices()
+            rows = np.repeat(np.arange(len(D)), np.diff(Ut.indptr))
+            self._L = (Lr.indptr, Lr.indices, np.log(-Lr.data))
+            self._U = (Ut.indptr, Ut.indices, np.log(-Ut.data) + logD[rows], logD)
+        return self._L, self._U
 
     def solve_log_in_range(self, log_b: np.ndarray) -> np.ndarray | None:
         """``log x`` for ``A x = exp(log_b)`` by an ordinary solve with the same
@@ -121,8 +132,9 @@ class LogMMatrixSolver:
     def solve_log(self, log_b: np.ndarray) -> np.ndarray:
         """``log x`` for ``A x = exp(log_b)`` (entries of ``log_b`` may be -inf)."""
         log_b = np.asarray(log_b, dtype=np.float64)
-        y = _log_forward(*self._L, log_b[self.perm])
-        z = _log_backward(*self._U, y)
+        L, U = self.log_factors()
+        y = _log_forward(*L, log_b[self.perm])
+        z = _log_backward(*U, y)
         x = np.empty(self.n)
         x[self.perm] = z
         return x
