@@ -13,6 +13,7 @@ from geoproc.mesh.topology import (
     orientation_status,
     referenced_vertices,
     unique_edges,
+    used_bbox_diagonal,
     vertex_components,
 )
 
@@ -44,8 +45,7 @@ def mesh_info(mesh: Mesh) -> dict:
     """
     V, F = mesh.V, mesh.F
     n = len(V)
-    used = V[np.unique(F)] if len(F) else V  # a point cloud: every point
-    diag = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0))) if len(used) else 0.0
+    diag = used_bbox_diagonal(V, F)
     duplicates = n - (int(position_groups(V).max()) + 1) if n else 0
     info: dict = {
         "vertices": n,
@@ -94,7 +94,7 @@ def mesh_info(mesh: Mesh) -> dict:
         consistently_oriented=bool(oriented) if nm_e == 0 else None,
         nonmanifold_edges=nm_e,
         nonmanifold_vertices=nm_v,
-        degenerate_faces=len(degenerate_faces(V, F)),
+        degenerate_faces=len(degenerate_faces(V, F, diagonal=diag)),
         unreferenced_vertices=n - n_used,
         mean_edge_length=float(lengths.mean()) if len(lengths) else 0.0,
     )

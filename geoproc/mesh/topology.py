@@ -275,12 +275,20 @@ def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 0.5 * row_norms(face_cross_products(V, F))
 
 
-def degenerate_faces(V: np.ndarray, F: np.ndarray, rel_tol: float = 1e-12) -> np.ndarray:
+def used_bbox_diagonal(V: np.ndarray, F: np.ndarray) -> float:
+    """Bounding-box diagonal (length unit) of the vertices the faces F use, of
+    every vertex when there is no face (a point cloud); 0 for no vertex. A
+    stray vertex no face uses does not count."""
+    P = V[referenced_vertices(F, len(V))] if len(F) else V
+    return float(np.linalg.norm(P.max(axis=0) - P.min(axis=0))) if len(P) else 0.0
+
+
+def degenerate_faces(V: np.ndarray, F: np.ndarray, rel_tol: float = 1e-12,
+                     diagonal: float | None = None) -> np.ndarray:
     """Indices of degenerate faces: a repeated vertex index, or an area at most
-    ``rel_tol`` times the squared diagonal of the bounding box of the vertices
-    the faces use (a stray vertex no face uses does not move the cut-off)."""
-    P = V[np.unique(F)] if len(F) else V
-    diag2 = float(np.sum((P.max(axis=0) - P.min(axis=0)) ** 2)) if len(P) else 0.0
+    ``rel_tol`` times the squared :func:`used_bbox_diagonal` (given as
+    ``diagonal`` when the caller has it)."""
+    diag2 = (used_bbox_diagonal(V, F) if diagonal is None else diagonal) ** 2
     repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
     tiny = face_areas(V, F) <= rel_tol * max(diag2, np.finfo(float).tiny)
     return np.flatnonzero(repeated | tiny)
