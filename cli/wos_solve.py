@@ -191,10 +191,10 @@ def wos_solve(
             except UsageError as exc:  # boundary data too large for float32: name the domain
                 raise UsageError(f"{domain}: {exc}") from None
             run.write_bytes(output, encoded)
-            steps = float32_steps(res.U)
+            fin = res.U[np.isfinite(res.U)]
+            lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (0.0, 0.0)
+            steps = float32_steps(lo, hi)
             if 0 < steps < 1000:
-                fin = res.U[np.isfinite(res.U)]
-                lo, hi = float(fin.min()), float(fin.max())
                 levels = "less than one step" if steps < 1 else f"only {steps:.0f} steps"
                 run.note(f"the solution varies by {hi - lo:.3g} around {max(abs(lo), abs(hi)):.3g}, which the "
                          f"float32 EXR resolves in {levels}; subtract a constant from --boundary (a value it "

@@ -11,14 +11,10 @@ import numpy as np
 from geoproc.errors import UsageError
 
 
-def float32_steps(U: np.ndarray) -> float:
-    """How many float32 steps (units in the last place at the largest |U|)
-    the finite values of ``U`` span: the levels a float EXR can show of it.
-    0 when U is constant or has no finite value."""
-    fin = U[np.isfinite(U)]
-    if fin.size == 0:
-        return 0.0
-    lo, hi = float(fin.min()), float(fin.max())
+def float32_steps(lo: float, hi: float) -> float:
+    """How many float32 steps (units in the last place at the larger of |lo|
+    and |hi|) the values from ``lo`` to ``hi`` span: the levels a float EXR can
+    show of them. 0 when they are equal."""
     big = np.float32(max(abs(lo), abs(hi)))
     return (hi - lo) / float(np.spacing(big)) if big > 0 else 0.0
 
