@@ -86,7 +86,6 @@ class LogMMatrixSolver:
             raise ValueError("matrix is not an M-matrix (LDL^T factors lost the sign pattern)")
         self.perm = np.asarray(P, dtype=np.int64)
         self.n = A.shape[0]
-        self.factor_nnz = int(np.count_nonzero(Lf.data))
         self._L = self._U = None  # the factors on logarithms, built when first needed
 
     def log_factors(self) -> tuple[tuple, tuple]:
