@@ -144,22 +144,12 @@ def _edge_weights(Fi, h, t, a, b, cot, on) -> tuple[np.ndarray, np.ndarray, np.n
     return np.stack([a[on], b[on]], axis=1), 0.5 * (cot[h[on]] + cot[t[on]]), halves == 2
 
 
-def _input_edge_test(F: np.ndarray | None):
-    """``is_input(a, b)`` (arrays of vertex ids of F's mesh) -> bool array:
-    whether each pair is an edge of the faces ``F`` (all False when F is None)."""
-    if F is None or len(F) == 0:
-        return lambda a, b: np.zeros(len(a), dtype=bool)
-    n, sorted_keys = edge_key_base(F), []
-
-    def is_input(a, b):
-        if not sorted_keys:  # built on first use: most meshes have no cocircular quad to ask about
-            sorted_keys.append(np.unique(undirected_edge_keys(F)))
-        keys = sorted_keys[0]
-        k = np.minimum(a, b) * n + np.maximum(a, b)
-        at = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
-        return (np.maximum(a, b) < n) & (keys[at] == k)
-
-    return is_input
+def _are_edges(keys: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(k,) bool: whether each vertex pair (a, b) is among the sorted undirected
+    edge ``keys`` (:func:`~geoproc.mesh.topology.undirected_edge_keys`, base ``n``)."""
+    k = np.minimum(a, b) * n + np.maximum(a, b)
+    at = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
+    return (np.maximum(a, b) < n) & (keys[at] == k)
 
 
 def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = TOL,
@@ -197,16 +187,18 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
     if len(Fi) == 0:
         return Fi, l, 0, cocircular_edge_weights(Fi, l, tol)
     total = 0
-    is_input = _input_edge_test(F)
+    input_keys = None  # F's edges, sorted when a cocircular quad first asks (most meshes have none)
     for _ in range(max_passes):
         pairs = _cocircular_pairs(Fi, l, tol)
         h, t, a, b, _, on = pairs
         p, q = Fi.ravel()[h], Fi.ravel()[t]
         want = np.zeros(len(on), dtype=bool)
         at = np.flatnonzero(on)
-        if len(at):
-            now, other = is_input(a[at], b[at]), is_input(p[at], q[at])
-            want[at] = np.where(now == other, np.minimum(p[at], q[at]) < np.minimum(a[at], b[at]), other)
+        want[at] = np.minimum(p[at], q[at]) < np.minimum(a[at], b[at])  # the smallest index's diagonal
+        if len(at) and F is not None and len(F):  # unless exactly one of the two is an input edge
+            input_keys = np.unique(undirected_edge_keys(F)) if input_keys is None else input_keys
+            now, other = (_are_edges(input_keys, edge_key_base(F), x[at], y[at]) for x, y in ((a, b), (p, q)))
+            want[at] = np.where(now == other, want[at], other)
         if not want.any():
             return Fi, l, total, _edge_weights(Fi, *pairs)
         if total == 0:
