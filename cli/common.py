@@ -336,17 +336,18 @@ def _stray_stdout_dropped() -> contextlib.AbstractContextManager:
     discarded: the result must be all that standard output gets. (Sent to
     standard error instead, such lines could fail a run whose standard error
     is full.) The result itself is written after this, at commit."""
-    if sys.__stdout__ is None or not _open_descriptor(1):
+    if sys.__stdout__ is None or _stdout_identity() is None:
         return contextlib.nullcontext()  # a closed standard output: nothing to keep clean
     return c_stdout_silenced()
 
 
-def _open_descriptor(fd: int) -> bool:
+def _stdout_identity() -> tuple[int, int] | None:
+    """(device, inode) of what file descriptor 1 is, or None when it is closed."""
     try:
-        os.fstat(fd)
+        st = os.fstat(1)
     except OSError:
-        return False
-    return True
+        return None
+    return (st.st_dev, st.st_ino)
 
 
 def _write_stdout(data: bytes) -> None:
@@ -370,11 +371,7 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
     """Refuse two outputs on one path (standard output included, by ``-`` or by
     any name of the file or pipe it is, such as ``/dev/stdout`` or a link to
     it) and an output that would overwrite an input."""
-    try:
-        stdout = os.fstat(1)
-        stdout_id = (stdout.st_dev, stdout.st_ino)
-    except OSError:  # closed
-        stdout_id = None
+    stdout_id = _stdout_identity()
     if stdout_id is not None and stdout_id == _file_id(os.devnull):
         stdout_id = None  # what goes to the null device cannot mix
     if sum(name == "-" or (stdout_id is not None and _file_id(name) == stdout_id) for name in names) > 1:

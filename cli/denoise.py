@@ -170,6 +170,9 @@ def denoise(
         if outliers and dynamic:
             raise UsageError("--outliers and --dynamic cannot be combined")
         _refuse_unused_options(ctx, mode, features)
+        if mode == CLOUD and keep_all:
+            require_ply_output(output, "--keep-all marks the outliers in vertex properties "
+                               "(outlier_score, outlier_detected)")
         if coherence is not None and coherence not in COHERENCE:
             raise UsageError(f"--coherence {coherence}: use one of {', '.join(COHERENCE)}")
         threshold_set = threshold is not None
@@ -281,9 +284,6 @@ def _refuse_unused_options(ctx: typer.Context, mode: str, features: str) -> None
         if mode == MOVING_CLOUD:
             refuse_options(ctx, ("k", "keep_all", "no_clean"), "not used for an animation (its outliers come "
                            "from the animation matrix, every point is written, frames are read as stored)")
-        elif ctx.params.get("keep_all"):
-            require_ply_output(ctx.params["output"], "--keep-all marks the outliers in vertex properties "
-                               "(outlier_score, outlier_detected)")
     else:
         refuse_options(ctx, _OUTLIER_OPTIONS, "only with --outliers")
     if mode == DYNAMIC:
