@@ -106,6 +106,21 @@ def robust_planes(nb: np.ndarray, spacing: float = 1.0,
     fandisk cloud under a generic rotation changed 133 of its flags. The frame turns
     with the points, and the entrywise term does not see the signs or the
     order of its axes, so the planes now turn with the input."""
+    center = np.empty((len(nb), 3))
+    normal = np.empty((len(nb), 3))
+    for lo in range(0, len(nb), _PLANE_BLOCK):
+        block = slice(lo, lo + _PLANE_BLOCK)
+        center[block], normal[block] = _robust_planes_block(nb[block], spacing, lam)
+    return center, normal
+
+
+# Neighbourhoods solved together: each is independent, so the result does not
+# depend on this; it bounds the temporaries (about 4 KB per neighbourhood of 16).
+_PLANE_BLOCK = 32768
+
+
+def _robust_planes_block(nb, spacing, lam):
+    """:func:`robust_planes` on one block of neighbourhoods."""
     mean, R = robust_frames(nb)
     X = nb - mean[:, None, :]
     local = np.einsum("bkc,bcd->bkd", X, R)
@@ -184,18 +199,14 @@ def _score_distinct_points(P, k, threshold, path, lam, refine_passes) -> Outlier
         raise InputError(path, f"has {n} points, fewer than the neighbourhood size k={k}")
     tree = cKDTree(P)
     dist, idx = tree.query(P, k=k, workers=-1)
-    spacing = float(np.median(dist[:, 1]))
+    nearest = dist[:, 1]
+    del dist
+    spacing = float(np.median(nearest))
     if spacing <= 0:
-        spacing = float(dist[:, 1][dist[:, 1] > 0].mean()) if (dist[:, 1] > 0).any() else 1.0
+        spacing = float(nearest[nearest > 0].mean()) if (nearest > 0).any() else 1.0
     nb = P[idx]
     center, normal = robust_planes(nb, spacing, lam)
-    resid = np.abs(np.einsum("nkc,nc->nk", nb - center[:, None, :], normal)) / spacing  # (n, k) off-plane
-    flat = idx.reshape(-1)
-    count = np.bincount(flat, minlength=n).astype(np.float64)
-    order = np.argsort(flat, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(count.astype(np.int64))])
-    vals = resid.reshape(-1)[order]
-    score = _group_median(vals, starts)
+    score = median_plane_distance(nb, idx, center, normal, n, spacing)
     if threshold is None:
         threshold = 0.5
     outlier = score > threshold
@@ -205,6 +216,21 @@ def _score_distinct_points(P, k, threshold, path, lam, refine_passes) -> Outlier
             outlier = score > threshold
     refined = merged_projections(nb, idx, normal, center, ~outlier, P)
     return OutlierResult(score=score, outlier=outlier, threshold=float(threshold), refined=refined)
+
+
+def median_plane_distance(nb: np.ndarray, idx: np.ndarray, center: np.ndarray, normal: np.ndarray,
+                          n: int, unit: float = 1.0) -> np.ndarray:
+    """(n,) median, over the neighbourhoods that hold each point, of the point's
+    distance to their planes, in units of ``unit`` (a length in the units of ``nb``).
+
+    Neighbourhood j holds the points ``idx[j]`` (b, k) at ``nb[j]`` (b, k, 3);
+    its plane passes through ``center[j]`` with unit ``normal[j]`` (b, 3). Every
+    point is in at least its own neighbourhood."""
+    resid = np.abs(np.einsum("nkc,nc->nk", nb - center[:, None, :], normal)) / unit  # (b, k) off-plane
+    flat = idx.reshape(-1)
+    order = np.argsort(flat, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=n))])
+    return _group_median(resid.reshape(-1)[order], starts)
 
 
 def merged_projections(nb: np.ndarray, idx: np.ndarray, normal: np.ndarray, center: np.ndarray,
@@ -227,13 +253,17 @@ def merged_projections(nb: np.ndarray, idx: np.ndarray, normal: np.ndarray, cent
     (n, 3) float64
     """
     n = len(P)
-    off = np.einsum("bkc,bc->bk", nb - center[:, None, :], normal)
-    proj = nb - off[..., None] * normal[:, None, :]
     rows = np.flatnonzero(use)
-    flat = idx[rows].reshape(-1)
-    count = np.bincount(flat, minlength=n).astype(np.float64)
-    total = np.column_stack([np.bincount(flat, weights=proj[rows, :, c].reshape(-1), minlength=n)
-                             for c in range(3)])
+    count = np.bincount(idx[rows].reshape(-1), minlength=n).astype(np.float64)
+    total = np.zeros((n, 3))
+    # block by block, each added in neighbourhood order (as one bincount would)
+    for lo in range(0, len(rows), _PLANE_BLOCK):
+        r = rows[lo:lo + _PLANE_BLOCK]
+        off = np.einsum("bkc,bc->bk", nb[r] - center[r, None, :], normal[r])
+        proj = nb[r] - off[..., None] * normal[r, None, :]
+        flat = idx[r].reshape(-1)
+        for c in range(3):
+            np.add.at(total[:, c], flat, proj[:, :, c].reshape(-1))
     return np.where(count[:, None] > 0, total / np.maximum(count, 1.0)[:, None], P)
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from geoproc.denoise import detection_scores, rpca_outliers
+import geoproc.denoise.outliers as outliers_mod
 from geoproc.denoise.outliers import merged_projections, robust_planes, rpca_animation_outliers
 from geoproc.errors import InputError
 from geoproc.perturb import NoiseSpec, perturb_positions
@@ -256,3 +257,29 @@ def test_merged_projections_average_the_used_neighbourhoods_by_hand():
     # with the third neighbourhood used: point 1 also gets (0, 0.5, 0.6), point 2 (0, 7, 7)
     out = merged_projections(nb, idx, normal, center, np.ones(3, dtype=bool), P)
     np.testing.assert_allclose(out[1:], [[8 / 3, 0.5, 1.6 / 3], [0, 7, 7]], atol=1e-15)
+
+
+def test_median_plane_distance_by_hand():
+    # point 0 lies 1, 2 and 4 off the planes of the three neighbourhoods, and the last
+    # holds it twice: heights 1, 2, 4, 4, median 3; point 1 lies 3 and 5 off: median 4;
+    # in units of 2
+    idx = np.array([[0, 1], [0, 1], [0, 0]])
+    nb = np.array([[[0, 0, 1.0], [0, 0, 3.0]], [[0, 0, -2.0], [0, 0, 5.0]], [[0, 0, 4.0], [0, 0, 4.0]]])
+    center = np.zeros((3, 3))
+    normal = np.array([[0, 0, 1.0], [0, 0, -1.0], [0, 0, 1.0]])
+    got = outliers_mod.median_plane_distance(nb, idx, center, normal, 2, unit=2.0)
+    np.testing.assert_allclose(got, [1.5, 2.0], rtol=1e-15)
+
+
+def test_outlier_scores_do_not_depend_on_the_block_size(monkeypatch):
+    # the neighbourhoods are solved in blocks to bound memory; blocks of 7 (a ragged last
+    # one) must give the bits of one block
+    rng = np.random.default_rng(3)
+    P = rng.normal(size=(300, 3))
+    P[:, 2] *= 0.05
+    P[rng.random(300) < 0.2] += rng.normal(scale=0.3, size=(1, 3))
+    whole = rpca_outliers(P, k=12, refine_passes=1)
+    monkeypatch.setattr(outliers_mod, "_PLANE_BLOCK", 7)
+    small = rpca_outliers(P, k=12, refine_passes=1)
+    assert np.array_equal(whole.score, small.score) and np.array_equal(whole.outlier, small.outlier)
+    assert np.array_equal(whole.refined, small.refined)
