@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geoproc.denoise import detection_scores, rpca_outliers
 import geoproc.denoise.outliers as outliers_mod
+from geoproc.denoise import detection_scores, rpca_outliers
 from geoproc.denoise.outliers import merged_projections, robust_planes, rpca_animation_outliers
 from geoproc.errors import InputError
 from geoproc.perturb import NoiseSpec, perturb_positions
