@@ -58,6 +58,60 @@ def test_exact_multi_source_is_min_over_sources(make_fixtures):
     assert np.abs(d - ref).max() < 1e-12
 
 
+class _Stop(Exception):
+    pass
+
+
+def test_exact_stops_at_once_when_a_signal_handler_raises():
+    # The MMP call on a 327,680-face sphere takes minutes. It runs in a child process,
+    # so a handler that raises (Ctrl-C, SIGTERM in the command line) interrupts the
+    # wait at once: this process spends well under a second of CPU, not the whole
+    # computation, and the child is gone afterwards.
+    import multiprocessing
+    import signal
+    import time
+
+    import trimesh
+
+    m = trimesh.creation.icosphere(subdivisions=7)
+
+    def stop(signum, frame):
+        raise _Stop
+
+    old = signal.signal(signal.SIGALRM, stop)
+    cpu = time.process_time()
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.5)
+        with pytest.raises(_Stop):
+            gd.exact_geodesic_distance(m.vertices, m.faces, np.array([0]))
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+    assert time.process_time() - cpu < 5.0
+    assert multiprocessing.active_children() == []
+
+
+def test_call_in_child_passes_results_and_errors_back():
+    import os
+
+    from geoproc.geodesic.exact import call_in_child
+
+    assert np.array_equal(call_in_child(np.arange, 4), np.arange(4))
+
+    def no_memory():
+        raise MemoryError("std::bad_alloc")
+
+    def fails():
+        raise ValueError("bad mesh")
+
+    with pytest.raises(MemoryError, match="bad_alloc"):
+        call_in_child(no_memory)
+    with pytest.raises(RuntimeError, match="ValueError: bad mesh"):
+        call_in_child(fails)
+    with pytest.raises(RuntimeError, match="exit code 3"):
+        call_in_child(os._exit, 3)
+
+
 # ---- the heat method family against exact geodesics ----------------------------------------
 
 _EXACT_CACHE: dict = {}
