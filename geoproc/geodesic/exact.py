@@ -77,7 +77,8 @@ def call_in_child(fn, *args):
             kind, value = recv.recv()
         except EOFError:
             child.join()
-            raise RuntimeError(f"the computation's process stopped without a result (exit code {child.exitcode})")
+            raise RuntimeError(
+                f"the computation's process stopped without a result (exit code {child.exitcode})") from None
     finally:
         if child.is_alive():
             child.kill()
