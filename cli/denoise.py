@@ -40,7 +40,7 @@ REFERENCE_METRICS = (
 METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     # meshes: sizes, the noise and shape estimates, the parameters used, the repairs
     "vertices", "faces", "feature_faces", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
-    "dihedral_tail_ratio", "reoriented_faces", "guidance_mix", "outer_iterations", "normal_iterations",
+    "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "guidance_mix", "outer_iterations", "normal_iterations",
     "vertex_iterations", "fidelity", "sigma_r", "sigma_s", "sigma_s_length", "unfold_rounds", "folded_faces",
     "crease_bisected_faces", "input_side_faces", "rpca_sparse_faces",
     # feature detection
@@ -230,7 +230,8 @@ MODE_METRICS = (
      ("vertices", "faces", "fidelity", "vertex_iterations")),
     ("a single mesh (not --outliers or --dynamic)", lambda c: c.mode == MESH,
      ("feature_faces", "feature_method", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
-      "dihedral_tail_ratio", "reoriented_faces", "guidance_mix", "outer_iterations", "normal_iterations",
+      "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "guidance_mix", "outer_iterations",
+      "normal_iterations",
       "sigma_r", "sigma_s", "sigma_s_length", "unfold_rounds", "folded_faces", "crease_bisected_faces",
       "input_side_faces")),
     ("--method rpca on a single mesh", lambda c: c.mode == MESH and c.method == "rpca",

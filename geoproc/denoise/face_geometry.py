@@ -44,6 +44,24 @@ def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
     return N, A
 
 
+def face_aspect(V: np.ndarray, F: np.ndarray, N: np.ndarray | None = None) -> np.ndarray:
+    """(m,) each triangle's height over its longest edge, ``2 A / l_max^2``:
+    sqrt(3)/2 for an equilateral triangle, near 0 for a sliver or a needle
+    (and 0 for a face whose corners coincide).
+
+    With ``N`` ((m, 3) unit normals), of the triangle projected onto the plane
+    normal to ``N[f]``: the shape in the surface when ``N`` is a smooth
+    estimate of it and the corners are displaced along it (noise along the
+    normals turns a needle into a fat face; its projection stays a needle).
+    """
+    E = [V[F[:, (c + 1) % 3]] - V[F[:, c]] for c in range(3)]
+    if N is not None:
+        E = [e - np.einsum("ij,ij->i", e, N)[:, None] * N for e in E]
+    l2 = np.max([np.einsum("ij,ij->i", e, e) for e in E], axis=0)
+    twice_area = row_norms(np.cross(E[0], -E[2]))
+    return np.where(l2 > 0, twice_area / np.where(l2 > 0, l2, 1.0), 0.0)
+
+
 def face_centroids(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(m, 3) triangle centroids (a sum of three gathers: ``V[F].mean(axis=1)``
     took eight times as long on a 70k-face mesh)."""
