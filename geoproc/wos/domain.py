@@ -153,7 +153,10 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
     neumann_segments : list of (n_i,) bool, optional
         Per loop, whether segment ``j`` (vertex ``j`` to ``j+1``) is Neumann.
     values : list of (n_i,) array-like, optional
-        Per-vertex boundary values.
+        Per-vertex boundary values, linear along each segment. A vertex
+        repeated with another value is a jump in the data: the segment before
+        it ends at its first copy's value, the one after starts at its last
+        copy's (the closing copy of a loop's first vertex ends the last segment).
     source : str
         File name for error messages.
 
@@ -177,20 +180,28 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         v = None if values is None else np.asarray(values[k], dtype=np.float64)
         if v is not None and (v.shape != (len(L),) or not np.isfinite(v).all()):
             raise InputError(source, f"loop {k}: values must be {len(L)} finite numbers, one per vertex")
+        # values at the end of each vertex's incoming segment and at the start of
+        # its outgoing one: equal, except where a repeated vertex carries two
+        # values (a jump in the boundary data)
+        v_in = v_out = v
         if len(L) > 1 and np.array_equal(L[0], L[-1]):
             L, nf = L[:-1], nf[:-1]
-            v = None if v is None else v[:-1]
+            if v is not None:
+                v_in, v_out = np.concatenate((v[-1:], v[1:-1])), v[:-1]
         # drop repeated consecutive vertices (zero-length segments); a kept
         # vertex takes the flag of the segment that leaves its last copy (the
-        # one of non-zero length), not that of the zero-length one
+        # one of non-zero length), not that of the zero-length one, and the
+        # value that leaves it; its first copy's value ends the segment before
         keep = np.ones(len(L), bool)
         if len(L) > 1:  # a vertex equal to the one before it (cyclically) is a repeat
             np.any(L[1:] != L[:-1], axis=1, out=keep[1:])
             keep[0] = bool(np.any(L[0] != L[-1])) or not keep[1:].any()
         kept = np.flatnonzero(keep)
         if len(kept) < len(L):
-            L, nf = L[kept], nf[np.concatenate((kept[1:], kept[:1])) - 1]
-            v = None if v is None else v[keep]
+            last_copy = np.concatenate((kept[1:], kept[:1])) - 1
+            L, nf = L[kept], nf[last_copy]
+            if v is not None:
+                v_in, v_out = v_in[kept], v_out[last_copy]
         if len(L) < 3:
             raise InputError(source, f"loop {k} is open or degenerate: a closed loop needs at least "
                              f"3 distinct vertices, got {len(L)}")
@@ -198,7 +209,7 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
             raise InputError(source, f"loop {k} encloses zero area (its vertices are collinear)")
         clean.append(L)
         flags.append(nf)
-        vals.append(v)
+        vals.append(None if v is None else (v_in, v_out))
     _check_simple(clean, source)
     # orientation: depth = number of other loops containing the loop; even -> CCW
     outer, inner = _enclosing_pairs(clean)  # loop outer[i] encloses loop inner[i]
@@ -210,7 +221,8 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
         # segment n-2-j in the new order; keep flags attached to the same edge
         clean[k] = clean[k][::-1].copy()
         flags[k] = np.roll(flags[k][::-1], -1)
-        vals[k] = None if vals[k] is None else vals[k][::-1].copy()
+        # and each segment is walked from its other end: the values swap roles
+        vals[k] = None if vals[k] is None else (vals[k][1][::-1].copy(), vals[k][0][::-1].copy())
     area = float(np.where(flip, -signed, signed).sum())
     lo = np.concatenate(clean).min(axis=0)
     hi = np.concatenate(clean).max(axis=0)
@@ -225,8 +237,9 @@ def build_domain(loops: list, neumann_segments: list[np.ndarray] | None = None,
     loop_of = np.repeat(np.arange(len(clean), dtype=np.int64), count)
     seg_vals = None
     if values is not None:
-        va = np.concatenate(vals)
-        seg_vals = np.ascontiguousarray(np.stack([va, va[nxt]], axis=1))
+        v_in = np.concatenate([vi for vi, _ in vals])
+        v_out = np.concatenate([vo for _, vo in vals])
+        seg_vals = np.ascontiguousarray(np.stack([v_out, v_in[nxt]], axis=1))
     return Domain(clean, np.ascontiguousarray(A), np.ascontiguousarray(B), loop_of,
                   np.concatenate(flags), seg_vals, source, part_of=_parts(outer, inner, depth))
 

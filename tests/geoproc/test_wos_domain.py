@@ -58,6 +58,34 @@ def test_zero_length_segment_flags_stay_on_their_segments():
     assert {tuple(d.A[right[0]]), tuple(d.B[right[0]])} == {(1.0, 0.0), (1.0, 1.0)}
 
 
+def _segment_values(d):
+    """{(start point, end point): (start value, end value)} of a domain's segments."""
+    return {(tuple(a), tuple(b)): tuple(v) for a, b, v in zip(d.A.tolist(), d.B.tolist(), d.values.tolist(),
+                                                               strict=True)}
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_a_repeated_vertex_with_two_values_is_a_jump(reverse):
+    # the unit square with 0 on the bottom edge and 1 on the other three: the jumps sit at
+    # (1, 0), given twice, and at (0, 0), the closing copy; given clockwise, the loop is
+    # turned round and each value must stay on its edge. The second copies and their
+    # values used to be dropped, which made the sides ramps from 0 to 1.
+    loop = [[0, 0], [1, 0], [1, 0], [1, 1], [0, 1], [0, 0]]
+    values = [0, 0, 1, 1, 1, 1]
+    if reverse:
+        loop, values = loop[::-1], values[::-1]
+    got = _segment_values(build_domain([loop], values=[values]))
+    want = {((0, 0), (1, 0)): (0, 0), ((1, 0), (1, 1)): (1, 1), ((1, 1), (0, 1)): (1, 1),
+            ((0, 1), (0, 0)): (1, 1)}
+    assert got == want  # stored counter-clockwise either way
+
+
+def test_values_without_repeats_are_linear_along_the_segments():
+    d = build_domain([[[0, 0], [2, 0], [2, 1], [0, 1]]], values=[[1.0, 2.0, 3.0, 4.0]])
+    assert _segment_values(d) == {((0, 0), (2, 0)): (1, 2), ((2, 0), (2, 1)): (2, 3), ((2, 1), (0, 1)): (3, 4),
+                                  ((0, 1), (0, 0)): (4, 1)}
+
+
 @pytest.mark.parametrize("offset", [0.0, 1e8, 1e12])
 def test_area_far_from_the_origin(offset):
     # the shoelace sum about the origin lost a unit square at 1e8 (zero area)
