@@ -50,11 +50,14 @@ def walk_score(score, px, py, seg, t, A, B, bkind, code, consts, V, ckind, KP, K
 
 
 @numba.njit(cache=True, nogil=True)
-def walk_mean_variance(s1, s2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX):
-    """(mean + c(x0), unbiased sample variance) of ``walks`` scores with sum ``s1`` and
-    sum of squares ``s2``."""
+def walk_mean_variance(s1, q1, q2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX):
+    """(mean + c(x0), unbiased sample variance) of ``walks`` scores with sum ``s1``,
+    from the sum ``q1`` and the sum of squares ``q2`` of the scores minus the first
+    score. The shift keeps the variance exact when the scores share a large
+    constant: from the plain sums, ``s2 / n - m^2`` cancelled, and boundary data
+    of x^2 - y^2 + 1e8 gave a standard error of 0.107 instead of 0.024."""
     m = s1 / walks
-    var = max(s2 / walks - m * m, 0.0) * walks / max(walks - 1, 1)
+    var = max(q2 - q1 * q1 / walks, 0.0) / max(walks - 1, 1)
     if ckind != 0:
         m += cv_value(x0, y0, ckind, KP, KQ, W, ARC, BOX)
     return m, var
@@ -65,7 +68,9 @@ def wos_point(x0, y0, state, walks, eps, eps_hi, max_steps, A, B, grid,
               bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX):
     """Walks from one point: (mean score + c(x0), sample variance, steps)."""
     s1 = 0.0
-    s2 = 0.0
+    q1 = 0.0
+    q2 = 0.0
+    k = 0.0
     nsteps = 0
     for _w in range(walks):
         px = x0
@@ -88,9 +93,12 @@ def wos_point(x0, y0, state, walks, eps, eps_hi, max_steps, A, B, grid,
             taken += 1
         nsteps += taken
         score = walk_score(0.0, px, py, seg, t, A, B, bkind, code, consts, V, ckind, KP, KQ, W, ARC, BOX)
+        if _w == 0:
+            k = score
         s1 += score
-        s2 += score * score
-    m, var = walk_mean_variance(s1, s2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX)
+        q1 += score - k
+        q2 += (score - k) * (score - k)
+    m, var = walk_mean_variance(s1, q1, q2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX)
     return m, var, nsteps
 
 

@@ -247,7 +247,9 @@ def wost_point(x0, y0, state, walks, eps, tiny, max_steps, A, B, dgrid, nseg, U,
     use_flux = hkind == 0 or ckind != 0
     sx, sy = off_neumann_walls(x0, y0, A, B, nseg, tiny)
     s1 = 0.0
-    s2 = 0.0
+    q1 = 0.0
+    q2 = 0.0
+    k = 0.0
     nsteps = 0
     for _w in range(walks):
         px = sx
@@ -289,9 +291,12 @@ def wost_point(x0, y0, state, walks, eps, tiny, max_steps, A, B, dgrid, nseg, U,
             taken += 1
         nsteps += taken
         score = walk_score(score, px, py, seg, t, A, B, bkind, code, consts, Vals, ckind, KP, KQ, W, ARC, BOX)
+        if _w == 0:
+            k = score
         s1 += score
-        s2 += score * score
-    m, var = walk_mean_variance(s1, s2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX)
+        q1 += score - k
+        q2 += (score - k) * (score - k)
+    m, var = walk_mean_variance(s1, q1, q2, walks, x0, y0, ckind, KP, KQ, W, ARC, BOX)
     return m, var, nsteps
 
 
