@@ -169,9 +169,22 @@ class WalkProblem:
             return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
         # small batches (npass steps) run on one thread: thread start-up would dominate;
         # the numbers are the same either way (per-point random streams)
-        small = len(X) * walks <= SERIAL_WALKS
-        dirichlet = wos_dirichlet_serial if small else wos_dirichlet
-        mixed = wost_mixed_serial if small else wost_mixed
+        return self._run(X, walks, stream_seed, index0, ckind, KP, KQ, W, ARC, BOX,
+                         serial=len(X) * walks <= SERIAL_WALKS)
+
+    def load_kernels(self, X: np.ndarray) -> None:
+        """Compile, or load from numba's cache, both the one-thread and the
+        parallel walk kernel, with one walk from the first point of X (n, 2),
+        so that neither is loaded inside a timed pass (the parallel one had
+        been, and the first run's steps per second read 3.0M for 11.7M)."""
+        X = np.ascontiguousarray(X[:1], dtype=np.float64)
+        for serial in (True, False):
+            self._run(X, 1, pass_seed(0, 0), 0, 0, _EMPTY2, _EMPTY2, _EMPTY1, _NO_ARCS, _NO_BOXES, serial=serial)
+
+    def _run(self, X, walks, stream_seed, index0, ckind, KP, KQ, W, ARC, BOX, serial):
+        """The walk kernel on X: the one-thread version when ``serial``, else the parallel one."""
+        dirichlet = wos_dirichlet_serial if serial else wos_dirichlet
+        mixed = wost_mixed_serial if serial else wost_mixed
         old = numba.get_parallel_chunksize()
         # blocks of 16 points per thread, smaller when there are few points (long walks)
         numba.set_parallel_chunksize(max(1, min(16, len(X) // (2 * numba.get_num_threads()))))
