@@ -10,7 +10,10 @@ covers ``[col, col+1] x [H-row-1, H-row]``.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
+import tempfile
 
 import contourpy
 import numpy as np
@@ -23,19 +26,40 @@ class NoImageReader(InputError):
     """The file is in no format OpenImageIO has a reader for."""
 
 
+@contextlib.contextmanager
+def _quiet_c_stderr():
+    """Send what C libraries write to file descriptor 2 to a scratch file while
+    the block runs (libpng prints its own ``libpng error: ...`` line before
+    OpenImageIO reports a damaged PNG; the error is reported once, as the
+    input's one line)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with tempfile.TemporaryFile() as scratch:
+            os.dup2(scratch.fileno(), 2)
+            try:
+                yield
+            finally:
+                os.dup2(saved, 2)
+    finally:
+        os.close(saved)
+
+
 def read_mask(path: str) -> np.ndarray:
     """Read an image through OpenImageIO; return (H, W) bool foreground."""
     import OpenImageIO as oiio
 
-    buf = oiio.ImageBuf(path)
-    if buf.has_error:
+    with _quiet_c_stderr():
+        buf = oiio.ImageBuf(path)
+        opened = not buf.has_error
+        pixels = buf.get_pixels(oiio.FLOAT) if opened else None
+    if not opened:
         message = buf.geterror().strip().splitlines()[0].removeprefix("Could not open file: ")
         if "could not find a format reader" in message:  # its message repeats the path; say what is read
             ext = os.path.splitext(path)[1]
             raise NoImageReader(path, f"not an image OpenImageIO can read "
                                       f"(no reader for {repr(ext) + ' files' if ext else 'a file without extension'})")
         raise InputError(path, f"cannot read image: {message}")
-    pixels = buf.get_pixels(oiio.FLOAT)
     if buf.has_error or pixels is None or pixels.size == 0:
         raise InputError(path, "cannot read image pixels")
     pixels = np.asarray(pixels)
