@@ -35,6 +35,10 @@ METRICS = EXACT_METRICS + (
 """Every metric ``wos-solve`` can report (which ones a run reports depends on its method and options)."""
 
 
+EPSILON_NOTE = 0.01
+"""An --epsilon above this fraction of the domain's bounding-box diagonal gets a note: on
+a 2 mm square at the default 1e-3 every walk stopped where it started."""
+
 FIT_METRICS = ("kernels_used", "fit_points", "fit_walks", "fit_seconds", "fit_steps")
 """Reported only with a control variate (every method but naive)."""
 REFINE_METRICS = ("refine_seconds", "refine_steps", "refine_iterations")
@@ -86,7 +90,9 @@ def wos_solve(
     grid: Annotated[int, typer.Option("--grid", help="Pixels along the bounding box's longer "
                                       "side (1 to 8192).", min=1, max=8192)] = 256,
     epsilon: Annotated[float, typer.Option("--epsilon", help="Stopping distance to the Dirichlet "
-                                           "boundary, in domain length units.")] = 1e-3,
+                                           "boundary, in domain length units (the default suits a domain "
+                                           "about 1 across; a note says when it is over 1 % of the "
+                                           "bounding-box diagonal).")] = 1e-3,
     kernels: Annotated[int, typer.Option("--kernels", help="Control-variate kernels (1 to 10000; cv-angle "
                                          "uses at most one per boundary segment).",
                                          min=1, max=10000)] = 80,
@@ -160,6 +166,13 @@ def wos_solve(
         if dom.traced:
             run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
                      f"area {dom.area:.6g} px^2")
+        lo, hi = dom.bbox
+        diag = float(np.linalg.norm(hi - lo))
+        if epsilon > EPSILON_NOTE * diag:
+            run.note(f"--epsilon {epsilon:g} is {epsilon / diag:.2g} of the domain's bounding-box diagonal "
+                     f"({diag:.3g}): walks stop that far from the boundary and score the closest boundary "
+                     "point, a bias the standard error does not show; --epsilon is in the domain's length "
+                     f"units (try {1e-4 * diag:.2g})")
         with run.timer("solve"), run.progress("walking", 1.0) as update:
             res = solve_laplace(dom, g, flux=h, method=method.value, walks=walks, grid=grid,
                                 eps=epsilon, kernels=kernels, fit_walks=fit_walks,
