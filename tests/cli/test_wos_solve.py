@@ -36,6 +36,8 @@ def inputs(tmp_path_factory):
         (d / f"{name}.json").write_text(json.dumps(doc))
     wf.write_mask(d / "mask.png", wf.disk_mask(64, 24.0, 8.0))
     wf.write_mask(d / "blank.png", np.zeros((32, 32), bool))
+    whole = (d / "mask.png").read_bytes()
+    (d / "trunc.png").write_bytes(whole[: len(whole) // 2])
     (d / "folder.json").mkdir()
     return d
 
@@ -115,6 +117,8 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("open.json", [], "loop 0 is open"),
     ("flat.json", [], "zero area"),
     ("blank.png", [], "no foreground"),
+    # libpng printed a line of its own before the error
+    ("trunc.png", [], "trunc.png: cannot read image"),
     ("missing.json", [], "no such file"),
     ("folder.json", [], "folder.json: is a directory, not a domain file"),
     ("huge.json", [], "loop 0 has coordinates as large as 1e+20; they must stay within +-1e+15"),
@@ -214,6 +218,18 @@ def test_naive_reports_no_fit_parameters(cli, inputs, tmp_path):
     params = json.loads(rep.read_text())["params"]
     assert params["method"] == "naive"
     assert all(params[k] is None for k in ("kernels", "fit_walks", "fit_points", "ridge"))
+
+
+def test_an_epsilon_large_for_the_domain_is_noted(cli, tmp_path):
+    # a 2 mm square at the default 1e-3: every walk stopped where it started (0 steps)
+    dom = tmp_path / "mm.json"
+    dom.write_text(json.dumps({"loops": [[[0, 0], [0.002, 0], [0.002, 0.002], [0, 0.002]]]}))
+    p = cli("wos-solve", dom, "--boundary", "x", "--grid", "8", "--walks", "4", "-o", tmp_path / "u.exr")
+    assert p.returncode == 0
+    assert "note: --epsilon 0.001 is 0.35 of the domain's bounding-box diagonal (0.00283)" in p.stderr
+    p = cli("wos-solve", dom, "--boundary", "x", "--grid", "8", "--walks", "4", "--epsilon", "1e-6",
+            "-o", tmp_path / "u.exr")
+    assert p.returncode == 0 and "--epsilon" not in p.stderr
 
 
 def test_capped_kernels_and_fit_points_are_noted(cli, inputs, tmp_path):

@@ -119,6 +119,37 @@ def test_reported_variance_is_unbiased_with_few_walks():
     assert 0.88 < ratio < 1.12, ratio
 
 
+def test_reported_variance_does_not_see_a_constant_in_the_data():
+    # adding 1e8 to the boundary data moves every score by 1e8 and leaves their spread;
+    # from plain sums, s2 / n - m^2 cancelled (the standard error read 0.107 for 0.024)
+    X = POINTS
+    _, var0, _ = WalkProblem(DISK, RE_Z3, None, 1e-4).estimate(X, 256, pass_seed(1, 7))
+    shifted = parse_expression("1e8 + x**3 - 3*x*y**2")
+    mean, var, _ = WalkProblem(DISK, shifted, None, 1e-4).estimate(X, 256, pass_seed(1, 7))
+    assert (var0 > 0.01).all()
+    np.testing.assert_allclose(var, var0, rtol=1e-5)
+
+
+def test_both_walk_kernels_are_loaded_before_the_timed_passes():
+    # a fresh interpreter, as a command run is; a run this small walks on one thread, yet
+    # both kernels are loaded before its timed pass: the parallel one used to be loaded
+    # inside the first timed pass of a larger run (steps per second read 3.0M for 11.7M)
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np\n"
+        "from geoproc.wos.domain import build_domain\n"
+        "from geoproc.wos.expression import parse_expression\n"
+        "from geoproc.wos.solve import solve_laplace\n"
+        "from geoproc.wos import walk\n"
+        "solve_laplace(build_domain([[[0, 0], [1, 0], [1, 1], [0, 1]]]), parse_expression('x'), grid=4, walks=2)\n"
+        "print(len(walk.wos_dirichlet.signatures), len(walk.wos_dirichlet_serial.signatures))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["1", "1"]
+
+
 def test_control_variate_walks_are_unbiased():
     from geoproc.wos.fit import green_kernels
 
