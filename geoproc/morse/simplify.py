@@ -111,7 +111,7 @@ from geoproc.morse.heap import heap_pop, heap_push
 from geoproc.morse.merge_forest import cone_adjacency, merge_forest
 from geoproc.morse.order import vertex_order
 from geoproc.morse.refine import refine_types, vertex_faces
-from geoproc.morse.window_repair import half_bound_tolerance, repair_windows
+from geoproc.morse.window_repair import BOX_WIDENING, half_bound_tolerance, repair_windows
 
 
 @dataclass
@@ -227,7 +227,7 @@ def _assign_values(f, half, down, up, keep_min, keep_max, pin, adj_ptr, adj_nbr)
     for v in range(n):
         d = max(top[v] - f[v], f[v] - bot[v])
         if d >= 2.0 * half:
-            half_v[v] = 0.5 * d * (1.0 + 1e-9) + 1e-300
+            half_v[v] = 0.5 * d * (1.0 + BOX_WIDENING) + 1e-300
     return values_in_box(f, half_v, ptr, succ, topo), half_v, stuck
 
 

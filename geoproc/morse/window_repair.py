@@ -276,18 +276,28 @@ def _values_from_order(W, g, f, T, below):
     return x
 
 
+BOX_WIDENING = 1e-9
+"""Relative widening of the box f +- P/2 at a vertex on a chain of f that drops by
+exactly P (tied data: integer values at an integer P), which the box leaves no
+room to order strictly (:func:`geoproc.morse.simplify`'s boxes); it counts as
+within P/2."""
+
+
 def half_bound_tolerance(f: np.ndarray, half: float, tie_slack: float = 0.0) -> float:
     """Largest |g - f| that still counts as within ``half`` (P/2).
 
     Values placed at f +- P/2 carry the rounding of numbers of f's size, which
     exceeds P/2 * 1e-12 when f sits far from 0 (``--field y`` on a mesh moved
-    by 1000 units): the tolerance is ``half (1 + 1e-12) + 64 eps max|f|``, so
-    that the test does not depend on the field's offset, plus ``tie_slack``,
-    the largest rise that breaking ties gave a value
+    by 1000 units): the tolerance is ``half (1 + BOX_WIDENING) + 64 eps
+    max|f|``, so that the test does not depend on the field's offset (nor
+    count the widening of boxes on chains that drop by exactly P: on fandisk
+    with an integer field at P = 1 it had counted 25 vertices 5e-10 past P/2),
+    plus ``tie_slack``, the largest rise that breaking ties gave a value
     (:func:`geoproc.morse.simplify.strictly_increasing`: a plateau of k
     vertices rises by up to k units in the last place).
     """
-    return half * (1 + 1e-12) + 64 * np.finfo(np.float64).eps * float(np.abs(f).max(initial=0.0)) + tie_slack
+    return (half * (1 + BOX_WIDENING) + 64 * np.finfo(np.float64).eps * float(np.abs(f).max(initial=0.0))
+            + tie_slack)
 
 
 def _window_score(W, C, g, f, tol, need, cx, vf_ptr, vf_tri):
