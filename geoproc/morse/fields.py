@@ -103,6 +103,13 @@ def vertex_field(mesh: Mesh, spec: str, data: bytes | None = None) -> np.ndarray
             raise InputError(spec, f"cannot read field: {exc or type(exc).__name__}") from None
         if values.ndim != 1 and not (values.ndim == 2 and 1 in values.shape):
             raise InputError(spec, f"field must hold one value per vertex, got shape {values.shape}")
+        log = mesh.log
+        if values.size != len(mesh.V) and log.cleaned and values.size == log.stored_vertices != len(mesh.V):
+            # one value per stored vertex: loading merged or dropped some (which ones is the file's order)
+            raise InputError(spec, f"field has {values.size} values, one per vertex stored in "
+                                   f"{os.path.basename(log.path) or 'the mesh'}, but loading merged "
+                                   f"{log.merged_vertices} and dropped {log.removed_unreferenced} unreferenced, "
+                                   f"leaving {len(mesh.V)}; pass --no-clean to keep every stored vertex")
         return require_vertex_field(mesh, values, field_name(spec), path=spec)
     elif spec in mesh.vertex_fields:
         values = mesh.vertex_fields[spec]

@@ -226,6 +226,25 @@ def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
     assert p.returncode == 2 and ".ply" in p.stderr
 
 
+def test_npy_with_one_value_per_stored_vertex_names_the_clean_up(cli, fixture_dir, tmp_path):
+    # the icosphere with one vertex no face uses: loading drops it, and a field saved for
+    # the file's vertices had been refused as '43 values for 42 vertices', without a why
+    m = load_mesh(fixture_dir / "icosphere.ply")
+    V = np.vstack([m.V, [[5.0, 5.0, 5.0]]])
+    mesh = tmp_path / "extra.off"
+    mesh.write_text(f"OFF\n{len(V)} {len(m.F)} 0\n" + "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in V.tolist())
+                    + "".join(f"3 {a} {b} {c}\n" for a, b, c in m.F.tolist()))
+    npy = tmp_path / "f.npy"
+    np.save(npy, np.r_[m.V[:, 2], 0.0])
+    p = cli("morse-simplify", mesh, "--field", npy, "--persistence", "0.1", "-o", tmp_path / "o.ply")
+    assert p.returncode == 2 and not (tmp_path / "o.ply").exists()
+    assert p.stderr.strip() == (f"error: {npy}: field has {len(V)} values, one per vertex stored in extra.off, "
+                                f"but loading merged 0 and dropped 1 unreferenced, leaving {len(m.V)}; pass "
+                                "--no-clean to keep every stored vertex")
+    p = cli("morse-simplify", mesh, "--field", npy, "--persistence", "0.1", "--no-clean", "-o", tmp_path / "o.ply")
+    assert p.returncode == 0, p.stderr
+
+
 @pytest.mark.parametrize("name", ["camelhead.off", "fertility.off", "cow.obj", "teapot.obj"])
 def test_shared_meshes(cli, shared_data, tmp_path, name):
     out, rep = tmp_path / "o.ply", tmp_path / "r.json"
