@@ -236,7 +236,8 @@ def needle_table() -> str:
         rows.append(f"| {name} | {len(F)} | {int(needle.sum())} | "
                     f"{denoise_errors(Vn, F, V)['mean_normal_angle_deg']:.2f} | {split(res.V)} | "
                     f"{new_flipped_faces(res.V, F, V, noisy_flips)} | "
-                    f"{denoise_errors(res.V, F, V)['vertex_rmse']:.3f} | {res.info.get('sliver_faces', '-')} | {best} | "
+                    f"{denoise_errors(res.V, F, V)['vertex_rmse']:.3f} | {res.info.get('sliver_faces', '-')} | "
+                    f"{best} | "
                     f"{split(peer[best])} | {new_flipped_faces(peer[best], F, V, noisy_flips)} |")
         print(rows[-1], flush=True)
     return "\n".join(rows)
