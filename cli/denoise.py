@@ -319,6 +319,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     with run.timer("denoise"), run.progress(f"denoise ({method})") as update, _naming_the_input(path or input):
         res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
     out = Mesh(res.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields))
+    run.refresh_normals(out.V, out.F, out.vertex_fields)
     run.note_replaced("face", ["feature"], out.face_fields)
     out.face_fields["feature"] = res.feature
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
@@ -481,7 +482,9 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
                 values = [p[key] for p in per]
                 run.metrics[key] = (int(sum(values)) if key.endswith("flipped_faces") else
                                     float(max(values)) if key == "max_normal_angle_deg" else float(np.mean(values)))
-    run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, dict(anim.fields), output)))
+    fields = dict(anim.fields)
+    run.refresh_normals(V, anim.F, fields)
+    run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, fields, output)))
 
 
 def register(app: typer.Typer) -> None:

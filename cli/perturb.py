@@ -110,7 +110,8 @@ def perturb(
                     flags.append(ot)
                 fields = dict(anim.fields)
                 V = np.stack(frames)
-                flag = _merged_flags(np.stack(flags), fields, anim.V.shape[:2], anim.path, outliers > 0,
+                run.refresh_normals(V, anim.F, fields)
+                flag = _merged_flags(run, np.stack(flags), fields, anim.V.shape[:2], anim.path, outliers > 0,
                                      anim.frame_files)
                 out = Animation(V, anim.F, fields, output)
             run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]),
@@ -129,7 +130,8 @@ def perturb(
             V, flag = perturb_positions(mesh.V, mesh.F, spec, rng, mesh.log.path, scale)
         out = mesh.copy()
         out.V = V
-        flag = _merged_flags(flag, out.vertex_fields, (len(V),), mesh.log.path or input, outliers > 0)
+        run.refresh_normals(out.V, out.F, out.vertex_fields)
+        flag = _merged_flags(run, flag, out.vertex_fields, (len(V),), mesh.log.path or input, outliers > 0)
         run.metrics.update({"vertices": len(V), "faces": len(mesh.F),
                             "noise_scale": scale,
                             "rms_displacement": _rms(V - mesh.V),
@@ -142,15 +144,21 @@ def _rms(D: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(D**2, axis=-1)))) if D.size else 0.0
 
 
-def _merged_flags(new: np.ndarray, fields: dict, shape: tuple, path: str, added: bool,
+def _merged_flags(run, new: np.ndarray, fields: dict, shape: tuple, path: str, added: bool,
                   frame_files: list[str] | None = None) -> np.ndarray:
     """The ``outlier`` flags after this run: those the input already carried
     (an earlier perturb) joined with the ``new`` ones (1.0 where moved as an
     outlier now); ``fields["outlier"]`` is set when outliers were ``added``.
-    Returns the (bool) flags, of ``shape``."""
+    An input property with values other than 0 and 1 (interpolated by
+    ``morse-simplify --barycentric``, say) is read as flags above 0.5, with a
+    note. Returns the (bool) flags, of ``shape``."""
     flags = new > 0.5
     if "outlier" in fields:
         flags |= outlier_flags(fields["outlier"], shape, path, frame_files)
+        other = int(np.count_nonzero((fields["outlier"] != 0) & (fields["outlier"] != 1)))
+        if other:
+            run.note(f"the input's 'outlier' property has {other} values other than 0 and 1: read as outlier "
+                     "flags where above 0.5" + (", and written as 0 and 1" if added else ""))
     if added:
         fields["outlier"] = flags.astype(np.float64)
     return flags

@@ -1,0 +1,53 @@
+"""Stored vertex normals (the PLY properties ``nx``, ``ny``, ``nz``) kept in step
+with the positions a command writes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geoproc.mesh.topology import face_cross_products, row_norms
+
+NORMAL_FIELDS = ("nx", "ny", "nz")
+"""The vertex properties that hold a stored normal (as MeshLab and most scanners write them)."""
+
+
+def stored_vertex_normals(V: np.ndarray, F: np.ndarray, stored: np.ndarray) -> np.ndarray:
+    """(n, 3) area-weighted unit vertex normals of the triangles F (m, 3) at the
+    positions V (n, 3), and ``stored`` itself at vertices no face of nonzero
+    area uses. They follow the faces' orientation, all turned round when most
+    of the ``stored`` normals (n, 3) they replace point the other way (a file
+    whose normals face inwards keeps them inwards); a vertex whose faces the
+    noise folded over gets its new normal, not its old side."""
+    C = face_cross_products(V, F)  # length twice the area: area weights
+    S = np.zeros((len(V), 3))
+    for k in range(3):
+        np.add.at(S, F[:, k], C)
+    length = row_norms(S)
+    good = length > 0
+    N = np.array(stored, dtype=np.float64, copy=True)
+    N[good] = S[good] / length[good, None]
+    if np.einsum("ij,ij->", S[good], stored[good]) < 0:
+        N[good] = -N[good]
+    return N
+
+
+def refresh_normal_fields(V: np.ndarray, F: np.ndarray, fields: dict) -> bool:
+    """Recompute the stored normals among ``fields`` for the positions V, in place.
+
+    ``fields`` maps property names to per-vertex values: (n,) with V (n, 3),
+    or (T, n) per frame with V (T, n, 3). Returns whether they held ``nx``,
+    ``ny`` and ``nz`` and F has a face (a point cloud's are left as they are).
+    """
+    if len(F) == 0 or not all(name in fields for name in NORMAL_FIELDS):
+        return False
+    stored = np.stack([np.asarray(fields[name], dtype=np.float64) for name in NORMAL_FIELDS], axis=-1)
+    if stored.shape != np.shape(V):
+        return False
+    F = np.asarray(F, dtype=np.int64)
+    if stored.ndim == 3:
+        N = np.stack([stored_vertex_normals(V[t], F, stored[t]) for t in range(len(V))])
+    else:
+        N = stored_vertex_normals(V, F, stored)
+    for k, name in enumerate(NORMAL_FIELDS):
+        fields[name] = np.ascontiguousarray(N[..., k])
+    return True
