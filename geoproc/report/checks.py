@@ -41,6 +41,8 @@ def parse_check(text: str) -> Check:
     name, op, raw = m.groups()
     if not raw:  # 'x<=' would otherwise read as 'x' < '='
         raise UsageError(f"--check '{text}': no number after '{op}'")
+    if raw[:1] in "<>=!" and op + raw[0] in _OPS:  # 'x< =1': read as '<' and '=1'
+        raise UsageError(f"--check '{text}': a space splits the operator '{op + raw[0]}'; write it without one")
     if raw[:1] in "<>=!":  # 'genus<>1', 'x=<1': an operator not in the list
         raise UsageError(f"--check '{text}': unknown operator '{op}{raw[0]}'; use <=, <, >=, > or ==")
     if not _NUMBER.fullmatch(raw) or not math.isfinite(float(raw)):

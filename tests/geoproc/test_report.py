@@ -146,3 +146,11 @@ def test_check_failures_show_every_digit_and_name_nulls():
                    "check failed: genus==0 (not measured in this run: null in the report)"]
     # a count is shown as the count (it read 'measured: 4.0')
     assert evaluate_checks([parse_check("genus==3")], {"genus": 4}) == ["check failed: genus==3 (measured: 4)"]
+
+
+@pytest.mark.parametrize("text,op", [("vertices< =3485", "<="), ("x > =2", ">=")])
+def test_a_space_inside_an_operator_is_named(text, op):
+    # 'vertices< =3485' had been refused as an unknown operator '<=', which is a valid one
+    with pytest.raises(UsageError) as err:
+        parse_check(text)
+    assert str(err.value) == f"--check '{text}': a space splits the operator '{op}'; write it without one"
