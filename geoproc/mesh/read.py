@@ -101,6 +101,9 @@ def sniff_format(data: bytes, path: str = "-") -> str:
         return "stl"
     if re.search(rb"^[ \t]*(v|vt|vn|vp|f|l|o|g|s|usemtl|mtllib)[ \t]", data[:65536], flags=re.M):
         return "obj"
+    if data.startswith(b"PK\x03\x04"):  # a zip archive: an animation's .npz
+        raise InputError(path, "looks like a .npz animation; animations are read from a file or folder, "
+                               "not from standard input")
     raise InputError(path, "cannot tell the mesh format of the data (not PLY, OFF, STL or OBJ)")
 
 

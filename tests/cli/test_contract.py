@@ -226,6 +226,19 @@ def test_stdin_input_and_clean_stdout(cli, fixture_dir):
     assert info["genus"] == 1
 
 
+def test_an_animation_on_stdin_is_named(cli, tmp_path):
+    # animations are read from files or folders only; an .npz piped in had been "cannot tell
+    # the mesh format"
+    import numpy as np
+
+    npz = tmp_path / "a.npz"
+    np.savez(npz, vertices=np.zeros((2, 3, 3)), faces=np.array([[0, 1, 2]]))
+    p = cli("perturb", "-", "--noise", "0.1", "--seed", "1", "-o", tmp_path / "o.npz", stdin=npz.read_bytes())
+    assert p.returncode == 2 and not (tmp_path / "o.npz").exists()
+    assert p.stderr.strip() == ("error: -: looks like a .npz animation; animations are read from a file or "
+                                "folder, not from standard input")
+
+
 def test_notes_go_to_stderr_and_quiet_silences_them(cli, tmp_path):
     path = tmp_path / "dup.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 0 0\nv 9 9 9\nv 1 1 0\nf 1 2 3\nf 4 6 3\n")
