@@ -422,8 +422,10 @@ def _require_output_folders(names: list[str]) -> None:
         if not name:  # realpath('') is the working folder: 'is a folder' would puzzle
             raise UsageError("an output file name is empty")
         real = os.path.realpath(name)
-        if name.endswith(("/", os.sep)) or os.path.isdir(real):
+        if os.path.isdir(real):
             raise UsageError(f"{name}: cannot write: is a folder; give a file name")
+        if name.endswith(("/", os.sep)):  # a folder's name, of a folder that is not there
+            raise UsageError(f"{name}: cannot write: names a folder (it ends with '/'); give a file name")
         folder = os.path.dirname(real) if os.path.islink(name) else os.path.dirname(os.path.abspath(name))
         if not os.path.isdir(folder):
             raise UsageError(f"{name}: output folder '{folder}' does not exist")

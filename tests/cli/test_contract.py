@@ -524,7 +524,7 @@ def test_output_paths_are_refused_before_any_input_is_read(cli, fixture_dir, tmp
         assert p.returncode == 2 and "output folder" in p.stderr and "missing" not in p.stderr, (args, p.stderr)
     (tmp_path / "folder.ply").mkdir()
     (tmp_path / "dangling.ply").symlink_to(nodir / "target.ply")
-    for output, message in (("folder.ply", "is a folder"), ("new.ply/", "is a folder"),
+    for output, message in (("folder.ply", "is a folder"), ("new.ply/", "names a folder (it ends with '/')"),
                             ("dangling.ply", f"output folder '{nodir}' does not exist")):
         p = cli("denoise", missing, "-o", f"{tmp_path}/{output}")
         assert p.returncode == 2 and message in p.stderr and "missing" not in p.stderr, (output, p.stderr)
