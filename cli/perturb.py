@@ -46,7 +46,8 @@ def perturb(
                                          metavar="SIGMA")] = 0.3,
     direction: Annotated[str, typer.Option("--direction", help="normal: along vertex normals of the "
                                            "consistently oriented faces (the benchmark protocol); random: along "
-                                           "random unit directions.", metavar=choices_metavar(DIRECTIONS))]
+                                           "random unit directions (sigma/sqrt(3) per axis).",
+                                           metavar=choices_metavar(DIRECTIONS))]
     = "normal",
     impulsive: Annotated[float, typer.Option("--impulsive", help="Apply the Gaussian noise to only this "
                                              "fraction of the vertices (impulsive noise), 0 to 1; 0 = all.",
@@ -56,7 +57,8 @@ def perturb(
                                             "any flags the input carries).",
                                             metavar="FRACTION")] = 0.0,
     outlier_range: Annotated[float, typer.Option("--outlier-range", help="Outliers move uniformly within "
-                                                 "this many bounding-box diagonals.", metavar="R")] = 0.02,
+                                                 "a ball of this many bounding-box diagonals around their "
+                                                 "noisy position.", metavar="R")] = 0.02,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,
