@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,8 +57,9 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     ``operators``: ``"extrinsic"`` (the heat step with ``laplacian``, the
     mesh's own gradient and divergence, the Poisson step with ``poisson``),
     ``"intrinsic"`` (everything on the intrinsic Delaunay triangulation, its
-    Laplacian in both steps) or ``"auto"`` (intrinsic on meshes with slivers,
-    see :func:`geoproc.geodesic.intrinsic.face_operators_triangulation`).
+    Laplacian in both steps) or ``"auto"`` (intrinsic on meshes with slivers or
+    strongly non-Delaunay triangles, see
+    :func:`geoproc.geodesic.intrinsic.face_operators_triangulation`).
     Intrinsic falls back to extrinsic where the triangulation does not apply.
     ``compiled``: the per-face angles and gradient weights by the numba kernels of
     :mod:`geoproc.geodesic.face_kernels` (for callers that load numba anyway).
@@ -69,7 +71,9 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
         from geoproc.geodesic.face_kernels import face_gradient_coefficients_compiled, smallest_angles_compiled
 
         angles, gradient_coefficients = smallest_angles_compiled, face_gradient_coefficients_compiled
-    tri = face_operators_triangulation(V, F, operators, angles)
+    # auto may read the cotan Laplacian's negative weights; the extrinsic Poisson step then reuses it
+    cotan = functools.cache(lambda: cotan_laplacian(V, F))
+    tri = face_operators_triangulation(V, F, operators, angles, cotan)
     if tri is not None:
         L, M, Fi, lengths = tri
         coef, G, D = intrinsic_face_operators(Fi, lengths, len(V))
@@ -80,7 +84,7 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     if laplacian == poisson:
         Lp = L
     elif poisson == "cotan":
-        Lp = cotan_laplacian(V, F)  # without the mass the heat step needed
+        Lp = cotan()  # without the mass the heat step needed
     else:
         Lp = laplacian_and_mass(V, F, poisson)[0]
     return HeatOperators("extrinsic", L, M, F, coef, G, divergence_matrix(V, F, G), PoissonSolver(Lp))

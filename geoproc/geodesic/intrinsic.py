@@ -17,6 +17,7 @@ import numpy as np
 
 from geoproc.geodesic.names import OPERATORS
 from geoproc.geodesic.operators import (
+    cotan_laplacian,
     integrated_divergence,
     intrinsic_delaunay_mesh,
     smallest_angles,
@@ -27,6 +28,12 @@ SLIVER_ANGLE_DEG = 5.0
 """A face with a corner angle below this (degrees) counts as a sliver."""
 SLIVER_SHARE = 0.005
 """``operators="auto"`` goes intrinsic when at least this share of faces are slivers."""
+NEGATIVE_WEIGHT_SHARE = 0.05
+"""``operators="auto"`` also goes intrinsic when at least this share of the cotan
+Laplacian's off-diagonal weight is negative (:func:`negative_weight_share`): a
+mesh stretched or sheared into obtuse, non-Delaunay triangles without slivers.
+The shared meshes read 0.0002 (fandisk) to 0.047 (camelhead); fandisk stretched
+4 times along x reads 0.105, and its heat error was 6.7 times the intrinsic one."""
 POISSON_NEEDLE_ANGLE = 1e-6
 """Below this corner angle (radians) the extrinsic Poisson step loses its accuracy
 (:data:`geoproc.geodesic.distance.NEEDLE_ANGLE`): ``auto`` goes intrinsic on a mesh
@@ -41,6 +48,17 @@ def sliver_share(V: np.ndarray, F: np.ndarray, angle_deg: float = SLIVER_ANGLE_D
 
 def _sliver_share(angle: np.ndarray, angle_deg: float = SLIVER_ANGLE_DEG) -> float:
     return float(np.mean(~(angle >= np.radians(angle_deg))))
+
+
+def negative_weight_share(L) -> float:
+    """Share (0..1) of the off-diagonal weight of a Laplacian ``L`` (sparse, n x n,
+    off-diagonal entries the edge weights) that is negative: 0 on a Delaunay
+    mesh, growing with how far and how often its triangles break the Delaunay
+    condition (``cot a + cot b < 0`` across an edge)."""
+    C = L.tocoo()
+    w = C.data[C.row != C.col]
+    total = float(np.abs(w).sum())
+    return float(-w[w < 0].sum() / total) if total > 0 else 0.0
 
 
 def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -77,21 +95,28 @@ def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return coef, area
 
 
-def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str, angles=smallest_angles):
+def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str, angles=smallest_angles,
+                                 cotan=None):
     """The intrinsic Delaunay mesh (:func:`geoproc.geodesic.operators.intrinsic_delaunay_mesh`,
     negative weights allowed on boundary edges; None where it does not apply, callers
     then keep extrinsic operators) when ``operators`` asks for it, else None.
 
     ``operators``: ``"extrinsic"`` (None), ``"intrinsic"``, or ``"auto"``
-    (intrinsic when at least :data:`SLIVER_SHARE` of the faces are slivers, or
-    a face has an angle below :data:`POISSON_NEEDLE_ANGLE`). ``angles``: the function
-    that gives the faces' smallest angles (a compiled one for the log methods).
+    (intrinsic when at least :data:`SLIVER_SHARE` of the faces are slivers, a
+    face has an angle below :data:`POISSON_NEEDLE_ANGLE`, or at least
+    :data:`NEGATIVE_WEIGHT_SHARE` of the cotan Laplacian's off-diagonal weight
+    is negative). ``angles``: the function that gives the faces' smallest
+    angles (a compiled one for the log methods). ``cotan``: a function that
+    returns the cotan Laplacian of (V, F), called only when ``auto`` needs it
+    (the caller's own, which caches it; built here when None).
     """
     if operators not in OPERATORS:
         raise ValueError(f"unknown operators {operators!r}")
     if operators == "auto":
         angle = angles(V, F)
-        if not (_sliver_share(angle) >= SLIVER_SHARE or angle.min(initial=np.pi) < POISSON_NEEDLE_ANGLE):
+        if not (_sliver_share(angle) >= SLIVER_SHARE or angle.min(initial=np.pi) < POISSON_NEEDLE_ANGLE
+                or negative_weight_share(cotan_laplacian(V, F) if cotan is None else cotan())
+                >= NEGATIVE_WEIGHT_SHARE):
             return None
     if operators in ("auto", "intrinsic"):
         return intrinsic_delaunay_mesh(V, F, boundary_negatives=True)

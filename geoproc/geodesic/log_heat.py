@@ -105,7 +105,9 @@ class LogHeatSolver:
         :func:`~geoproc.geodesic.operators.intrinsic_delaunay_laplacian`,
         whose weights are non-negative). ``auto``: intrinsic when at least
         :data:`~geoproc.geodesic.intrinsic.SLIVER_SHARE` of the faces have a
-        corner angle below :data:`~geoproc.geodesic.intrinsic.SLIVER_ANGLE_DEG`.
+        corner angle below :data:`~geoproc.geodesic.intrinsic.SLIVER_ANGLE_DEG`,
+        or at least :data:`~geoproc.geodesic.intrinsic.NEGATIVE_WEIGHT_SHARE`
+        of the cotan Laplacian's off-diagonal weight is negative.
         The choice made is in ``self.operators``.
     """
 
