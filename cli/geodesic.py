@@ -107,7 +107,8 @@ def geodesic(
                          "divergence and Poisson Laplacian on the mesh (extrinsic), on its intrinsic Delaunay "
                          "triangulation (intrinsic: no sliver triangles; the heat step then uses its Laplacian "
                          "too), or auto: intrinsic when at least 0.5% of the faces have an angle below 5 "
-                         "degrees or any face an angle below 1e-6 rad. Default: auto.",
+                         "degrees, any face an angle below 1e-6 rad, or at least 5% of the cotan Laplacian's "
+                         "off-diagonal weight is negative (obtuse non-Delaunay triangles). Default: auto.",
                          show_default=False)] = None,
     solver: Annotated[Solver, typer.Option("--solver", help="log-ode solver: lu (log-space LU, fast), "
                       "newton, or cvxpy (Clarabel; reference, slow).")] = Solver.lu,
@@ -191,7 +192,8 @@ def geodesic(
             run.params["laplacian"] = "intrinsic-delaunay"
         if laplacian is not None and res.stats.get("operators") == "intrinsic":  # auto chose intrinsic
             run.note(f"--laplacian {laplacian.value} not used: --operators auto chose the intrinsic operators "
-                     "on this mesh (slivers); give --operators extrinsic to use it")
+                     "on this mesh (slivers or strongly non-Delaunay triangles); give --operators extrinsic "
+                     "to use it")
         for key in ("zero_heat_vertices", "log_heat_below_double"):
             if res.stats.get(key):
                 what = "heat u underflowed to 0" if key == "zero_heat_vertices" else "exp(log u) < 5e-324"
