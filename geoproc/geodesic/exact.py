@@ -77,8 +77,10 @@ def call_in_child(fn, *args):
             kind, value = recv.recv()
         except EOFError:
             child.join()
-            raise RuntimeError(
-                f"the computation's process stopped without a result (exit code {child.exitcode})") from None
+            code = child.exitcode
+            how = (f"was killed by {signal.Signals(-code).name}" if code is not None and code < 0
+                   else f"exited with code {code}")
+            raise RuntimeError(f"the computation's process {how} without a result") from None
     finally:
         if child.is_alive():
             child.kill()
