@@ -57,9 +57,10 @@ class Reference(StrEnum):
     exact = "exact"
 
 
-def read_sources_file(path: str, data: bytes | None = None) -> list[int]:
+def read_sources_file(path: str, data: bytes | None = None) -> list[tuple[int, int]]:
     """Vertex indices from a text file (or its content ``data``): integers
-    separated by spaces, commas or newlines; ``#`` starts a comment."""
+    separated by spaces, commas or newlines; ``#`` starts a comment. Returns
+    (index, line number) pairs, so that an index out of range names its line."""
     if data is None:
         data = read_input_bytes(path, "file of source indices")
     # a BOM some editors write goes; bytes that are not UTF-8 show as \xNN in an error
@@ -72,7 +73,7 @@ def read_sources_file(path: str, data: bytes | None = None) -> list[int]:
             if not re.fullmatch(r"[+-]?[0-9]+", tok):  # ASCII digits only (no 1_0, no other scripts)
                 shown = "".join(c if " " <= c <= "~" else ascii(c)[1:-1] for c in tok)  # non-ASCII escaped
                 raise InputError(path, f"line {lineno}: '{shown}' is not a vertex index")
-            out.append(int(tok))
+            out.append((int(tok), lineno))
     if not out:
         raise InputError(path, "no vertex indices in the file")
     return out
@@ -159,7 +160,12 @@ def geodesic(
         m = run.load_mesh(mesh, clean=not no_clean)
         srcs = list(source or [])
         if sources_file is not None:  # after the mesh: a second '-' is then the one refused
-            srcs += run.read_input(sources_file, read_sources_file, "file of source indices")
+            listed = run.read_input(sources_file, read_sources_file, "file of source indices")
+            for i, lineno in listed:
+                if not 0 <= i < len(m.V):
+                    raise InputError(sources_file, f"line {lineno}: source vertex {i} is out of range "
+                                                   f"(the mesh {m.log.path or mesh} has {len(m.V)} vertices)")
+            srcs += [i for i, _ in listed]
         if m.log.merged_vertices or m.log.removed_unreferenced:
             run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
         # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read

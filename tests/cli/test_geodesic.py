@@ -83,6 +83,16 @@ def test_a_bad_token_in_the_sources_file_is_shown_in_ascii(cli, fixture_dir, tmp
     assert p.stderr.isascii() or "s.txt" not in p.stderr
 
 
+def test_a_source_out_of_range_in_the_sources_file_names_its_line(cli, fixture_dir, tmp_path):
+    # it had been reported against the mesh, with no line
+    sf = tmp_path / "s.txt"
+    sf.write_text("0 1\n# far\n5, 441\n")
+    p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", sf, "-o", tmp_path / "o.ply")
+    assert p.returncode == 2 and not (tmp_path / "o.ply").exists()
+    assert p.stderr.strip() == (f"error: {sf}: line 3: source vertex 441 is out of range (the mesh "
+                                f"{fixture_dir / 'grid.ply'} has 441 vertices)")
+
+
 def test_a_source_given_twice_counts_once(cli, fixture_dir, tmp_path):
     rep = tmp_path / "r.json"
     p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "-s", "0", "-s", "440", "-m", "exact",
