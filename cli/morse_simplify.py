@@ -179,7 +179,8 @@ def morse_simplify(
                      "on the barycentric subdivision)")
         if barycentric:
             carried = {k: subdivision_values(res, m.F, v) for k, v in m.vertex_fields.items()}  # interpolated
-            run.refresh_normals(res.V, res.F, carried)  # interpolated normals are neither unit nor the surface's
+            if name not in ("nx", "ny", "nz"):  # (a normal component simplified as the field stays the field)
+                run.refresh_normals(res.V, res.F, carried)  # interpolated normals are neither unit nor the surface's
             out = Mesh(res.V, res.F, {**carried, name: g, f"{name}_original": summary.f_ref,
                                       "cell_dim": res.dim.astype(np.float64)},
                        {k: np.repeat(v, 6, axis=0) for k, v in m.face_fields.items()})  # 6 per input face

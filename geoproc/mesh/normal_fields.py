@@ -14,20 +14,33 @@ NORMAL_FIELDS = ("nx", "ny", "nz")
 def stored_vertex_normals(V: np.ndarray, F: np.ndarray, stored: np.ndarray) -> np.ndarray:
     """(n, 3) area-weighted unit vertex normals of the triangles F (m, 3) at the
     positions V (n, 3), and ``stored`` itself at vertices no face of nonzero
-    area uses. They follow the faces' orientation, all turned round when most
-    of the ``stored`` normals (n, 3) they replace point the other way (a file
-    whose normals face inwards keeps them inwards); a vertex whose faces the
-    noise folded over gets its new normal, not its old side."""
-    C = face_cross_products(V, F)  # length twice the area: area weights
+    area uses.
+
+    The faces are first turned to agree with their neighbours (a face stored
+    the other way round would cancel its neighbours' normals: on a bunny with
+    30 % of its faces so stored, 583 of the 3,485 normals came out more than
+    90 degrees off), and each connected part then points to the side most of
+    its ``stored`` normals (n, 3) point to (a file whose normals face inwards
+    keeps them inwards, part by part); a vertex whose faces the noise folded
+    over gets its new normal, not its old side.
+    """
+    from geoproc.mesh.orientation import consistent_orientation
+    from geoproc.mesh.topology import vertex_components
+
+    Fo, _ = consistent_orientation(F)
+    C = face_cross_products(V, Fo)  # length twice the area: area weights
     S = np.zeros((len(V), 3))
     for k in range(3):
-        np.add.at(S, F[:, k], C)
+        np.add.at(S, Fo[:, k], C)
     length = row_norms(S)
     good = length > 0
     N = np.array(stored, dtype=np.float64, copy=True)
     N[good] = S[good] / length[good, None]
-    if np.einsum("ij,ij->", S[good], stored[good]) < 0:
-        N[good] = -N[good]
+    count, part = vertex_components(Fo, len(V))
+    used = good & (part >= 0)
+    agree = np.bincount(part[used], weights=np.einsum("ij,ij->i", S[used], stored[used]), minlength=count)
+    flip = used & (agree[np.maximum(part, 0)] < 0)
+    N[flip] = -N[flip]
     return N
 
 

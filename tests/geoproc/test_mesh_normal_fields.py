@@ -44,3 +44,23 @@ def test_refresh_changes_only_normal_fields_of_meshes_and_frames(make_fixtures):
     cloud = {"nx": np.zeros(len(V)), "ny": np.zeros(len(V)), "nz": np.ones(len(V))}
     assert not refresh_normal_fields(V, np.zeros((0, 3), dtype=np.int64), cloud)
     assert not refresh_normal_fields(V, F, {"nx": np.zeros(len(V))})
+
+
+def test_faces_stored_either_way_round_and_parts_facing_either_side(make_fixtures):
+    # a sphere with 30 % of its faces stored the other way round, and a second sphere whose
+    # faces and stored normals all face inwards: summing the raw faces cancelled normals
+    # (583 of a bunny's 3,485 came out more than 90 degrees off), and one sign for the whole
+    # mesh turned the inward part's normals outwards
+    V, F = make_fixtures.icosphere(2)
+    R = V / np.linalg.norm(V, axis=1, keepdims=True)
+    rng = np.random.default_rng(0)
+    mixed = F.copy()
+    turn = rng.random(len(F)) < 0.3
+    mixed[turn] = mixed[turn][:, ::-1]
+    V2 = np.vstack([V, V + [5.0, 0.0, 0.0]])
+    F2 = np.vstack([mixed, F[:, ::-1] + len(V)])
+    stored = np.vstack([R, -R]) + 0.2 * rng.standard_normal((2 * len(V), 3))  # roughly right
+    N = stored_vertex_normals(V2, F2, stored)
+    cos_out = np.einsum("ij,ij->i", N[: len(V)], R)
+    cos_in = np.einsum("ij,ij->i", N[len(V):], -R)
+    assert cos_out.min() > 0.99 and cos_in.min() > 0.99
