@@ -32,8 +32,13 @@ def _quiet_c_stderr():
     the block runs (libpng prints its own ``libpng error: ...`` line before
     OpenImageIO reports a damaged PNG; the error is reported once, as the
     input's one line)."""
-    sys.stderr.flush()
-    saved = os.dup(2)
+    if sys.stderr is not None:
+        sys.stderr.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:  # no standard error to keep clean (closed at start)
+        yield
+        return
     try:
         with tempfile.TemporaryFile() as scratch:
             os.dup2(scratch.fileno(), 2)
@@ -61,7 +66,9 @@ def read_mask(path: str) -> np.ndarray:
                                       f"(no reader for {repr(ext) + ' files' if ext else 'a file without extension'})")
         raise InputError(path, f"cannot read image: {message}")
     if buf.has_error or pixels is None or pixels.size == 0:
-        raise InputError(path, "cannot read image pixels")
+        # fetch the error: a buffer destroyed with one pending prints it on standard output
+        pending = buf.geterror().strip().splitlines() if buf.has_error else []
+        raise InputError(path, "cannot read image pixels" + (f": {pending[0]}" if pending else ""))
     pixels = np.asarray(pixels)
     if pixels.ndim == 4:  # volume images: first slice
         pixels = pixels[0]

@@ -151,6 +151,7 @@ def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, do
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), p.stderr
     assert message in lines[0], lines[0]
+    assert p.stdout == b""  # (OpenImageIO printed a truncated PNG's pending error there)
     assert not out.exists() and not (tmp_path / "r.json").exists() and not (tmp_path / "e.png").exists()
 
 
@@ -218,6 +219,18 @@ def test_naive_reports_no_fit_parameters(cli, inputs, tmp_path):
     params = json.loads(rep.read_text())["params"]
     assert params["method"] == "naive"
     assert all(params[k] is None for k in ("kernels", "fit_walks", "fit_points", "ridge"))
+
+
+def test_a_mask_is_read_with_standard_error_closed(inputs, tmp_path):
+    # the libpng guard redirected descriptor 2 and failed (exit 3) when there was none
+    import subprocess
+    import sys
+
+    out = tmp_path / "u.exr"
+    cmd = [sys.executable, "-m", "geoproc_cli.main", "wos-solve", str(inputs / "mask.png"), "--boundary",
+           "(x-32)/24", "--walks", "2", "--grid", "8", "-o", str(out)]
+    p = subprocess.run(["bash", "-c", '"$@" 2>&-', "run", *cmd], capture_output=False, stdout=subprocess.DEVNULL)
+    assert p.returncode == 0 and out.exists()
 
 
 def test_an_epsilon_large_for_the_domain_is_noted(cli, tmp_path):
