@@ -63,10 +63,12 @@ def call_in_child(fn, *args):
     while the child works, this process waits in a system call, so a signal
     handler that raises (Ctrl-C, SIGTERM) runs at once, and the child is killed
     on the way out. The child dies with this process (Linux) and on the
-    signals itself. Where fork is not available, ``fn`` runs here.
+    signals itself. Where fork is not available, or in a daemonic process (a
+    ``multiprocessing.Pool`` worker, which may not start children), ``fn``
+    runs here.
     """
-    if "fork" not in multiprocessing.get_all_start_methods():
-        return fn(*args)
+    if "fork" not in multiprocessing.get_all_start_methods() or multiprocessing.current_process().daemon:
+        return fn(*args)  # (a daemonic process, as a Pool worker, may not start children)
     ctx = multiprocessing.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
     child = ctx.Process(target=_child_main, args=(send, os.getpid(), fn, args), daemon=True)

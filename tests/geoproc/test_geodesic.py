@@ -99,6 +99,18 @@ def test_exact_stops_at_once_when_a_signal_handler_raises():
     assert multiprocessing.active_children() == []
 
 
+def test_exact_runs_in_a_pool_worker(make_fixtures):
+    # a daemonic process (a multiprocessing.Pool worker) may not start children: the call
+    # runs in the worker itself (it had raised 'daemonic processes are not allowed to have
+    # children')
+    import multiprocessing
+
+    V, F = make_fixtures.grid()
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        d = pool.apply(gd.exact_geodesic_distance, (V, F, np.array([0])))
+    assert np.array_equal(d, gd.exact_geodesic_distance(V, F, np.array([0])))
+
+
 def test_call_in_child_passes_results_and_errors_back():
     import os
 
