@@ -87,6 +87,9 @@ def sniff_format(data: bytes, path: str = "-") -> str:
     # would declare over 500 million triangles, so no text file passes it
     if _binary_stl_triangles(data) is not None:
         return "stl"
+    if data.startswith(b"PK\x03\x04"):  # a zip archive: an animation's .npz (its bytes can read as OBJ)
+        raise InputError(path, "looks like a .npz animation; animations are read from a file or folder, "
+                               "not from standard input")
     if data.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark
         data = data[3:]
     head = re.sub(rb"^(\s*#[^\n]*\n)+", b"", data[:4096]).lstrip()  # OFF and OBJ allow leading comments
@@ -101,9 +104,6 @@ def sniff_format(data: bytes, path: str = "-") -> str:
         return "stl"
     if re.search(rb"^[ \t]*(v|vt|vn|vp|f|l|o|g|s|usemtl|mtllib)[ \t]", data[:65536], flags=re.M):
         return "obj"
-    if data.startswith(b"PK\x03\x04"):  # a zip archive: an animation's .npz
-        raise InputError(path, "looks like a .npz animation; animations are read from a file or folder, "
-                               "not from standard input")
     raise InputError(path, "cannot tell the mesh format of the data (not PLY, OFF, STL or OBJ)")
 
 

@@ -258,6 +258,14 @@ def test_out_of_range_in_ply_and_off(tmp_path):
         load_mesh(tmp_path / "o.off")
 
 
+def test_a_zip_archive_on_standard_input_is_named_as_an_animation():
+    # an .npz's bytes can match the OBJ test ('v ' at a line start): the zip signature comes first
+    from geoproc.errors import InputError
+
+    with pytest.raises(InputError, match="looks like a .npz animation"):
+        sniff_format(b"PK\x03\x04garbage\nv 1 2 3\nf 1 2 3\n")
+
+
 @pytest.mark.parametrize("fmt", ["ply", "obj", "off", "stl"])
 def test_sniffing_standard_input(sphere, fmt):
     data = mesh_to_bytes(sphere, fmt)
