@@ -13,6 +13,7 @@ from geoproc.errors import UsageError
 
 _OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "<": operator.lt, ">": operator.gt}
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")  # ASCII, finite
+_SPLIT_OPERATOR = re.compile(r"^\s*[A-Za-z_][A-Za-z0-9_.]*\s*([<>=])\s+=\s*\S+\s*$")
 _PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.]*)\s*(<=|>=|==|<|>)\s*(\S*)\s*$")
 
 
@@ -33,6 +34,9 @@ class Check:
 def parse_check(text: str) -> Check:
     """Parse ``'name<=value'`` (operators <=, <, >=, >, ==); UsageError if malformed."""
     m = _PATTERN.match(text)
+    split = _SPLIT_OPERATOR.match(text)
+    if not m and split and split.group(1) + "=" in _OPS:  # 'x < = 1', 'x= =1'
+        raise UsageError(f"--check '{text}': a space splits the operator '{split.group(1)}='; write it without one")
     if not m:
         raise UsageError(
             f"--check '{text}': expected NAME OP NUMBER with OP one of <=, <, >=, >, == "

@@ -148,7 +148,8 @@ def test_check_failures_show_every_digit_and_name_nulls():
     assert evaluate_checks([parse_check("genus==3")], {"genus": 4}) == ["check failed: genus==3 (measured: 4)"]
 
 
-@pytest.mark.parametrize("text,op", [("vertices< =3485", "<="), ("x > =2", ">=")])
+@pytest.mark.parametrize("text,op", [("vertices< =3485", "<="), ("x > =2", ">="), ("x < = 1", "<="),
+                                     ("x= =1", "==")])
 def test_a_space_inside_an_operator_is_named(text, op):
     # 'vertices< =3485' had been refused as an unknown operator '<=', which is a valid one
     with pytest.raises(UsageError) as err:
