@@ -73,6 +73,38 @@ def test_coincident_points_are_scored_once(dfx):
         rpca_outliers(np.repeat(P[:3], 10, axis=0))
 
 
+def test_near_copies_are_scored_once(dfx):
+    # the cloud stored twice, one copy rounded to float32 (1e-5 of a spacing off): the spacing
+    # fell to the rounding and every point was flagged (F1 0.33); then, with the spacing
+    # right but the copies kept apart, every neighbourhood halved in extent (F1 0.78)
+    P, flag = dfx.cloud_with_outliers(10000, 0.1, 0.02)
+    once = rpca_outliers(P)
+    rounded = P.astype(np.float32).astype(np.float64)
+    twice = rpca_outliers(np.vstack([P, rounded]))
+    assert np.array_equal(twice.outlier, np.r_[once.outlier, once.outlier])
+    assert detection_scores(twice.outlier, np.r_[flag, flag])["f1"] > 0.8
+
+
+def test_moving_cloud_stored_twice_scores_as_once(dfx):
+    # copies at distance 0 (or float32 rounding) in the first frame: the spacing had fallen back
+    # to 1 length unit (65 spacings) and nothing was flagged
+    V, flag, _ = dfx.animated_cloud_with_outliers(count=1500, frames=12, sigma=0.3)
+    once = rpca_animation_outliers(V)
+    for copy in (V, V.astype(np.float32).astype(np.float64)):
+        twice = rpca_animation_outliers(np.concatenate([V, copy], axis=1))
+        f1 = detection_scores(twice.outlier, np.concatenate([flag, flag], axis=1) > 0.5)["f1"]
+        assert f1 > detection_scores(once.outlier, flag > 0.5)["f1"] - 0.02 and f1 > 0.85
+
+
+def test_point_spacing_skips_copies():
+    from geoproc.denoise.outliers import point_spacing
+
+    # three points per row: itself, a copy 1e-9 away, then the next point 0.1 away
+    dist = np.array([[0.0, 1e-9, 0.1, 0.2], [0.0, 0.1, 0.15, 0.2], [0.0, 0.0, 0.12, 0.2]])
+    assert point_spacing(dist) == 0.1
+    assert point_spacing(np.zeros((5, 4))) == 1.0  # every point at one place
+
+
 def test_scores_do_not_depend_on_the_point_order(make_fixtures):
     # the torus fixture's regular sampling has equidistant k-th and (k+1)-th neighbours
     # everywhere, which the k-d tree returned in its own order: shuffled, 123 scores
