@@ -120,7 +120,7 @@ def geodesic(
                                           "(letters, digits, _) other than x, y, z.")]
     = "distance",
     render: Annotated[str | None, typer.Option("--render", help="Also draw the mesh colored by distance "
-                      "with isolines into this PNG.", metavar="PNG", show_default=False)] = None,
+                      "with isolines into this PNG (- for stdout).", metavar="PNG", show_default=False)] = None,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,
@@ -152,7 +152,7 @@ def geodesic(
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
         require_ply_output(output, "the distance is a vertex property")
         if render is not None:
-            require_extension(render, ".png", "--render")
+            require_extension(render, ".png", "--render", stdout_ok=True)
         _refuse_unused_options(ctx, m_name, operators.value if operators else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")

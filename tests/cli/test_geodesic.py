@@ -125,6 +125,15 @@ def test_sources_from_stdin_and_all_sources_against_exact(cli, fixture_dir, tmp_
     assert p.returncode == 2 and "geodesic's metric 'method' is text, not a number" in p.stderr
 
 
+def test_render_to_standard_output(cli, fixture_dir, tmp_path):
+    # as morse-simplify's --diagram: --render - had been refused as not ending in .png
+    out = tmp_path / "d.ply"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--render", "-", "-q")
+    assert p.returncode == 0 and p.stdout[:8] == b"\x89PNG\r\n\x1a\n" and out.exists(), p.stderr
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", "-", "--render", "-")
+    assert p.returncode == 2 and p.stdout == b""
+
+
 def test_render_writes_a_png(cli, fixture_dir, tmp_path):
     out, png = tmp_path / "d.ply", tmp_path / "d.png"
     p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--render", png)
@@ -295,7 +304,7 @@ BAD = [
     (["--sources-file", "-", "-s", "0"], "-", "standard input can feed only one input"),
     (["-s", "0", "-c", "2", "-t", "0.01"], "grid.ply", "--time-factor and --time: give one"),
     (["-s", "0", "--operators", "intrinsic", "--laplacian", "cotan"], "grid.ply", "not used with --operators intr"),
-    (["-s", "0", "--render", "d.jpg"], "grid.ply", "--render d.jpg: must end in .png"),
+    (["-s", "0", "--render", "d.jpg"], "grid.ply", "--render d.jpg: must end in .png (or be -)"),
 ]
 
 
