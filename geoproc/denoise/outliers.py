@@ -308,8 +308,9 @@ def merged_projections(nb: np.ndarray, idx: np.ndarray, normal: np.ndarray, cent
     # block by block, each added in neighbourhood order (as one bincount would)
     for lo in range(0, len(rows), _PLANE_BLOCK):
         r = rows[lo:lo + _PLANE_BLOCK]
-        off = np.einsum("bkc,bc->bk", nb[r] - center[r, None, :], normal[r])
-        proj = nb[r] - off[..., None] * normal[r, None, :]
+        members = nb[r]
+        off = np.einsum("bkc,bc->bk", members - center[r, None, :], normal[r])
+        proj = members - off[..., None] * normal[r, None, :]
         flat = idx[r].reshape(-1)
         for c in range(3):
             np.add.at(total[:, c], flat, proj[:, :, c].reshape(-1))
