@@ -14,7 +14,7 @@ NORMAL_FIELDS = ("nx", "ny", "nz")
 def stored_vertex_normals(V: np.ndarray, F: np.ndarray, stored: np.ndarray) -> np.ndarray:
     """(n, 3) area-weighted unit vertex normals of the triangles F (m, 3) at the
     positions V (n, 3), and ``stored`` itself at vertices no face of nonzero
-    area uses.
+    area uses; or (T, n, 3) for frames V and ``stored`` of shape (T, n, 3).
 
     The faces are first turned to agree with their neighbours (a face stored
     the other way round would cancel its neighbours' normals: on a bunny with
@@ -22,12 +22,22 @@ def stored_vertex_normals(V: np.ndarray, F: np.ndarray, stored: np.ndarray) -> n
     90 degrees off), and each connected part then points to the side most of
     its ``stored`` normals (n, 3) point to (a file whose normals face inwards
     keeps them inwards, part by part); a vertex whose faces the noise folded
-    over gets its new normal, not its old side.
+    over gets its new normal, not its old side. Frames share the turned faces
+    and the parts, found once.
     """
     from geoproc.mesh.orientation import consistent_orientation
     from geoproc.mesh.topology import vertex_components
 
     Fo, _ = consistent_orientation(F)
+    count, part = vertex_components(Fo, np.shape(V)[-2])
+    if np.ndim(V) == 3:
+        return np.stack([_area_normals(V[t], Fo, count, part, stored[t]) for t in range(len(V))])
+    return _area_normals(V, Fo, count, part, stored)
+
+
+def _area_normals(V, Fo, count, part, stored):
+    """:func:`stored_vertex_normals` of one frame, the faces ``Fo`` turned and
+    ``part`` the connected part of each vertex (-1 where no face uses it)."""
     C = face_cross_products(V, Fo)  # length twice the area: area weights
     S = np.zeros((len(V), 3))
     for k in range(3):
@@ -36,7 +46,6 @@ def stored_vertex_normals(V: np.ndarray, F: np.ndarray, stored: np.ndarray) -> n
     good = length > 0
     N = np.array(stored, dtype=np.float64, copy=True)
     N[good] = S[good] / length[good, None]
-    count, part = vertex_components(Fo, len(V))
     used = good & (part >= 0)
     agree = np.bincount(part[used], weights=np.einsum("ij,ij->i", S[used], stored[used]), minlength=count)
     flip = used & (agree[np.maximum(part, 0)] < 0)
@@ -56,11 +65,7 @@ def refresh_normal_fields(V: np.ndarray, F: np.ndarray, fields: dict) -> bool:
     stored = np.stack([np.asarray(fields[name], dtype=np.float64) for name in NORMAL_FIELDS], axis=-1)
     if stored.shape != np.shape(V):
         return False
-    F = np.asarray(F, dtype=np.int64)
-    if stored.ndim == 3:
-        N = np.stack([stored_vertex_normals(V[t], F, stored[t]) for t in range(len(V))])
-    else:
-        N = stored_vertex_normals(V, F, stored)
+    N = stored_vertex_normals(V, np.asarray(F, dtype=np.int64), stored)
     for k, name in enumerate(NORMAL_FIELDS):
         fields[name] = np.ascontiguousarray(N[..., k])
     return True
