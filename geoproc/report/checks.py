@@ -33,10 +33,10 @@ class Check:
 
 def parse_check(text: str) -> Check:
     """Parse ``'name<=value'`` (operators <=, <, >=, >, ==); UsageError if malformed."""
-    m = _PATTERN.match(text)
     split = _SPLIT_OPERATOR.match(text)
-    if not m and split and split.group(1) + "=" in _OPS:  # 'x < = 1', 'x= =1'
+    if split and split.group(1) + "=" in _OPS:  # 'x< =1', 'x < = 1', 'x= =1'
         raise UsageError(f"--check '{text}': a space splits the operator '{split.group(1)}='; write it without one")
+    m = _PATTERN.match(text)
     if not m:
         raise UsageError(
             f"--check '{text}': expected NAME OP NUMBER with OP one of <=, <, >=, >, == "
@@ -45,8 +45,6 @@ def parse_check(text: str) -> Check:
     name, op, raw = m.groups()
     if not raw:  # 'x<=' would otherwise read as 'x' < '='
         raise UsageError(f"--check '{text}': no number after '{op}'")
-    if raw[:1] in "<>=!" and op + raw[0] in _OPS:  # 'x< =1': read as '<' and '=1'
-        raise UsageError(f"--check '{text}': a space splits the operator '{op + raw[0]}'; write it without one")
     if raw[:1] in "<>=!":  # 'genus<>1', 'x=<1': an operator not in the list
         raise UsageError(f"--check '{text}': unknown operator '{op}{raw[0]}'; use <=, <, >=, > or ==")
     if not _NUMBER.fullmatch(raw) or not math.isfinite(float(raw)):
