@@ -92,16 +92,20 @@ def inputs(quick: bool):
             out.append((d.name, a.V, a.F, b.V))
     if quick:
         return out
-    cube_V, cube_F = _fixtures("denoise_fixtures").subdivided_cube(16)
-    meshes = [("bunny", *_load(SHARED / "meshes" / "bunny.off")),
-              ("fertility", *_load(SHARED / "meshes" / "fertility.off")),
-              ("fandisk", *_load(SHARED / "meshes" / "fandisk.off")),
-              ("cube", cube_V, cube_F)]
-    for name, V, F in meshes:
+    for name, V, F in perturbed_meshes():
         for sigma in (0.2, 0.3, 0.5):
             Vn, _ = perturb_positions(V, F, NoiseSpec(sigma=sigma), np.random.default_rng(1))
             out.append((f"{name} +{sigma}", Vn, F, V))
     return out
+
+
+def perturbed_meshes():
+    """(name, V, F) of the clean meshes the table perturbs: bunny and fertility
+    (smooth organic), fandisk and the project's subdivided cube (sharp)."""
+    return [("bunny", *_load(SHARED / "meshes" / "bunny.off")),
+            ("fertility", *_load(SHARED / "meshes" / "fertility.off")),
+            ("fandisk", *_load(SHARED / "meshes" / "fandisk.off")),
+            ("cube", *_fixtures("denoise_fixtures").subdivided_cube(16))]
 
 
 def _load(path):
@@ -247,13 +251,9 @@ def seed_sweep(seeds=(2, 3, 4, 5)) -> str:
     """The perturbed shared meshes of the main table on other noise seeds: θ summed
     over the seeds and levels, and the new flips, per mesh (one seed's flips move
     with any change upstream; their sum over seeds does not)."""
-    cube_V, cube_F = _fixtures("denoise_fixtures").subdivided_cube(16)
-    meshes = [("bunny", *_load(SHARED / "meshes" / "bunny.off")),
-              ("fertility", *_load(SHARED / "meshes" / "fertility.off")),
-              ("fandisk", *_load(SHARED / "meshes" / "fandisk.off")), ("cube", cube_V, cube_F)]
     rows = [f"| mesh | runs (σ 0.2 / 0.3 / 0.5, seeds {', '.join(map(str, seeds))}) | θ° summed | new flips |",
             "|---|---:|---:|---:|"]
-    for name, V, F in meshes:
+    for name, V, F in perturbed_meshes():
         theta = flips = runs = 0
         for sigma in (0.2, 0.3, 0.5):
             for seed in seeds:
