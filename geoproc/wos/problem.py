@@ -34,6 +34,8 @@ _EMPTY1 = np.zeros(0)
 _NO_CODE = np.zeros(0, dtype=np.int64)
 _NO_ARCS = np.zeros((0, 2), dtype=np.int64)
 _NO_BOXES = np.zeros((0, 4))
+_NO_CONTROL_VARIATE = (0, _EMPTY2, _EMPTY2, _EMPTY1, _NO_ARCS, _NO_BOXES)
+"""The walk kernels' control-variate arguments (kind, KP, KQ, W, ARC, BOX) for none."""
 
 
 def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
@@ -161,7 +163,7 @@ class WalkProblem:
         """
         X = np.ascontiguousarray(X, dtype=np.float64)
         if kernels is None:
-            ckind, KP, KQ, W, ARC, BOX = 0, _EMPTY2, _EMPTY2, _EMPTY1, _NO_ARCS, _NO_BOXES
+            ckind, KP, KQ, W, ARC, BOX = _NO_CONTROL_VARIATE
         else:
             ckind, KP, KQ, W = kernels.kind, kernels.P, kernels.Q, kernels.weights(sigma)
             ARC, BOX = kernels.arcs, kernels.boxes
@@ -179,7 +181,7 @@ class WalkProblem:
         been, and the first run's steps per second read 3.0M for 11.7M)."""
         X = np.ascontiguousarray(X[:1], dtype=np.float64)
         for serial in (True, False):
-            self._run(X, 1, pass_seed(0, 0), 0, 0, _EMPTY2, _EMPTY2, _EMPTY1, _NO_ARCS, _NO_BOXES, serial=serial)
+            self._run(X, 1, pass_seed(0, 0), 0, *_NO_CONTROL_VARIATE, serial=serial)
 
     def _run(self, X, walks, stream_seed, index0, ckind, KP, KQ, W, ARC, BOX, serial):
         """The walk kernel on X: the one-thread version when ``serial``, else the parallel one."""
