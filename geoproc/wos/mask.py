@@ -10,14 +10,12 @@ covers ``[col, col+1] x [H-row-1, H-row]``.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import sys
-import tempfile
 
 import contourpy
 import numpy as np
 
+from geoproc.c_output import c_stderr_silenced
 from geoproc.errors import InputError
 from geoproc.wos.domain import Domain, build_domain
 
@@ -26,35 +24,11 @@ class NoImageReader(InputError):
     """The file is in no format OpenImageIO has a reader for."""
 
 
-@contextlib.contextmanager
-def _quiet_c_stderr():
-    """Send what C libraries write to file descriptor 2 to a scratch file while
-    the block runs (libpng prints its own ``libpng error: ...`` line before
-    OpenImageIO reports a damaged PNG; the error is reported once, as the
-    input's one line)."""
-    if sys.stderr is not None:
-        sys.stderr.flush()
-    try:
-        saved = os.dup(2)
-    except OSError:  # no standard error to keep clean (closed at start)
-        yield
-        return
-    try:
-        with tempfile.TemporaryFile() as scratch:
-            os.dup2(scratch.fileno(), 2)
-            try:
-                yield
-            finally:
-                os.dup2(saved, 2)
-    finally:
-        os.close(saved)
-
-
 def read_mask(path: str) -> np.ndarray:
     """Read an image through OpenImageIO; return (H, W) bool foreground."""
     import OpenImageIO as oiio
 
-    with _quiet_c_stderr():
+    with c_stderr_silenced():
         buf = oiio.ImageBuf(path)
         opened = not buf.has_error
         pixels = buf.get_pixels(oiio.FLOAT) if opened else None
