@@ -98,10 +98,18 @@ def _fail(message: str, code: int) -> typer.Exit:
     return typer.Exit(code)
 
 
-LOAD_METRICS = ("input_vertices", "input_faces", "triangulated_polygons", "merged_vertices",
-                "removed_unreferenced_vertices")
+_LOAD_LOG_FIELDS = {"input_vertices": "stored_vertices", "input_faces": "stored_faces",
+                    "triangulated_polygons": "triangulated_polygons", "merged_vertices": "merged_vertices",
+                    "removed_unreferenced_vertices": "removed_unreferenced"}
+LOAD_METRICS = tuple(_LOAD_LOG_FIELDS)
 """The metrics of every run that loads a mesh: what was stored in the file and
 what loading changed (:meth:`Run.note_load`)."""
+
+
+def load_summary(log) -> dict:
+    """A mesh's load log as a dict, its counts named as the report's :data:`LOAD_METRICS`."""
+    names = {field: metric for metric, field in _LOAD_LOG_FIELDS.items()}
+    return {names.get(k, k): v for k, v in log.as_dict().items()}
 
 
 def _interruption(exc: BaseException) -> KeyboardInterrupt | None:
@@ -215,9 +223,8 @@ class Run:
     def note_load(self, mesh: Mesh) -> None:
         """Put the read/clean-up log into the metrics (:data:`LOAD_METRICS`) and tell the user on stderr."""
         log = mesh.log
-        counts = (log.stored_vertices, log.stored_faces, log.triangulated_polygons, log.merged_vertices,
-                  log.removed_unreferenced)
-        self.metrics.update(zip(LOAD_METRICS, counts, strict=True))
+        summary = load_summary(log)
+        self.metrics.update({k: summary[k] for k in LOAD_METRICS})
         notes = []
         if log.triangulated_polygons:
             notes.append(f"triangulated {log.triangulated_polygons} polygons")

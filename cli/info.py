@@ -18,6 +18,7 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    load_summary,
     metrics_epilog,
     stdout,
 )
@@ -59,7 +60,7 @@ def info(
 
         with run.timer("compute"):
             summary = mesh_info(m)
-        summary["load"] = m.log.as_dict()
+        summary["load"] = load_summary(m.log)
         run.metrics.update({k: v for k, v in summary.items() if not isinstance(v, list | dict)})
         if as_json:
             run.write_stdout((json.dumps(json_safe(summary), indent=2) + "\n").encode())

@@ -246,7 +246,11 @@ def test_notes_go_to_stderr_and_quiet_silences_them(cli, tmp_path):
     assert p.returncode == 0 and p.stderr.splitlines() == [
         f"note: {path}: merged 1 coincident vertices, dropped 1 unreferenced vertices "
         "(--no-clean keeps the mesh as stored)"]
-    assert json.loads(p.stdout)["vertices"] == 4
+    info = json.loads(p.stdout)
+    assert info["vertices"] == 4
+    load = {k: info["load"][k] for k in ("input_vertices", "input_faces", "merged_vertices",
+                                         "removed_unreferenced_vertices")}  # the report's names
+    assert load == {"input_vertices": 6, "input_faces": 2, "merged_vertices": 1, "removed_unreferenced_vertices": 1}
     q = cli("info", path, "--json", "--quiet")
     assert q.stderr == "" and json.loads(q.stdout)["vertices"] == 4
     raw = cli("info", path, "--json", "--no-clean", "--quiet")
