@@ -51,6 +51,29 @@ def randomized_svd(X: np.ndarray, k: int, oversample: int = 10, power: int = 2,
     return (Q @ U)[:, :k], s[:k], Vt[:k]
 
 
+PARTIAL_SVD_SHARE = 0.2
+"""A randomized partial SVD is used while the singular values kept are at most
+this share of a matrix's smaller side; past it the full SVD is faster."""
+
+
+def _partial_svt(X: np.ndarray, tau: float, k: int, seed: int) -> tuple[np.ndarray, int] | None:
+    """Singular value thresholding of one (p, q) matrix by randomized partial SVDs.
+
+    Starts from the ``k`` leading singular triplets and doubles ``k`` until one
+    of them falls at or below ``tau``, so that no singular value above ``tau``
+    is missed. Returns ``(P, kept)``, or None once ``k`` passes
+    :data:`PARTIAL_SVD_SHARE` of ``min(p, q)``.
+    """
+    limit = PARTIAL_SVD_SHARE * min(X.shape)
+    while k <= limit:
+        U, s, Vt = randomized_svd(X, k, seed=seed)
+        keep = int((s > tau).sum())
+        if keep < k:
+            return (U[:, :keep] * (s[:keep] - tau)) @ Vt[:keep], keep
+        k *= 2
+    return None
+
+
 def svt(X: np.ndarray, tau) -> np.ndarray:
     """Singular value thresholding ``U max(Sigma - tau, 0) V^T`` (the nuclear-norm
     proximal map) of a (b, p, q) stack of matrices, one ``tau`` per matrix.
@@ -182,14 +205,14 @@ def rpca(
     it = 0
     for it in range(1, max_iter + 1):
         T = Db - S + Y / mu[:, None, None]
-        if partial:
-            k = min(sv, min(p, q))
-            U, s, Vt = randomized_svd(T[0], k, seed=it)
-            keep = int((s > 1.0 / mu[0]).sum())
-            sv = min(keep + 1, min(p, q)) if keep < sv else min(keep + max(1, round(0.05 * min(p, q))), min(p, q))
-            P = ((U[:, :keep] * (s[:keep] - 1.0 / mu[0])) @ Vt[:keep])[None]
-        else:
+        thresholded = _partial_svt(T[0], 1.0 / mu[0], sv, it) if partial else None
+        if thresholded is None:
+            partial = False  # the rank kept has grown past the share where a partial SVD pays
             P = svt(T, 1.0 / mu)
+        else:
+            P, keep = thresholded
+            P = P[None]
+            sv = keep + 1 if keep < sv else keep + max(1, round(0.05 * min(p, q)))
         S = shrink(Db - P + Y / mu[:, None, None], (lam / mu)[:, None, None])
         Z = Db - P - S
         Y = Y + mu[:, None, None] * Z
