@@ -13,12 +13,23 @@ import scipy.sparse as sp
 from geoproc.mesh.topology import face_cross_products, row_norms, unique_edges
 
 
+DEGENERATE_SINE = 1e-10
+"""A face whose angle at its first corner has a smaller sine is degenerate for
+its normal (:func:`face_normals_and_areas`): its cross product is then at most
+1e-10 of the product of the two sides from that corner, and rounding error of
+about 1e-16 of it turns the normal by up to 1e-6 radians there."""
+
+
 def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit face normals and face areas, never NaN.
 
-    A zero-area face gets the area-weighted mean normal of the faces sharing a
-    vertex with it (or +z when all of those have zero area too), so that every
-    later step sees finite unit vectors; its area stays 0, so it carries no weight.
+    A degenerate face gets the area-weighted mean normal of the faces sharing a
+    vertex with it (or +z when all of those are degenerate too), so that every
+    later step sees finite unit vectors; its area stays as computed (0 or
+    rounding error), so it carries no weight. Degenerate: zero area, or a sine
+    of the angle at its first corner below :data:`DEGENERATE_SINE` (a midpoint
+    of an edge stored as a third corner gives an area of rounding error, whose
+    cross product points anywhere).
 
     Returns
     -------
@@ -30,7 +41,9 @@ def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
     cross = face_cross_products(V, F)
     length = row_norms(cross)
     A = 0.5 * length
-    good = length > 0
+    P0 = V[F[:, 0]]
+    sides = row_norms(V[F[:, 1]] - P0) * row_norms(V[F[:, 2]] - P0)
+    good = length > DEGENERATE_SINE * sides
     N = np.zeros_like(cross)
     N[good] = cross[good] / length[good, None]
     if not good.all():

@@ -160,6 +160,37 @@ def test_zero_area_faces_give_finite_output(fixture_dir):
     assert np.isfinite(res.V).all() and np.isfinite(res.normals).all()
 
 
+def test_a_face_on_an_edge_midpoint_takes_its_neighbours_normal(make_fixtures):
+    # a T-junction filled by the face (a, b, m), m the midpoint of a and b: its area is
+    # rounding error and its cross product points anywhere; the reference metrics had
+    # counted such faces as flipped
+    V, F = make_fixtures.grid()
+    R = np.linalg.qr(np.random.default_rng(3).standard_normal((3, 3)))[0]
+    V = V @ R.T * np.sqrt(2)  # a turned plane, so that the midpoints round
+    enb = face_edge_neighbors(F)
+    split = [f for f in range(0, len(F), 7) if (enb[f] >= 0).all()][:10]
+    Vs, Fs = [V], [F]
+    for f in split:
+        a, b, c = F[f]
+        m = len(np.concatenate(Vs))
+        Vs.append(((V[a] + V[b]) / 2)[None])
+        Fs[0] = np.where(np.arange(len(F))[:, None] == f, [a, m, c], Fs[0])
+        Fs.append(np.array([[m, b, c], [a, b, m]]))
+    V2, F2 = np.concatenate(Vs), np.concatenate(Fs)
+    N, A = face_normals_and_areas(V2, F2)
+    sliver = np.arange(len(F) + 1, len(F2), 2)
+    assert 0 < A[sliver].max() < 1e-12 * A.mean()  # rounding error, not zero
+    plane = R @ [0.0, 0.0, 1.0]
+    assert np.degrees(np.arccos(np.clip(N[sliver] @ plane, -1, 1))).max() < 1e-6
+    # the same mesh with its midpoints rounded another way: no face is off
+    other = V2.copy()
+    for k, f in enumerate(split):
+        a, b = F[f, :2]
+        other[len(V) + k] = V[a] + (V[b] - V[a]) / 2
+    err = denoise_errors(other, F2, V2)
+    assert err["max_normal_angle_deg"] < 1e-5 and err["flipped_faces"] == 0
+
+
 def test_pinned_boundary_does_not_move(make_fixtures):
     V, F = make_fixtures.grid()
     rng = np.random.default_rng(1)
