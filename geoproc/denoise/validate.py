@@ -16,6 +16,12 @@ def require_denoisable(F: np.ndarray, path: str | None) -> None:
     require_edge_manifold(F, path, "; denoising needs at most two faces per edge")
 
 
+CORNER_ORDERS = ((0, 1, 2), (0, 2, 1), (2, 1, 0), (1, 0, 2), (1, 2, 0), (2, 0, 1))
+"""The orders in which a reference's faces may list their corners, as the
+input's: the same, reversed (a file written with the other winding), or
+turned."""
+
+
 def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np.ndarray,
                              path: str | None) -> np.ndarray:
     """Reference positions numbered as the input's vertices.
@@ -24,6 +30,10 @@ def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np
     same order. Its vertices may be numbered differently (an STL copy of the
     input, whose merged vertices follow the order of first use); they are then
     renumbered to match (:func:`geoproc.mesh.topology.face_list_renumbering`).
+    Its faces may list their corners in another order (:data:`CORNER_ORDERS`,
+    the same for every face: a file written with the other winding); the
+    metrics use the input's faces on the reference positions, so the winding
+    of the reference does not matter.
 
     Parameters
     ----------
@@ -54,10 +64,12 @@ def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np
         if not (face_areas(P[t], F_ref) > 0).any():
             where = f" (frame {t})" if V_ref.ndim == 3 else ""
             raise InputError(path, f"the reference is degenerate{where}: every face has zero area")
-    if np.array_equal(F_ref, F):
-        return V_ref
-    r = face_list_renumbering(F, n, F_ref, n_ref)
-    if r is None:
-        raise InputError(path, f"reference connectivity differs from the input: the same counts ({n} vertices, "
-                         f"{len(F)} faces) but other faces, even with its vertices renumbered")
-    return V_ref[..., r, :]
+    if np.array_equal(np.sort(F_ref, axis=1), np.sort(F, axis=1)):
+        return V_ref  # the same faces, perhaps with other windings: the metrics use the input's
+    for corners in CORNER_ORDERS:
+        r = face_list_renumbering(F, n, F_ref[:, corners], n_ref)
+        if r is not None:
+            return V_ref[..., r, :]
+    raise InputError(path, f"reference connectivity differs from the input: the same counts ({n} vertices, "
+                     f"{len(F)} faces) but other faces, even with its vertices renumbered or its "
+                     "faces' corners reordered")

@@ -34,6 +34,24 @@ def test_given_connectivity_gives_the_same_result_and_must_match(dfx_noisy_cube)
         denoise_mesh(np.vstack([V, V[:1]]), F, connectivity=conn)
 
 
+def test_a_reference_with_the_other_winding_is_matched(dfx_noisy_cube):
+    # a reference written with every face reversed, alone or with its vertices renumbered
+    # (an STL copy), is the same mesh; it had been refused as "other faces"
+    from geoproc.denoise.validate import reference_in_input_order
+
+    _, F, V = dfx_noisy_cube
+    n = len(V)
+    assert np.array_equal(reference_in_input_order(F, n, F[:, ::-1], V, "r.obj"), V)
+    pv = np.random.default_rng(3).permutation(n)
+    inv = np.argsort(pv)
+    for corners in ([0, 2, 1], [2, 1, 0], [1, 2, 0]):
+        assert np.array_equal(reference_in_input_order(F, n, inv[F][:, corners], V[pv], "r.obj"), V)
+    swapped = F.copy()
+    swapped[[0, 1]] = swapped[[1, 0]]
+    with pytest.raises(InputError, match="other faces"):
+        reference_in_input_order(F, n, swapped[:, ::-1], V, "r.obj")
+
+
 def test_non_manifold_faces_are_refused_once():
     F = np.array([[0, 1, 2], [0, 2, 1], [0, 1, 3]])
     with pytest.raises(InputError, match="two faces per edge"):
