@@ -67,7 +67,8 @@ def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n, 3) unit area-weighted vertex normals of a triangle mesh (libigl), its
     faces first oriented consistently (a face stored the other way round would
     cancel its neighbours' normals and tilt the noise sideways); vertices
-    without a usable normal get +z. The sign of each normal is arbitrary."""
+    without a usable normal (no face uses them, or their faces' normals
+    cancel) get a zero row. The sign of each normal is arbitrary."""
     import igl
 
     from geoproc.mesh.orientation import consistent_orientation
@@ -77,7 +78,7 @@ def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     N = igl.per_vertex_normals(V, consistent_orientation(F)[0], igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)
     N = np.asarray(N, dtype=np.float64)
     bad = ~np.isfinite(N).all(axis=1) | (np.linalg.norm(N, axis=1) < 0.5)
-    N[bad] = [0.0, 0.0, 1.0]
+    N[bad] = 0.0
     return N
 
 
@@ -159,6 +160,13 @@ def perturb_positions(
     return out, outlier
 
 
+def _random_directions(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n, 3) unit vectors, uniform on the sphere."""
+    D = rng.standard_normal((n, 3))
+    D /= np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-300)
+    return D
+
+
 def _add_noise(out: np.ndarray, outlier: np.ndarray, V: np.ndarray, F: np.ndarray, spec: NoiseSpec,
                rng: np.random.Generator, scale: float | None = None) -> None:
     """Add ``spec``'s displacements to ``out`` (n, 3) in place and set ``outlier`` (n,)."""
@@ -168,13 +176,15 @@ def _add_noise(out: np.ndarray, outlier: np.ndarray, V: np.ndarray, F: np.ndarra
         if spec.direction == "normal":
             D = vertex_normals(V, F) if len(F) else point_cloud_normals(V)
         else:
-            D = rng.standard_normal((n, 3))
-            D /= np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-300)
+            D = _random_directions(rng, n)
         amount = rng.standard_normal(n) * spec.sigma * scale
         if spec.impulsive > 0:
             chosen = np.zeros(n, dtype=bool)
             chosen[rng.permutation(n)[: int(round(spec.impulsive * n))]] = True
             amount[~chosen] = 0.0
+        none = ~D.any(axis=1)
+        if none.any():  # no normal to move along (drawn last: the other vertices keep their noise)
+            D[none] = _random_directions(rng, int(none.sum()))
         out += D * amount[:, None]
     if spec.outliers > 0:
         diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))

@@ -135,6 +135,21 @@ def test_vertex_normals_of_sphere_are_radial(make_fixtures):
     assert np.array_equal(vertex_normals(V.astype(">f8"), F.astype(">i8")), N)
 
 
+def test_vertices_without_a_normal_move_along_random_directions(make_fixtures):
+    # vertices no face uses (kept by --no-clean) had all moved along +z
+    V, F = make_fixtures.icosphere(2)
+    stray = np.random.default_rng(1).standard_normal((200, 3))
+    W = np.vstack([V, stray])
+    P, _ = perturb_positions(W, F, NoiseSpec(sigma=0.3), np.random.default_rng(2))
+    D = P[len(V):] - stray
+    u = D / np.linalg.norm(D, axis=1, keepdims=True)
+    assert np.abs(u[:, 2]).mean() < 0.7  # uniform directions: 0.5; along z: 1
+    assert abs(np.sqrt((D**2).sum(axis=1).mean()) / noise_scale(W, F) - 0.3) < 0.06
+    # the vertices with normals keep the noise they get without the stray ones
+    Q, _ = perturb_positions(V, F, NoiseSpec(sigma=0.3), np.random.default_rng(2))
+    assert np.array_equal(P[:len(V)], Q)
+
+
 def test_vertex_normals_are_weighted_by_face_area(make_fixtures):
     # the benchmark protocol's noise runs along area-weighted normals: the sum of the
     # incident faces' cross products (twice their area times their unit normal), normalised;
