@@ -21,6 +21,7 @@ Usage: python bench/denoise_features.py
 
 from __future__ import annotations
 
+import argparse
 import importlib.util
 import sys
 import time
@@ -133,6 +134,7 @@ def refine_table() -> str:
 
 
 def main(argv: list[str]) -> int:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)  # --help, and no stray arguments
     if not (SHARED / "denoise").is_dir():
         print(f"shared data not found at {SHARED}; nothing to benchmark")
         return 0

@@ -35,6 +35,7 @@ Usage: python bench/denoise_limits.py  (about two minutes on two cores)
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -254,6 +255,7 @@ def bunny02_schedule_oracle() -> str:
 
 
 def main() -> int:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()  # --help, and no stray arguments
     if not (SHARED / "denoise").is_dir():
         print(f"shared data not found at {SHARED}; nothing to benchmark")
         return 0

@@ -18,6 +18,7 @@ tables of median wall-clock times and ratios to the fastest peer.
 
 from __future__ import annotations
 
+import argparse
 import io
 import statistics
 import sys
@@ -91,6 +92,7 @@ def ply_table() -> None:
 
 
 def main() -> int:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()  # --help, and no stray arguments
     if not SHARED.is_dir():
         print(f"skipped: {SHARED} not found")
         return 0
