@@ -12,7 +12,6 @@ import scipy.sparse as sp
 
 from geoproc.mesh.topology import face_cross_products, row_norms, unique_edges
 
-
 DEGENERATE_SINE = 1e-10
 """A face whose angle at its first corner has a smaller sine is degenerate for
 its normal (:func:`face_normals_and_areas`): its cross product is then at most
