@@ -205,7 +205,7 @@ def _score_distinct_points(P, k, threshold, path, lam, refine_passes, merged=Fal
     dist, idx = tree.query(P, k=k, workers=-1)
     far = float(np.median(dist[:, -1]))
     if not merged and far > 0 and (dist[:, 1] <= COPY_DISTANCE * far).any():
-        keep, group = near_copy_groups(tree, COPY_DISTANCE * far)
+        keep, group = near_copy_groups(idx, dist, COPY_DISTANCE * far)
         res = _score_distinct_points(P[keep], k, threshold, path, lam, refine_passes, merged=True)
         return OutlierResult(score=res.score[group], outlier=res.outlier[group], threshold=res.threshold,
                              refined=res.refined[group])
@@ -250,16 +250,32 @@ def point_spacing(dist: np.ndarray) -> float:
     return float(np.median(dist[np.arange(len(dist)), 1 + first]))
 
 
-def near_copy_groups(tree: cKDTree, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Points of ``tree`` (its n points) linked by chains of pairs closer than
-    ``radius`` form a group. Returns (g,) the index of each group's first point,
-    increasing, and (n,) each point's group (a position in the first array)."""
+def near_copy_groups(idx: np.ndarray, dist: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points linked by chains of neighbour pairs closer than ``radius`` form a group.
+
+    Parameters
+    ----------
+    idx, dist : (n, k) each point's k nearest points (itself first) and their
+        distances, as ``cKDTree.query`` gives them.
+    radius : float, length units.
+
+    Returns
+    -------
+    (g,) the index of each group's first point, increasing, and (n,) each
+    point's group (a position in the first array).
+
+    Only the listed neighbours are linked, so the graph has at most n k edges:
+    all pairs within ``radius`` (``cKDTree.query_pairs``) grow as the square of
+    a clump's size, and a clump of 20,000 near copies in a million points took
+    11.4 GB. A clump of more than k points can then split into a few groups,
+    which are still near copies scored apart, as before this merging.
+    """
     import scipy.sparse as sp
     from scipy.sparse.csgraph import connected_components
 
-    n = tree.n
-    pairs = tree.query_pairs(radius, output_type="ndarray")
-    graph = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    n = len(idx)
+    i, j = np.nonzero(dist <= radius)
+    graph = sp.coo_matrix((np.ones(len(i)), (i, idx[i, j])), shape=(n, n))
     count, label = connected_components(graph, directed=False)
     first = np.full(count, n)
     np.minimum.at(first, label, np.arange(n))

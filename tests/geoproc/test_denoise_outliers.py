@@ -96,6 +96,29 @@ def test_moving_cloud_stored_twice_scores_as_once(dfx):
         assert f1 > detection_scores(once.outlier, flag > 0.5)["f1"] - 0.02 and f1 > 0.85
 
 
+def test_near_copy_groups_link_listed_neighbours_only():
+    # the groups of all pairs within the radius (an independent reference), from the
+    # k nearest neighbours alone: a cloud stored twice (once rounded to float32) and a
+    # clump of 3,000 near copies, whose all-pairs graph has 4.5 million edges
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    from geoproc.denoise.outliers import near_copy_groups
+
+    rng = np.random.default_rng(0)
+    P = rng.random((5000, 3))
+    Q = np.vstack([P, P.astype(np.float32), 0.5 + rng.uniform(-1, 1, (3000, 3)) * 1e-7])
+    tree = cKDTree(Q)
+    dist, idx = tree.query(Q, k=16)
+    radius = 1e-4 * float(np.median(dist[:, -1]))
+    keep, group = near_copy_groups(idx, dist, radius)
+    pairs = tree.query_pairs(radius, output_type="ndarray")
+    count, label = connected_components(sp.coo_matrix((np.ones(len(pairs)), pairs.T), shape=(len(Q),) * 2))
+    assert len(keep) == count == 5001
+    assert np.array_equal(keep[group], [np.flatnonzero(label == label[i])[0] for i in range(len(Q))])
+
+
 def test_point_spacing_skips_copies():
     from geoproc.denoise.outliers import point_spacing
 
