@@ -55,7 +55,7 @@ class Domain:
     source: str = "<domain>"
     traced: bool = False
     part_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    _paths: list = field(default_factory=list, repr=False)
+    _bands: tuple | None = field(default=None, repr=False)
 
     @property
     def n_segments(self) -> int:
@@ -85,13 +85,65 @@ class Domain:
         return bool(self.neumann.any())
 
     def contains(self, P: np.ndarray) -> np.ndarray:
-        """(n,) bool: points ``P`` (n, 2) strictly inside (even-odd rule over the loops)."""
-        if not self._paths:
-            self._paths = [MplPath(L) for L in self.loops]
-        inside = np.zeros(len(P), dtype=bool)
-        for path in self._paths:
-            inside ^= path.contains_points(P)
-        return inside
+        """(n,) bool: points ``P`` (n, 2) inside (even-odd rule over all the
+        segments; points on the boundary may fall either way)."""
+        if self._bands is None:
+            self._bands = segment_bands(self.A, self.B)
+        y0, height, ptr, seg = self._bands
+        P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 2)
+        return _inside_even_odd(P, self.A, self.B, y0, height, ptr, seg)
+
+
+def segment_bands(A: np.ndarray, B: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """The segments ``A[i] -> B[i]`` (S, 2) sorted into horizontal bands of equal
+    height, for :meth:`Domain.contains`: ``(y0, height, ptr, seg)``, band ``b``
+    covering ``[y0 + b height, y0 + (b + 1) height]`` and holding the segments
+    ``seg[ptr[b]:ptr[b + 1]]`` whose y-range meets it.
+
+    About one band per four segments, so that a point meets a few segments of
+    its band plus those that cross it, instead of every segment (matplotlib's
+    test per loop took 100 s for a 256² grid in 1.25 million segments).
+    """
+    S = len(A)
+    lo = np.minimum(A[:, 1], B[:, 1])
+    hi = np.maximum(A[:, 1], B[:, 1])
+    y0, y1 = float(lo.min()), float(hi.max())
+    count = int(min(max(S // 4, 1), 1 << 20))
+    height = (y1 - y0) / count if y1 > y0 else 1.0
+    first = np.clip(((lo - y0) / height).astype(np.int64), 0, count - 1)
+    last = np.clip(((hi - y0) / height).astype(np.int64), 0, count - 1)
+    span = last - first + 1
+    seg = np.repeat(np.arange(S, dtype=np.int64), span)
+    band = np.arange(len(seg), dtype=np.int64) - np.repeat(np.cumsum(span) - span, span) + np.repeat(first, span)
+    order = np.argsort(band, kind="stable")
+    ptr = np.zeros(count + 1, dtype=np.int64)
+    np.cumsum(np.bincount(band, minlength=count), out=ptr[1:])
+    return y0, height, ptr, seg[order]
+
+
+@numba.njit(cache=True, parallel=True)
+def _inside_even_odd(P, A, B, y0, height, ptr, seg):
+    """(n,) bool: an odd number of the segments crossed by the ray from each point
+    of ``P`` towards +x (half-open in y, so a ray through a vertex counts it once)."""
+    n = P.shape[0]
+    count = ptr.shape[0] - 1
+    out = np.zeros(n, dtype=np.bool_)
+    for p in numba.prange(n):
+        px, py = P[p, 0], P[p, 1]
+        b = int(np.floor((py - y0) / height)) if height > 0 else 0
+        if not (py >= y0 and b <= count):  # below or above every segment (or NaN)
+            continue
+        b = min(b, count - 1)
+        odd = False
+        for t in range(ptr[b], ptr[b + 1]):
+            i = seg[t]
+            ay, by = A[i, 1], B[i, 1]
+            if (ay > py) != (by > py):
+                x = A[i, 0] + (py - ay) * (B[i, 0] - A[i, 0]) / (by - ay)
+                if px < x:
+                    odd = not odd
+        out[p] = odd
+    return out
 
 
 def loop_signed_area(L: np.ndarray) -> float:

@@ -154,6 +154,35 @@ def test_many_nested_loops_are_oriented_by_depth():
     assert d.area == pytest.approx(42 * 42 - 400 * (1.5 ** 2 - 0.5 ** 2))
 
 
+def test_contains_matches_matplotlib_per_loop():
+    # the banded even-odd test against matplotlib's point-in-path test, XORed over
+    # the loops (the test it replaced); the grid rows run through the squares'
+    # corners, where the half-open rule counts a vertex once
+    from matplotlib.path import Path
+
+    frame = [[-1, -1], [41, -1], [41, 41], [-1, 41]]
+    loops = [frame]
+    for i in range(20):
+        for j in range(20):
+            x, y = 2 * i, 2 * j
+            loops.append([[x, y], [x + 0.75, y - 0.25], [x + 1.5, y], [x + 1.5, y + 1.5], [x, y + 1.5]])
+            loops.append([[x + .5, y + .5], [x + 1, y + .5], [x + 1, y + 1], [x + .5, y + 1]])
+    d = build_domain(loops)
+    g = np.linspace(-2, 42, 353)
+    rng = np.random.default_rng(0)
+    P = np.vstack([np.stack(np.meshgrid(g + 0.01, g), -1).reshape(-1, 2), rng.uniform(-2, 42, (20000, 2))])
+    expected = np.zeros(len(P), dtype=bool)
+    for L in d.loops:
+        expected ^= Path(L).contains_points(P)
+    # points on a horizontal segment are on the boundary, where either answer holds
+    flat = d.A[:, 1] == d.B[:, 1]
+    lo, hi = np.minimum(d.A[flat, 0], d.B[flat, 0]), np.maximum(d.A[flat, 0], d.B[flat, 0])
+    on = ((P[:, 1, None] == d.A[flat, 1]) & (P[:, 0, None] >= lo) & (P[:, 0, None] <= hi)).any(axis=1)
+    got = d.contains(P)
+    assert got.sum() > 0.4 * len(P) and on.sum() > 1000 and np.array_equal(got[~on], expected[~on])
+    assert not d.contains(np.array([[np.nan, 1.0], [1.0, np.nan], [0.0, 1e9]])).any()
+
+
 @pytest.mark.parametrize("loops,match", [
     ([[[0, 0], [1, 1], [1, 0], [0, 1]]], "intersects itself"),
     ([[[0, 0], [2, 0], [2, 2], [0, 2]], [[1, 1], [3, 1], [3, 3], [1, 3]]], "loops 0 and 1 intersect"),
