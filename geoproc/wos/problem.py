@@ -17,7 +17,7 @@ from geoproc.wos.expression import Expression, evaluate
 from geoproc.wos.kernels import KernelSet
 from geoproc.wos.rng import stream_state
 from geoproc.wos.walk import wos_dirichlet, wos_dirichlet_serial
-from geoproc.wos.wost import silhouette_candidates, wost_mixed, wost_mixed_serial
+from geoproc.wos.wost import neumann_index, silhouette_candidates, wost_mixed, wost_mixed_serial
 
 MAX_STEPS = 10_000
 SERIAL_WALKS = 1024
@@ -124,6 +124,7 @@ class WalkProblem:
             self.nseg = np.flatnonzero(domain.neumann).astype(np.int64)
             self.U, self.Vs, self.Wn = silhouette_candidates(self.A, self.B, domain.neumann,
                                                              domain.loop_of)
+            self.neumann_index = neumann_index(self.A, self.B, self.nseg, self.Vs)
             if flux is not None:
                 self.hkind, self.hcode, self.hconsts = 0, flux.code, flux.consts
             else:
@@ -196,7 +197,7 @@ class WalkProblem:
                                      self.A, self.B, self.grid_all, self.bkind, self.code,
                                      self.consts, self.V, ckind, KP, KQ, W, ARC, BOX)
             return mixed(X, index0, int(walks), self.eps, self.tiny, MAX_STEPS, stream_seed, self.A,
-                              self.B, self.grid_dir, self.nseg, self.U, self.Vs, self.Wn,
+                              self.B, self.grid_dir, self.nseg, self.U, self.Vs, self.Wn, self.neumann_index,
                               self.bkind, self.code, self.consts, self.V, self.hkind, self.hcode,
                               self.hconsts, ckind, KP, KQ, W, ARC, BOX)
         finally:
