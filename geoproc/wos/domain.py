@@ -300,15 +300,22 @@ def _enclosing_pairs(loops: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Every pair (j, k) of loops with loop k's first vertex inside loop j (the
     loops do not cross, so then all of loop k is), as two (p,) arrays. Only
     the first vertices inside loop j's bounding box are tested against it, so
-    tens of thousands of small holes cost a test each, not one per pair."""
+    tens of thousands of small holes cost a test each, not one per pair; they
+    are found along x or along y, whichever axis of the box holds fewer (along
+    x alone, every slot of a comb spanning its width met every other slot's
+    first vertex: 3.5 s at 32,000 slots)."""
     firsts = np.array([L[0] for L in loops])
-    order = np.argsort(firsts[:, 0], kind="stable")
-    xs = firsts[order, 0]
+    orders = [np.argsort(firsts[:, a], kind="stable") for a in (0, 1)]
+    sorted_at = [firsts[orders[a], a] for a in (0, 1)]
     outer, inner = [], []
     for j, L in enumerate(loops):
         lo, hi = L.min(axis=0), L.max(axis=0)
-        cand = order[np.searchsorted(xs, lo[0], "left"): np.searchsorted(xs, hi[0], "right")]
-        cand = cand[(firsts[cand, 1] >= lo[1]) & (firsts[cand, 1] <= hi[1]) & (cand != j)]
+        spans = [(np.searchsorted(sorted_at[a], lo[a], "left"), np.searchsorted(sorted_at[a], hi[a], "right"))
+                 for a in (0, 1)]
+        a = int(spans[1][1] - spans[1][0] < spans[0][1] - spans[0][0])
+        b = 1 - a
+        cand = np.sort(orders[a][spans[a][0]: spans[a][1]])
+        cand = cand[(firsts[cand, b] >= lo[b]) & (firsts[cand, b] <= hi[b]) & (cand != j)]
         if len(cand):
             k = cand[MplPath(L).contains_points(firsts[cand])]
             outer.append(np.full(len(k), j, dtype=np.int64))
@@ -389,42 +396,75 @@ def _segments_touch(a, b, c, d):
     return False
 
 
-@numba.njit(cache=True)
 def _first_crossing(A, B, loop_of, start, count):
     """First pair (i, j) of non-adjacent segments that touch or cross; (-1, -1) if none.
 
     Adjacent segments of a loop (sharing a vertex) only count when they overlap
-    beyond the shared vertex (a fold back).
+    beyond the shared vertex (a fold back). "First" in a sweep along x: the
+    segments ranked by their smallest x, the pair with the lowest rank, then
+    the lowest rank of its other segment. The pairs whose boxes overlap are
+    found in the horizontal bands of :func:`segment_bands`, each pair in the
+    first band both meet: a sweep along x alone compared every segment that
+    spans a comb's width with nearly every other (128,000 segments: 19.7 s).
     """
-    S = A.shape[0]
+    lo = np.minimum(A, B)
+    order = np.argsort(lo[:, 0], kind="stable")
+    rank = np.empty(len(A), dtype=np.int64)
+    rank[order] = np.arange(len(A))
+    y0, height, ptr, seg = segment_bands(A, B)
+    band = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
+    by_rank = np.lexsort((rank[seg], band))  # each band's segments in rank order
+    seg = np.ascontiguousarray(seg[by_rank])
+    first_band = np.clip(((lo[:, 1] - y0) / height).astype(np.int64), 0, len(ptr) - 2)
+    i, j = _first_crossing_in_bands(A, B, loop_of, count, rank, ptr, seg, first_band)
+    return (min(i, j), max(i, j)) if i >= 0 else (-1, -1)
+
+
+@numba.njit(cache=True)
+def _first_crossing_in_bands(A, B, loop_of, count, rank, ptr, seg, first_band):
+    """The crossing pair of lowest (rank, rank) among the pairs of segments of
+    one band whose boxes overlap, each pair tested in the first band both meet;
+    (-1, -1) if none (:func:`_first_crossing`)."""
     lo = np.minimum(A, B)
     hi = np.maximum(A, B)
-    order = np.argsort(lo[:, 0])
-    for oi in range(S):
-        i = order[oi]
-        for oj in range(oi + 1, S):
-            j = order[oj]
-            if lo[j, 0] > hi[i, 0]:
-                break
-            if lo[j, 1] > hi[i, 1] or hi[j, 1] < lo[i, 1]:
-                continue
-            if loop_of[i] == loop_of[j]:
-                n = count[loop_of[i]]
-                di = (j - i) % n
-                if di == 1 or di == n - 1:
-                    # adjacent: shared vertex; fold back when collinear and opposite
-                    if di == 1:
-                        p, q, r = A[i], B[i], B[j]
-                    else:
-                        p, q, r = A[j], B[j], B[i]
-                    o = _orient(p[0], p[1], q[0], q[1], r[0], r[1])
-                    dot = (p[0] - q[0]) * (r[0] - q[0]) + (p[1] - q[1]) * (r[1] - q[1])
-                    if o == 0 and dot > 0:
-                        return (min(i, j), max(i, j))
+    best_i = -1
+    best_j = -1
+    for b in range(ptr.shape[0] - 1):
+        for oi in range(ptr[b], ptr[b + 1]):
+            i = seg[oi]
+            for oj in range(oi + 1, ptr[b + 1]):
+                j = seg[oj]
+                if lo[j, 0] > hi[i, 0]:
+                    break
+                if lo[j, 1] > hi[i, 1] or hi[j, 1] < lo[i, 1]:
                     continue
-            if _segments_touch(A[i], B[i], A[j], B[j]):
-                return (min(i, j), max(i, j))
-    return (-1, -1)
+                if max(first_band[i], first_band[j]) != b:
+                    continue  # tested in an earlier band
+                if best_i >= 0 and (rank[i] > rank[best_i] or (rank[i] == rank[best_i] and rank[j] > rank[best_j])):
+                    continue
+                if _crossing(A, B, loop_of, count, i, j):
+                    best_i = i
+                    best_j = j
+    return best_i, best_j
+
+
+@numba.njit(cache=True)
+def _crossing(A, B, loop_of, count, i, j):
+    """Whether segments i and j touch or cross (adjacent ones of a loop: only when
+    they fold back over each other)."""
+    if loop_of[i] == loop_of[j]:
+        n = count[loop_of[i]]
+        di = (j - i) % n
+        if di == 1 or di == n - 1:
+            # adjacent: shared vertex; fold back when collinear and opposite
+            if di == 1:
+                p, q, r = A[i], B[i], B[j]
+            else:
+                p, q, r = A[j], B[j], B[i]
+            o = _orient(p[0], p[1], q[0], q[1], r[0], r[1])
+            dot = (p[0] - q[0]) * (r[0] - q[0]) + (p[1] - q[1]) * (r[1] - q[1])
+            return o == 0 and dot > 0
+    return _segments_touch(A[i], B[i], A[j], B[j])
 
 
 def load_domain_json(path: str, data: bytes | None = None) -> Domain:

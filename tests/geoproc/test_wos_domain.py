@@ -270,3 +270,32 @@ def test_parts_of_nested_and_separate_loops():
     d = build_domain([np.array(loops[k], float) for k in order])
     outer = {k: i for i, k in enumerate(order)}
     assert d.part_of.tolist() == [outer[{3: 2, 0: 0, 4: 4, 2: 2, 1: 0}[k]] for k in order]
+
+
+def test_first_crossing_is_the_first_of_a_sweep_along_x():
+    # the banded search against every pair: the crossing pair of lowest rank (segments
+    # ranked by smallest x), then lowest rank of the other segment
+    from geoproc.wos.domain import _crossing, _first_crossing
+
+    rng = np.random.default_rng(1)
+    found = 0
+    for trial in range(40):
+        loops = []
+        for _ in range(rng.integers(1, 4)):
+            n = int(rng.integers(5, 40))
+            t = np.sort(rng.uniform(0, 2 * np.pi, n))
+            r = rng.uniform(0.5, 1.5, n) * (1 + (rng.random(n) < 0.1) * rng.uniform(-1.8, 0, n))
+            loops.append(np.c_[r * np.cos(t), r * np.sin(t)] + rng.uniform(-1.5, 1.5, 2))
+        A = np.concatenate(loops)
+        count = np.array([len(L) for L in loops], dtype=np.int64)
+        start, nxt = loop_offsets(count)
+        B = A[nxt]
+        loop_of = np.repeat(np.arange(len(loops)), count)
+        rank = np.empty(len(A), dtype=np.int64)
+        rank[np.argsort(np.minimum(A, B)[:, 0], kind="stable")] = np.arange(len(A))
+        expected = min(((rank[i], rank[j], min(i, j), max(i, j)) for i in range(len(A)) for j in range(len(A))
+                        if rank[i] < rank[j] and _crossing(A, B, loop_of, count, i, j)), default=None)
+        got = _first_crossing(A, B, loop_of, start, count)
+        assert got == ((-1, -1) if expected is None else expected[2:]), trial
+        found += expected is not None
+    assert 10 < found < 40
