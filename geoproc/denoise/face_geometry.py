@@ -22,10 +22,10 @@ about 1e-16 of it turns the normal by up to 1e-6 radians there."""
 def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit face normals and face areas, never NaN.
 
-    A degenerate face gets the area-weighted mean normal of the faces sharing a
-    vertex with it (or +z when all of those are degenerate too), so that every
+    A degenerate face gets the area-weighted mean normal of the non-degenerate
+    faces sharing a vertex with it (or +z when there are none), so that every
     later step sees finite unit vectors; its area stays as computed (0 or
-    rounding error), so it carries no weight. Degenerate: zero area, or a sine
+    rounding error), so it carries no weight to speak of. Degenerate: zero area, or a sine
     of the angle at its first corner below :data:`DEGENERATE_SINE` (a midpoint
     of an edge stored as a third corner gives an area of rounding error, whose
     cross product points anywhere).
@@ -49,7 +49,7 @@ def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
         bad = np.flatnonzero(~good)
         ring = face_vertex_ring(F, len(V))
         R = ring[bad]
-        fill = R @ cross  # area-weighted sums of neighbour normals (times 2)
+        fill = R @ np.where(good[:, None], cross, 0.0)  # area-weighted sums of neighbour normals (times 2)
         norm = np.linalg.norm(fill, axis=1)
         fill = np.where(norm[:, None] > 0, fill / np.maximum(norm, 1e-300)[:, None], [0.0, 0.0, 1.0])
         N[bad] = fill

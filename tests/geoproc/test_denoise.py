@@ -189,6 +189,10 @@ def test_a_face_on_an_edge_midpoint_takes_its_neighbours_normal(make_fixtures):
         other[len(V) + k] = V[a] + (V[b] - V[a]) / 2
     err = denoise_errors(other, F2, V2)
     assert err["max_normal_angle_deg"] < 1e-5 and err["flipped_faces"] == 0
+    # a strip of faces collinear up to rounding has no normal to take: +z, not rounding noise
+    t = np.arange(6) * 0.1
+    N, _ = face_normals_and_areas(np.c_[t, t * np.sqrt(2), t * np.pi], np.array([[0, 1, 2], [1, 2, 3], [2, 3, 4]]))
+    assert np.array_equal(N, np.tile([0.0, 0.0, 1.0], (3, 1)))
 
 
 def test_pinned_boundary_does_not_move(make_fixtures):
