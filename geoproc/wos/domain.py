@@ -55,7 +55,7 @@ class Domain:
     source: str = "<domain>"
     traced: bool = False
     part_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    _bands: tuple | None = field(default=None, repr=False)
+    _bands: SegmentBands | None = field(default=None, repr=False)
 
     @property
     def n_segments(self) -> int:
@@ -89,58 +89,113 @@ class Domain:
         segments; points on the boundary may fall either way)."""
         if self._bands is None:
             self._bands = segment_bands(self.A, self.B)
-        y0, height, ptr, seg = self._bands
-        P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 2)
-        return _inside_even_odd(P, self.A, self.B, y0, height, ptr, seg)
+        bands = self._bands
+        P = np.ascontiguousarray(np.asarray(P, dtype=np.float64).reshape(-1, 2)[:, bands.cols])
+        return _inside_even_odd(P, bands.A, bands.B, bands.y0, bands.height, bands.ptr, bands.seg)
 
 
-def segment_bands(A: np.ndarray, B: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
-    """The segments ``A[i] -> B[i]`` (S, 2) sorted into horizontal bands of equal
-    height, for :meth:`Domain.contains`: ``(y0, height, ptr, seg)``, band ``b``
-    covering ``[y0 + b height, y0 + (b + 1) height]`` and holding the segments
-    ``seg[ptr[b]:ptr[b + 1]]`` whose y-range meets it.
+@dataclass
+class SegmentBands:
+    """Segments sorted into bands of equal width across one axis (:func:`segment_bands`).
+
+    Attributes
+    ----------
+    cols : (2,) int64
+        The coordinate order of ``A`` and ``B`` below: ``[0, 1]`` for horizontal
+        bands (across y), ``[1, 0]`` for vertical ones; "y" below is the second
+        of those coordinates.
+    A, B : (S, 2) float64
+        The segments with their coordinates in that order.
+    y0, height : float
+        Band ``b`` covers ``[y0 + b height, y0 + (b + 1) height]``.
+    ptr, seg : (count + 1,) and (copies,) int64
+        Band ``b`` holds the segments ``seg[ptr[b]:ptr[b + 1]]`` whose y-range
+        meets it, in increasing index.
+    first : (S,) int64
+        The first band of each segment.
+    """
+
+    cols: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    y0: float
+    height: float
+    ptr: np.ndarray
+    seg: np.ndarray
+    first: np.ndarray
+
+
+BAND_COPIES = 8
+"""A segment is listed in every band its extent meets; the bands are made
+coarser until the lists hold at most this many entries per segment."""
+
+
+def segment_bands(A: np.ndarray, B: np.ndarray) -> SegmentBands:
+    """The segments ``A[i] -> B[i]`` (S, 2) sorted into bands, for
+    :meth:`Domain.contains` and the crossing test of :func:`build_domain`.
 
     About one band per four segments, so that a point meets a few segments of
     its band plus those that cross it, instead of every segment (matplotlib's
-    test per loop took 100 s for a 256² grid in 1.25 million segments).
+    test per loop took 100 s for a 256² grid in 1.25 million segments). Bands
+    run across y or across x, whichever leaves fewer segments per band, and
+    are made coarser until they list at most :data:`BAND_COPIES` entries per
+    segment: segments that span most of the domain (the teeth of a comb) had
+    been listed in every band, which took 2.5 GB for 24,000 segments.
     """
     S = len(A)
-    lo = np.minimum(A[:, 1], B[:, 1])
-    hi = np.maximum(A[:, 1], B[:, 1])
-    y0, y1 = float(lo.min()), float(hi.max())
-    count = int(min(max(S // 4, 1), 1 << 20))
-    height = (y1 - y0) / count if y1 > y0 else 1.0
-    first = np.clip(((lo - y0) / height).astype(np.int64), 0, count - 1)
-    last = np.clip(((hi - y0) / height).astype(np.int64), 0, count - 1)
+    best = None
+    for cols in ([0, 1], [1, 0]):
+        lo = np.minimum(A[:, cols[1]], B[:, cols[1]])
+        hi = np.maximum(A[:, cols[1]], B[:, cols[1]])
+        y0, y1 = float(lo.min()), float(hi.max())
+        count = int(min(max(S // 4, 1), 1 << 20))
+        while True:
+            height = (y1 - y0) / count if y1 > y0 else 1.0
+            first = np.clip(((lo - y0) / height).astype(np.int64), 0, count - 1)
+            last = np.clip(((hi - y0) / height).astype(np.int64), 0, count - 1)
+            copies = int((last - first + 1).sum())
+            if copies <= BAND_COPIES * S or count == 1:
+                break
+            count = max(1, count // 4)
+        per_band = copies / count
+        if best is None or per_band < best[0]:
+            best = (per_band, cols, y0, height, count, first, last)
+    _, cols, y0, height, count, first, last = best
     span = last - first + 1
     seg = np.repeat(np.arange(S, dtype=np.int64), span)
     band = np.arange(len(seg), dtype=np.int64) - np.repeat(np.cumsum(span) - span, span) + np.repeat(first, span)
     order = np.argsort(band, kind="stable")
     ptr = np.zeros(count + 1, dtype=np.int64)
     np.cumsum(np.bincount(band, minlength=count), out=ptr[1:])
-    return y0, height, ptr, seg[order]
+    cols = np.array(cols, dtype=np.int64)
+    return SegmentBands(cols, np.ascontiguousarray(A[:, cols]), np.ascontiguousarray(B[:, cols]),
+                        y0, height, ptr, seg[order], first)
 
 
 @numba.njit(cache=True, parallel=True)
 def _inside_even_odd(P, A, B, y0, height, ptr, seg):
     """(n,) bool: an odd number of the segments crossed by the ray from each point
-    of ``P`` towards +x (half-open in y, so a ray through a vertex counts it once)."""
+    of ``P`` towards +x (half-open in y, so a ray through a vertex counts it
+    once), among the segments of the point's band. Which side of a segment the
+    point lies on is the sign of a cross product, not a comparison with the
+    ray's intersection, whose rounding decided points within an ulp of the
+    boundary far from the origin."""
     n = P.shape[0]
     count = ptr.shape[0] - 1
     out = np.zeros(n, dtype=np.bool_)
     for p in numba.prange(n):
         px, py = P[p, 0], P[p, 1]
-        b = int(np.floor((py - y0) / height)) if height > 0 else 0
-        if not (py >= y0 and b <= count):  # below or above every segment (or NaN)
+        t = (py - y0) / height
+        if not (t >= 0.0 and t <= count):  # below or above every segment (or NaN), before any integer
             continue
-        b = min(b, count - 1)
+        b = min(int(t), count - 1)
         odd = False
-        for t in range(ptr[b], ptr[b + 1]):
-            i = seg[t]
+        for k in range(ptr[b], ptr[b + 1]):
+            i = seg[k]
             ay, by = A[i, 1], B[i, 1]
             if (ay > py) != (by > py):
-                x = A[i, 0] + (py - ay) * (B[i, 0] - A[i, 0]) / (by - ay)
-                if px < x:
+                o = (B[i, 0] - A[i, 0]) * (py - ay) - (by - ay) * (px - A[i, 0])
+                if (o > 0.0) if by > ay else (o < 0.0):  # p left of the upward segment: the ray crosses it
                     odd = not odd
         out[p] = odd
     return out
@@ -401,32 +456,33 @@ def _first_crossing(A, B, loop_of, start, count):
 
     Adjacent segments of a loop (sharing a vertex) only count when they overlap
     beyond the shared vertex (a fold back). "First" in a sweep along x: the
-    segments ranked by their smallest x, the pair with the lowest rank, then
-    the lowest rank of its other segment. The pairs whose boxes overlap are
-    found in the horizontal bands of :func:`segment_bands`, each pair in the
-    first band both meet: a sweep along x alone compared every segment that
-    spans a comb's width with nearly every other (128,000 segments: 19.7 s).
+    segments ranked by their smallest x (ties to the lower index), the pair
+    whose lower rank is lowest, then the lowest other rank. The pairs whose
+    boxes overlap are found in the bands of :func:`segment_bands`, each pair in
+    the first band both meet, by a sweep across the bands: a sweep along x
+    alone compared every segment that spans a comb's width with nearly every
+    other (128,000 segments: 19.7 s).
     """
-    lo = np.minimum(A, B)
-    order = np.argsort(lo[:, 0], kind="stable")
     rank = np.empty(len(A), dtype=np.int64)
-    rank[order] = np.arange(len(A))
-    y0, height, ptr, seg = segment_bands(A, B)
-    band = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
-    by_rank = np.lexsort((rank[seg], band))  # each band's segments in rank order
-    seg = np.ascontiguousarray(seg[by_rank])
-    first_band = np.clip(((lo[:, 1] - y0) / height).astype(np.int64), 0, len(ptr) - 2)
-    i, j = _first_crossing_in_bands(A, B, loop_of, count, rank, ptr, seg, first_band)
+    rank[np.argsort(np.minimum(A[:, 0], B[:, 0]), kind="stable")] = np.arange(len(A))
+    bands = segment_bands(A, B)
+    band = np.repeat(np.arange(len(bands.ptr) - 1), np.diff(bands.ptr))
+    along = np.minimum(bands.A[:, 0], bands.B[:, 0])  # the sweep's coordinate, across the bands
+    seg = np.ascontiguousarray(bands.seg[np.lexsort((along[bands.seg], band))])
+    i, j = _first_crossing_in_bands(bands.A, bands.B, loop_of, count, rank, bands.ptr, seg, bands.first)
     return (min(i, j), max(i, j)) if i >= 0 else (-1, -1)
 
 
 @numba.njit(cache=True)
 def _first_crossing_in_bands(A, B, loop_of, count, rank, ptr, seg, first_band):
-    """The crossing pair of lowest (rank, rank) among the pairs of segments of
-    one band whose boxes overlap, each pair tested in the first band both meet;
-    (-1, -1) if none (:func:`_first_crossing`)."""
+    """The crossing pair of lowest ranks (the lower first) among the pairs of
+    segments of one band whose boxes overlap, each pair tested in the first
+    band both meet; (-1, -1) if none (:func:`_first_crossing`). Each band lists
+    its segments by their smallest first coordinate."""
     lo = np.minimum(A, B)
     hi = np.maximum(A, B)
+    best_a = -1
+    best_b = -1
     best_i = -1
     best_j = -1
     for b in range(ptr.shape[0] - 1):
@@ -440,9 +496,13 @@ def _first_crossing_in_bands(A, B, loop_of, count, rank, ptr, seg, first_band):
                     continue
                 if max(first_band[i], first_band[j]) != b:
                     continue  # tested in an earlier band
-                if best_i >= 0 and (rank[i] > rank[best_i] or (rank[i] == rank[best_i] and rank[j] > rank[best_j])):
+                ra = min(rank[i], rank[j])
+                rb = max(rank[i], rank[j])
+                if best_a >= 0 and (ra > best_a or (ra == best_a and rb > best_b)):
                     continue
                 if _crossing(A, B, loop_of, count, i, j):
+                    best_a = ra
+                    best_b = rb
                     best_i = i
                     best_j = j
     return best_i, best_j

@@ -180,7 +180,58 @@ def test_contains_matches_matplotlib_per_loop():
     on = ((P[:, 1, None] == d.A[flat, 1]) & (P[:, 0, None] >= lo) & (P[:, 0, None] <= hi)).any(axis=1)
     got = d.contains(P)
     assert got.sum() > 0.4 * len(P) and on.sum() > 1000 and np.array_equal(got[~on], expected[~on])
-    assert not d.contains(np.array([[np.nan, 1.0], [1.0, np.nan], [0.0, 1e9]])).any()
+    # far off every band (1e300 / height had overflowed the band index and read outside it)
+    assert not d.contains(np.array([[np.nan, 1.0], [1.0, np.nan], [0.0, 1e9], [0.0, 1e300], [0.0, -1e300],
+                                    [1e300, 20.0], [-np.inf, 20.0]])).any()
+
+
+def test_contains_bands_follow_the_short_axis():
+    # tall slots (a comb turned on its side) had been listed in nearly every horizontal
+    # band: memory grew as the square of their number
+    from matplotlib.path import Path
+
+    from geoproc.wos.domain import BAND_COPIES, segment_bands
+
+    slots = [[[x, 1], [x, 99], [x + 0.5, 99], [x + 0.5, 1]] for x in np.arange(1, 999, 1.0)]
+    d = build_domain([[[0, 0], [1000, 0], [1000, 100], [0, 100]], *slots])
+    bands = segment_bands(d.A, d.B)
+    assert list(bands.cols) == [1, 0] and len(bands.seg) <= BAND_COPIES * len(d.A)
+    P = np.random.default_rng(2).uniform(0, 100, (5000, 2)) * [10, 1]
+    expected = np.zeros(len(P), dtype=bool)
+    for L in d.loops:
+        expected ^= Path(L).contains_points(P)
+    assert np.array_equal(d.contains(P), expected)
+
+
+def test_contains_decides_by_exact_sides_far_from_the_origin():
+    # a polygon 0.02 across at 1e12 from the origin, where a coordinate's ulp is 1.2e-4:
+    # the side of a segment is the sign of a cross product; comparing with the ray's
+    # rounded intersection had put points an ulp off the boundary on the wrong side
+    from fractions import Fraction
+
+    rng = np.random.default_rng(4)
+    t = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    L = 1e12 + 1e-2 * np.c_[np.cos(t), np.sin(t)] * rng.uniform(0.7, 1.0, (16, 1))
+    d = build_domain([L])
+    P = d.A[rng.integers(len(d.A), size=3000)] + rng.integers(-3, 4, (3000, 2)) * np.spacing(1e12)
+
+    def exact(px, py):  # even-odd with half-open ends, None on the boundary
+        odd = False
+        for a, b in zip(d.A, d.B, strict=True):
+            ax, ay, bx, by, x, y = map(Fraction, (*a, *b, px, py))
+            if (ay > y) != (by > y):
+                side = (bx - ax) * (y - ay) - (by - ay) * (x - ax)
+                if side == 0:
+                    return None
+                odd ^= (side > 0) == (by > ay)
+            elif (ay == y == by and min(ax, bx) <= x <= max(ax, bx)) or (x, y) in ((ax, ay), (bx, by)):
+                return None
+        return odd
+
+    truth = [exact(*p) for p in P]
+    known = np.array([e is not None for e in truth])
+    assert known.sum() > 1000
+    assert np.array_equal(d.contains(P)[known], np.array([e for e in truth if e is not None]))
 
 
 @pytest.mark.parametrize("loops,match", [
