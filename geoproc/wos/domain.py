@@ -91,7 +91,7 @@ class Domain:
             self._bands = segment_bands(self.A, self.B)
         bands = self._bands
         P = np.ascontiguousarray(np.asarray(P, dtype=np.float64).reshape(-1, 2)[:, bands.cols])
-        return _inside_even_odd(P, bands.A, bands.B, bands.y0, bands.height, bands.ptr, bands.seg)
+        return _inside_even_odd(P, bands.A, bands.B, bands.y0, bands.y1, bands.height, bands.ptr, bands.seg)
 
 
 @dataclass
@@ -106,8 +106,9 @@ class SegmentBands:
         of those coordinates.
     A, B : (S, 2) float64
         The segments with their coordinates in that order.
-    y0, height : float
-        Band ``b`` covers ``[y0 + b height, y0 + (b + 1) height]``.
+    y0, y1, height : float
+        Band ``b`` covers ``[y0 + b height, y0 + (b + 1) height]``; the
+        segments span ``[y0, y1]``.
     ptr, seg : (count + 1,) and (copies,) int64
         Band ``b`` holds the segments ``seg[ptr[b]:ptr[b + 1]]`` whose y-range
         meets it, in increasing index.
@@ -119,6 +120,7 @@ class SegmentBands:
     A: np.ndarray
     B: np.ndarray
     y0: float
+    y1: float
     height: float
     ptr: np.ndarray
     seg: np.ndarray
@@ -159,8 +161,8 @@ def segment_bands(A: np.ndarray, B: np.ndarray) -> SegmentBands:
             count = max(1, count // 4)
         per_band = copies / count
         if best is None or per_band < best[0]:
-            best = (per_band, cols, y0, height, count, first, last)
-    _, cols, y0, height, count, first, last = best
+            best = (per_band, cols, y0, y1, height, count, first, last)
+    _, cols, y0, y1, height, count, first, last = best
     span = last - first + 1
     seg = np.repeat(np.arange(S, dtype=np.int64), span)
     band = np.arange(len(seg), dtype=np.int64) - np.repeat(np.cumsum(span) - span, span) + np.repeat(first, span)
@@ -169,11 +171,11 @@ def segment_bands(A: np.ndarray, B: np.ndarray) -> SegmentBands:
     np.cumsum(np.bincount(band, minlength=count), out=ptr[1:])
     cols = np.array(cols, dtype=np.int64)
     return SegmentBands(cols, np.ascontiguousarray(A[:, cols]), np.ascontiguousarray(B[:, cols]),
-                        y0, height, ptr, seg[order], first)
+                        y0, y1, height, ptr, seg[order], first)
 
 
 @numba.njit(cache=True, parallel=True)
-def _inside_even_odd(P, A, B, y0, height, ptr, seg):
+def _inside_even_odd(P, A, B, y0, y1, height, ptr, seg):
     """(n,) bool: an odd number of the segments crossed by the ray from each point
     of ``P`` towards +x (half-open in y, so a ray through a vertex counts it
     once), among the segments of the point's band. Which side of a segment the
@@ -185,10 +187,9 @@ def _inside_even_odd(P, A, B, y0, height, ptr, seg):
     out = np.zeros(n, dtype=np.bool_)
     for p in numba.prange(n):
         px, py = P[p, 0], P[p, 1]
-        t = (py - y0) / height
-        if not (t >= 0.0 and t <= count):  # below or above every segment (or NaN), before any integer
+        if not (py >= y0 and py <= y1):  # below or above every segment (or NaN), before any integer
             continue
-        b = min(int(t), count - 1)
+        b = min(int((py - y0) / height), count - 1)
         odd = False
         for k in range(ptr[b], ptr[b + 1]):
             i = seg[k]

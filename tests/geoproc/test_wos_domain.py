@@ -185,6 +185,16 @@ def test_contains_matches_matplotlib_per_loop():
                                     [1e300, 20.0], [-np.inf, 20.0]])).any()
 
 
+def test_contains_a_point_an_ulp_under_the_top_edge():
+    # (py - y0) / height rounded above the band count for such a point: it was skipped
+    hits = 0
+    for n in range(3, 120):
+        xs = np.linspace(0, 1, n)
+        d = build_domain([np.r_[np.c_[xs, np.full(n, -1.0)], [[1, 1e-3], [0, 1e-3]]]])
+        hits += bool(d.contains(np.array([[0.5, np.nextafter(1e-3, -1)]]))[0])
+    assert hits == 117
+
+
 def test_contains_bands_follow_the_short_axis():
     # tall slots (a comb turned on its side) had been listed in nearly every horizontal
     # band: memory grew as the square of their number

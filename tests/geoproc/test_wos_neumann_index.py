@@ -65,3 +65,19 @@ def test_trees_answer_as_the_scans():
         assert set(near) >= set(nseg[dist <= R / 8 * (1 - 1e-9)]) and set(near) <= set(nseg[dist <= R / 8 * (1 + 1e-8)])
         assert np.all(np.diff(near) > 0)
     assert hits > len(P) // 4
+
+
+def test_clip_to_disk_far_from_the_segment_start():
+    # a long wall beside a small ball: |a - c|^2 - R^2 lost R^2 to rounding, and a
+    # segment missing the disk by 1e-7 R got a piece of it
+    from geoproc.wos.wost import _clip_to_disk
+
+    R = 1e-8
+    u0, u1 = _clip_to_disk(-1.0, R * (1 + 1e-7), 1.0, R * (1 + 1e-7), 0.0, 0.0, R)
+    assert u1 <= u0
+    h = 0.6 * R
+    u0, u1 = _clip_to_disk(-1.0, h, 1.0, h, 0.0, 0.0, R)
+    assert abs((u1 - u0) * 2.0 / (2 * np.sqrt(R * R - h * h)) - 1) < 1e-6
+    # near the segment (the quadratic, as before) the same interval
+    u0, u1 = _clip_to_disk(-1.0, 0.6, 1.0, 0.6, 0.0, 0.0, 1.0)
+    assert abs(u0 - 0.1) < 1e-12 and abs(u1 - 0.9) < 1e-12
