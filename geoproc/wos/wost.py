@@ -52,12 +52,12 @@ def silhouette_candidates(A: np.ndarray, B: np.ndarray, neumann: np.ndarray,
 
 
 NEAR_LIMIT = 1024
-"""Neumann segments (or silhouette vertices) near a walk's position that are
-gathered from the trees of :func:`neumann_index` at most; with more, a step
-scans them all."""
+"""Neumann segments within a step's ball that are gathered from the tree of
+:func:`neumann_index` (for the flux sample and the start off a wall) at
+most; with more, the step scans them all."""
 
 INDEX_ABOVE = 32
-"""Below this many Neumann segments (or silhouette vertices) every step scans
+"""Below this many Neumann segments (or silhouette candidates) every step scans
 them all: the trees do not pay."""
 
 
