@@ -141,8 +141,9 @@ def segment_bands(A: np.ndarray, B: np.ndarray) -> SegmentBands:
     test per loop took 100 s for a 256² grid in 1.25 million segments). Bands
     run across y or across x, whichever leaves fewer segments per band, and
     are made coarser until they list at most :data:`BAND_COPIES` entries per
-    segment: segments that span most of the domain (the teeth of a comb) had
-    been listed in every band, which took 2.5 GB for 24,000 segments.
+    segment, so that segments spanning most of the domain (the teeth of a
+    comb) are not listed in every band: that grows as the square of their
+    number (2.5 GB for 24,000 segments).
     """
     S = len(A)
     best = None
