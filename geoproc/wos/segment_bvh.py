@@ -100,7 +100,8 @@ def _node_boxes(nodes, leaf):
 
 
 @numba.njit(cache=True, nogil=True)
-def _box_d2(px, py, nodes, m):
+def box_d2(px, py, nodes, m):
+    """Squared distance from ``(px, py)`` to node m's box (0 inside)."""
     dx = max(nodes[m, 0] - px, 0.0, px - nodes[m, 2])
     dy = max(nodes[m, 1] - py, 0.0, py - nodes[m, 3])
     return dx * dx + dy * dy
@@ -147,7 +148,7 @@ def bvh_closest_point(px, py, nodes, leaf):
     while top > 0:
         top -= 1
         m = stack[top]
-        if _box_d2(px, py, nodes, m) > best:  # (equal: a tie with a lower index may be inside)
+        if box_d2(px, py, nodes, m) > best:  # (equal: a tie with a lower index may be inside)
             continue
         k = int(nodes[m, 5])
         if k <= BVH_LEAF:
@@ -160,15 +161,22 @@ def bvh_closest_point(px, py, nodes, leaf):
                     best_s = s
                     best_t = t
             continue
-        c = 2 * m + 1
-        if _box_d2(px, py, nodes, c) <= _box_d2(px, py, nodes, c + 1):  # the nearer child is popped first
-            stack[top] = c + 1
-            stack[top + 1] = c
-        else:
-            stack[top] = c
-            stack[top + 1] = c + 1
-        top += 2
+        top = push_children_nearer_last(stack, top, px, py, nodes, m)
     return best, best_s, best_t
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def push_children_nearer_last(stack, top, px, py, nodes, m):
+    """Push node m's two children onto ``stack`` (``top`` entries), the nearer
+    box to ``(px, py)`` last so that it is popped first; the new ``top``."""
+    c = 2 * m + 1
+    if box_d2(px, py, nodes, c) <= box_d2(px, py, nodes, c + 1):
+        stack[top] = c + 1
+        stack[top + 1] = c
+    else:
+        stack[top] = c
+        stack[top + 1] = c + 1
+    return top + 2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -188,7 +196,7 @@ def bvh_segments_within(px, py, r, nodes, leaf, out, limit):
     while top > 0:
         top -= 1
         m = stack[top]
-        if _box_d2(px, py, nodes, m) > reach:
+        if box_d2(px, py, nodes, m) > reach:
             continue
         k = int(nodes[m, 5])
         if k <= BVH_LEAF:

@@ -31,7 +31,14 @@ from geoproc.wos.domain import loop_offsets
 from geoproc.wos.kernels import cv_gradient
 from geoproc.wos.program import eval_program
 from geoproc.wos.rng import next_uniform, stream_state
-from geoproc.wos.segment_bvh import BVH_LEAF, STACK, _box_d2, build_segment_bvh, bvh_segments_within
+from geoproc.wos.segment_bvh import (
+    BVH_LEAF,
+    STACK,
+    box_d2,
+    build_segment_bvh,
+    bvh_segments_within,
+    push_children_nearer_last,
+)
 from geoproc.wos.walk import walk_mean_variance, walk_score
 
 TWO_PI = 2.0 * math.pi
@@ -126,7 +133,7 @@ def _bvh_closest_silhouette_d2(px, py, U, V, Wn, limit2, nodes, leaf):
     while top > 0:
         top -= 1
         m = stack[top]
-        if _box_d2(px, py, nodes, m) > best * (1.0 + 1e-9):
+        if box_d2(px, py, nodes, m) > best * (1.0 + 1e-9):
             continue
         k = int(nodes[m, 5])
         if k <= BVH_LEAF:
@@ -136,14 +143,7 @@ def _bvh_closest_silhouette_d2(px, py, U, V, Wn, limit2, nodes, leaf):
                 if d2 < best:
                     best = d2
             continue
-        c = 2 * m + 1
-        if _box_d2(px, py, nodes, c) <= _box_d2(px, py, nodes, c + 1):
-            stack[top] = c + 1
-            stack[top + 1] = c
-        else:
-            stack[top] = c
-            stack[top + 1] = c + 1
-        top += 2
+        top = push_children_nearer_last(stack, top, px, py, nodes, m)
     return best
 
 
@@ -195,15 +195,7 @@ def _bvh_ray_hit(ox, oy, dx, dy, rmax, A, B, skip, tiny, nodes, leaf):
                 i = int(leaf[r, 5])
                 if i == skip:
                     continue
-                ex = B[i, 0] - A[i, 0]
-                ey = B[i, 1] - A[i, 1]
-                den = dx * ey - dy * ex
-                if den == 0.0:
-                    continue
-                wx = A[i, 0] - ox
-                wy = A[i, 1] - oy
-                s = (wx * ey - wy * ex) / den
-                u = (wx * dy - wy * dx) / den
+                s, u = _ray_meets_segment(ox, oy, dx, dy, A, B, i)
                 if 0.0 <= u <= 1.0 and tiny < s and (s < best or (s == best and 0 <= best_s and i < best_s)):
                     best = s
                     best_s = i
@@ -244,19 +236,25 @@ def ray_hit(ox, oy, dx, dy, rmax, A, B, nseg, skip, tiny):
         i = nseg[k]
         if i == skip:
             continue
-        ex = B[i, 0] - A[i, 0]
-        ey = B[i, 1] - A[i, 1]
-        den = dx * ey - dy * ex
-        if den == 0.0:
-            continue
-        wx = A[i, 0] - ox
-        wy = A[i, 1] - oy
-        s = (wx * ey - wy * ex) / den
-        u = (wx * dy - wy * dx) / den
+        s, u = _ray_meets_segment(ox, oy, dx, dy, A, B, i)
         if 0.0 <= u <= 1.0 and tiny < s < best:
             best = s
             best_s = i
     return best, best_s
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _ray_meets_segment(ox, oy, dx, dy, A, B, i):
+    """(s, u): the ray ``o + s d`` meets the line of segment i at its parameter
+    u (inside the segment for 0 <= u <= 1); (inf, -1) when parallel."""
+    ex = B[i, 0] - A[i, 0]
+    ey = B[i, 1] - A[i, 1]
+    den = dx * ey - dy * ex
+    if den == 0.0:
+        return np.inf, -1.0
+    wx = A[i, 0] - ox
+    wy = A[i, 1] - oy
+    return (wx * ey - wy * ex) / den, (wx * dy - wy * dx) / den
 
 
 CLIP_FAR = 1e6
