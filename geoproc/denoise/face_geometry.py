@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.mesh.topology import face_cross_products, row_norms, unique_edges
+from geoproc.mesh.topology import cross_rows, face_corner_edges, row_norms, unique_edges
 
 DEGENERATE_SINE = 1e-10
 """A face whose angle at its first corner has a smaller sine is degenerate for
@@ -37,12 +37,11 @@ def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
     A : (m,) float64
         Areas in squared length units.
     """
-    cross = face_cross_products(V, F)
+    a, b = face_corner_edges(V, F)
+    cross = cross_rows(a, b)
     length = row_norms(cross)
     A = 0.5 * length
-    P0 = V[F[:, 0]]
-    sides = row_norms(V[F[:, 1]] - P0) * row_norms(V[F[:, 2]] - P0)
-    good = length > DEGENERATE_SINE * sides
+    good = length > DEGENERATE_SINE * row_norms(a) * row_norms(b)
     N = np.zeros_like(cross)
     N[good] = cross[good] / length[good, None]
     if not good.all():

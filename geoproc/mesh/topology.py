@@ -253,8 +253,18 @@ def face_cross_products(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     Built column by column: ``np.cross`` on gathered rows makes several
     (m, 3) temporaries and took four times as long on a 70k-face mesh.
     """
+    return cross_rows(*face_corner_edges(V, F))
+
+
+def face_corner_edges(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(m, 3) each ``v1 - v0`` and (m, 3) each ``v2 - v0``: the two sides from
+    every triangle's first corner, in length units."""
     P0 = V[F[:, 0]]
-    a, b = V[F[:, 1]] - P0, V[F[:, 2]] - P0
+    return V[F[:, 1]] - P0, V[F[:, 2]] - P0
+
+
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(m, 3) row-wise cross products ``a x b``, built column by column."""
     out = np.empty_like(a)
     out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
     out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
