@@ -38,8 +38,10 @@ class HeatMethodSolver:
     operators : {"auto", "extrinsic", "intrinsic"}
         Gradient, divergence and Poisson Laplacian on the mesh (the paper's
         operators) or on its intrinsic Delaunay triangulation, as in
-        :class:`geoproc.geodesic.log_heat.LogHeatSolver`; ``auto`` (default)
-        goes intrinsic on meshes with slivers. The choice made is in
+        :class:`geoproc.geodesic.log_heat.LogHeatSolver` (the heat step then on
+        non-negative weights, see
+        :func:`geoproc.geodesic.heat_operators.heat_operators`); ``auto``
+        (default) goes intrinsic on meshes with slivers. The choice made is in
         ``self.operators``.
     """
 

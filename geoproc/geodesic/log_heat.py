@@ -34,7 +34,6 @@ import scipy.sparse as sp
 from geoproc.errors import InputError
 from geoproc.geodesic.heat_operators import heat_operators
 from geoproc.geodesic.log_ode import LogODESolver, negative_weight_problem, off_diagonal_weights
-from geoproc.geodesic.operators import intrinsic_delaunay_laplacian, negative_offdiagonal_count
 from geoproc.mesh.topology import boundary_vertices
 
 
@@ -115,11 +114,7 @@ class LogHeatSolver:
                  laplacian: str = "intrinsic-delaunay", direction: str = "heat",
                  boundary: str = "average", poisson: str = "cotan", operators: str = "auto"):
         ops = heat_operators(V, F, laplacian, operators, poisson, compiled=True)
-        L, M = ops.L, ops.M
-        if ops.kind == "intrinsic" and negative_offdiagonal_count(L):
-            # obtuse angles facing boundary edges: the log-ODE needs non-negative weights,
-            # which robust-laplacian's tufted cover gives (its boundary edges are interior)
-            L, M = intrinsic_delaunay_laplacian(V, F)
+        L, M = ops.L, ops.M  # non-negative weights with intrinsic operators, as the log-ODE needs
         problem = negative_weight_problem(L, cotan=laplacian == "cotan" and ops.kind == "extrinsic")
         if problem:  # an InputError without the path: geodesic_distance names the mesh
             raise InputError(None, problem)

@@ -1230,6 +1230,25 @@ def test_intrinsic_operators_apply_with_obtuse_angles_at_the_boundary(make_fixtu
     assert err < 0.008 and err < 1.05 * ref  # measured 0.58-0.59 % (potpourri3d 0.64 %)
 
 
+def test_heat_step_keeps_non_negative_weights_along_a_hull_of_slivers():
+    # a Delaunay triangulation of random points is lined with slivers along its hull, whose
+    # obtuse angles face boundary edges (weights down to -435): heat's heat step on those
+    # weights went negative on 536 of the 1000 vertices, a mean error of 32 % of the largest
+    # distance; it now takes robust-laplacian's weights, as log-heat's does
+    from scipy.spatial import Delaunay
+
+    P = np.random.default_rng(0).random((1000, 2))
+    F = Delaunay(P).simplices.astype(np.int64)
+    a, b = P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]
+    F[a[:, 0] * b[:, 1] < a[:, 1] * b[:, 0]] = F[a[:, 0] * b[:, 1] < a[:, 1] * b[:, 0]][:, [0, 2, 1]]
+    V = np.c_[P, np.zeros(len(P))]
+    for method in ("heat", "log-heat"):
+        res = gd.geodesic_distance(V, F, [1], method=method)
+        assert res.stats["operators"] == "intrinsic"  # auto: 3.6 % of the faces are slivers
+        assert res.stats.get("negative_heat_vertices", 0) == 0
+        assert _mean_error_on_flat(V, res.distance, s=1) < 0.02  # measured 1.39 % (extrinsic 1.39 %)
+
+
 def test_log_methods_run_on_needles_beside_an_obtuse_boundary_angle(make_fixtures):
     # a column of needles of 1e-7 rad and an obtuse angle facing a boundary edge: robust-laplacian's
     # weights of zero came out at -5e-12 of the largest, and log-heat and log-ode refused the mesh
