@@ -398,8 +398,21 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
         out.vertex_fields["outlier_score"] = res.score
         out.vertex_fields["outlier_detected"] = res.outlier.astype(np.float64)
     else:
-        out = _inliers(run, cloud, P, ~res.outlier)
+        out = _inliers(run, _without_earlier_scores(run, cloud), P, ~res.outlier)
     run.write_mesh(output, out)
+
+
+def _without_earlier_scores(run, cloud: Mesh) -> Mesh:
+    """``cloud`` without the vertex properties an earlier ``--keep-all`` run wrote
+    (:data:`SCORE_FIELDS`), with a note: carried into the inliers, they would
+    contradict this run (points flagged 1 among the points it kept)."""
+    stale = [k for k in SCORE_FIELDS if k in cloud.vertex_fields]
+    if not stale:
+        return cloud
+    run.note("dropping the input's vertex propert" + ("y " if len(stale) == 1 else "ies ")
+             + ", ".join(f"'{k}'" for k in stale) + " (an earlier run's scores; --keep-all writes this run's)")
+    fields = {k: v for k, v in cloud.vertex_fields.items() if k not in stale}
+    return Mesh(cloud.V, cloud.F, fields, cloud.face_fields)
 
 
 def _inliers(run, cloud: Mesh, P: np.ndarray, keep: np.ndarray) -> Mesh:

@@ -87,6 +87,19 @@ def test_replacing_an_input_property_is_noted(cli, cube_pair, dfx, tmp_path):
     assert p.returncode == 0 and "note: replacing the input's vertex property 'outlier_score'" in p.stderr, p.stderr
 
 
+def test_inliers_drop_an_earlier_runs_scores(cli, dfx, tmp_path):
+    # an earlier --keep-all run's flags were carried into the inliers: points flagged 1
+    # among those this run kept, without a word
+    P, _ = dfx.cloud_with_outliers(2000, 0.2, 0.05)
+    old = {"outlier_score": np.full(len(P), 9.0), "outlier_detected": np.ones(len(P)), "w": np.arange(len(P))}
+    save_mesh(tmp_path / "c.ply", Mesh(P, np.zeros((0, 3), int), old))
+    p = cli("denoise", tmp_path / "c.ply", "--outliers", "-o", tmp_path / "i.ply")
+    assert p.returncode == 0 and ("note: dropping the input's vertex properties 'outlier_score', "
+                                  "'outlier_detected'") in p.stderr, p.stderr
+    kept = load_mesh(tmp_path / "i.ply")
+    assert set(kept.vertex_fields) == {"w"} and 0 < len(kept.V) < len(P)
+
+
 def test_outliers_f1_and_outputs(cli, dfx, tmp_path):
     P, flag = dfx.cloud_with_outliers(8000, 0.2, 0.05)
     src = tmp_path / "cloud.ply"
