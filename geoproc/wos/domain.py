@@ -529,6 +529,20 @@ def _crossing(A, B, loop_of, count, i, j):
     return _segments_touch(A[i], B[i], A[j], B[j])
 
 
+class _RepeatedKey(ValueError):
+    """A JSON object names the same key twice (the key in ``args[0]``)."""
+
+
+def _object_without_repeated_keys(pairs: list[tuple[str, object]]) -> dict:
+    """``json.loads`` hook: the object of ``pairs`` (key, value), refusing a key given twice."""
+    doc = {}
+    for key, value in pairs:
+        if key in doc:
+            raise _RepeatedKey(key)
+        doc[key] = value
+    return doc
+
+
 def load_domain_json(path: str, data: bytes | None = None) -> Domain:
     """Read ``{"loops": [[[x, y], ...], ...], "neumann": [...], "values": [[...], ...]}``.
 
@@ -538,7 +552,9 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
     """
     raw = data if data is not None else read_input_bytes(path, "domain file")
     try:
-        doc = json.loads(raw)
+        doc = json.loads(raw, object_pairs_hook=_object_without_repeated_keys)
+    except _RepeatedKey as exc:  # json.loads would keep the last copy without a word
+        raise InputError(path, f"the key {exc.args[0]!r} is given twice") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(path, f"not valid JSON ({exc})") from None
     except RecursionError:

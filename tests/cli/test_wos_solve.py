@@ -34,6 +34,8 @@ def inputs(tmp_path_factory):
     }
     for name, doc in files.items():
         (d / f"{name}.json").write_text(json.dumps(doc))
+    # json.dumps cannot repeat a key: the last copy was used without a word
+    (d / "twice.json").write_text('{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": [0], "neumann": null}')
     wf.write_mask(d / "mask.png", wf.disk_mask(64, 24.0, 8.0))
     wf.write_mask(d / "blank.png", np.zeros((32, 32), bool))
     whole = (d / "mask.png").read_bytes()
@@ -127,6 +129,7 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("neu_zero.json", [], "'neumann' must be a list of loop indices or [loop, segment] pairs, not 0"),
     # a misspelt key gave a Dirichlet problem without a word
     ("typo.json", [], "unknown key 'Neumann' (the keys are 'loops', 'neumann' and 'values')"),
+    ("twice.json", [], "twice.json: the key 'neumann' is given twice"),
     ("disk.json", ["--boundary", "+".join(["x"] * 20000)], "expression nested too deeply"),
     ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
     ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),
