@@ -222,6 +222,7 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     if elements is None:  # outside the vectorized layout: plyfile reads it, or names the problem
         _require_declared_rows_fit(data, path)
         elements = _plyfile_elements(data, path)
+        _refuse_text_after_ascii_rows(data, path)  # after plyfile, which names a row split over two lines
     if "vertex" not in elements:
         raise InputError(path, "PLY has no 'vertex' element")
     vert = elements["vertex"]
@@ -307,16 +308,28 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
         if need > have:
             raise InputError(path, f"PLY header declares {_row_counts(elements)}, but only {have} "
                                    f"line{'s' * (have != 1)} follow{'s' * (have == 1)} it (one per row)")
-        if have > need:  # blank lines after the rows are harmless; text is not
-            extra = _nonblank_lines_after(data, offset, need)
-            if extra:
-                raise InputError(path, f"PLY header declares {_row_counts(elements)}, but {need + extra} "
-                                       "non-empty lines follow it (one per row): data after the declared rows")
         return
     need = sum(e.count * smallest_row_bytes(e) for e in elements)
     if need > body:
         raise InputError(path, f"PLY header declares {_row_counts(elements)} (at least {need} bytes), "
                                f"but only {body} byte{'s' * (body != 1)} follow{'s' * (body == 1)} it")
+
+
+def _refuse_text_after_ascii_rows(data: bytes, path: str) -> None:
+    """InputError when an ASCII PLY has text after its declared rows (plyfile
+    stops at the last row and would drop it without a word); blank lines there
+    are harmless. Called once plyfile has read the rows, so that a row written
+    over two lines gets plyfile's message (its row and property), not this one."""
+    header = parse_ply_header(data)
+    if header is None or header[0] != "ascii":
+        return
+    _, elements, offset = header
+    need = sum(e.count for e in elements)
+    have = data.count(b"\n", offset) + (not data.endswith(b"\n"))
+    extra = _nonblank_lines_after(data, offset, need) if have > need else 0
+    if extra:
+        raise InputError(path, f"PLY header declares {_row_counts(elements)}, but {need + extra} "
+                               "non-empty lines follow it (one per row): data after the declared rows")
 
 
 def _row_counts(elements: list) -> str:
@@ -492,7 +505,8 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
 
 def _obj_vertices(lines: list, path: str) -> np.ndarray:
     """(n, 3) float64: the first three numbers of each OBJ ``v`` line (after the ``v``)."""
-    return _leading_numbers(lines, 3, path, lambda i, line: f"OBJ vertex {i}: 'v {line}' does not hold three numbers")
+    return _leading_numbers(lines, 3, path,  # numbered from 1, as OBJ faces count them
+                            lambda i, line: f"OBJ vertex {i + 1} (1-based): 'v {line}' does not hold three numbers")
 
 
 def _leading_numbers(lines: list, k: int, path: str, problem) -> np.ndarray:

@@ -218,6 +218,11 @@ def test_ascii_ply_text_after_the_declared_rows_is_refused(tmp_path):
                                  "follow it (one per row): data after the declared rows")
     p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n=3) + rows + "\n  \t\r\n\n")  # blank lines are fine
     assert len(load_mesh(p, clean=False).F) == 1
+    # a row written over two lines has no data after the rows: plyfile names the row
+    p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n=3) + rows.replace("1 0 0\n", "1 0\n0\n"))
+    with pytest.raises(InputError) as err:
+        load_mesh(p)
+    assert err.value.problem == "unparseable PLY: element 'vertex': row 1: property 'z': early end-of-line"
 
 
 @pytest.mark.parametrize("last", [-100, -3])
@@ -426,16 +431,16 @@ def test_obj_vertex_extras_and_malformed_lines(tmp_path):
     assert m.V.tolist() == [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
     assert m.F.tolist() == [[0, 1, 2], [0, 2, 3]] and m.log.triangulated_polygons == 1
     for text, fragment in [
-        (b"v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 0: 'v 0 0' does not hold three numbers"),
-        (b"v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 1: 'v 1 x 0' does not hold three numbers"),
+        (b"v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 1 (1-based): 'v 0 0' does not hold three numbers"),
+        (b"v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 2 (1-based): 'v 1 x 0' does not hold three numbers"),
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n", "a face corner is not an integer"),
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n", "face 0 references vertex -4, but the file has 3"),
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "face 0 references vertex 0, but the file has 3"),
         (b"vt 0 0\n", "no vertex or face lines"),
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999999\n", "beyond 64-bit integers"),
         # a short line beside a long one once passed the total count (the w became a coordinate)
-        (b"v 0 0 0 1\nv 1 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 1: 'v 1 0' does not hold three numbers"),
-        (b"v 0 0 0\nv\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 1: 'v ' does not hold three numbers"),
+        (b"v 0 0 0 1\nv 1 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 2 (1-based): 'v 1 0' does not hold three numbers"),
+        (b"v 0 0 0\nv\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "OBJ vertex 2 (1-based): 'v ' does not hold three numbers"),
         (b"v 0 0 0\nv 1_0 0 0\nv 0 1 0\nf 1 2 3\n", "'_' inside a number"),
     ]:
         with pytest.raises(InputError) as err:
