@@ -60,6 +60,12 @@ class _StderrConsole(Console):
 stderr = _StderrConsole(stderr=True, highlight=False, soft_wrap=True)
 stdout = Console(highlight=False, soft_wrap=True)
 
+def flag(*names: str, help: str, **options):
+    """The typer option of a boolean flag, its value column in ``--help`` left
+    empty: typer shows ``<bool>`` there, as if the flag took a value."""
+    return typer.Option(*names, help=help, metavar="", **options)
+
+
 ReportOpt = Annotated[
     str | None,
     typer.Option("--report", help="Write a JSON metric report here (schema: geoproc/report/report.schema.json); "
@@ -71,11 +77,11 @@ CheckOpt = Annotated[
     typer.Option("--check", help="Gate on one of the metrics listed below, as 'METRIC<=VALUE' (operators <=, <, "
                  ">=, >, ==); repeatable; exit 1 when any fails.", metavar="'METRIC<=VALUE'", show_default=False),
 ]
-QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or notes on stderr.")]
-DebugOpt = Annotated[bool, typer.Option("--debug", help="Show the full traceback on errors.")]
+QuietOpt = Annotated[bool, flag("--quiet", "-q", help="No progress bar or notes on stderr.")]
+DebugOpt = Annotated[bool, flag("--debug", help="Show the full traceback on errors.")]
 NoCleanOpt = Annotated[
     bool,
-    typer.Option("--no-clean", help="Keep the mesh as stored: do not merge coincident vertices "
+    flag("--no-clean", help="Keep the mesh as stored: do not merge coincident vertices "
                  "or drop unreferenced ones."),
 ]
 

@@ -25,6 +25,7 @@ from geoproc_cli.common import (
     ReportOpt,
     choices_metavar,
     command_run,
+    flag,
     metrics_epilog,
     options_given,
     refuse_options,
@@ -95,7 +96,7 @@ def denoise(
                                                   "distances between adjacent face centroids (default: from "
                                                   "the mesh, 1, up to 2 on coarse meshes without creases).",
                                                   show_default=False)] = None,
-    pin_boundary: Annotated[bool, typer.Option("--pin-boundary", help="Keep boundary vertices fixed.")]
+    pin_boundary: Annotated[bool, flag("--pin-boundary", help="Keep boundary vertices fixed.")]
     = False,
     features: Annotated[str, typer.Option("--features", help="How the per-face 'feature' output is found: "
                                           "l1 (support of the l1-sparse normal Laplacian n.(Lv) of the "
@@ -107,7 +108,7 @@ def denoise(
                                                "crease of about 24 degrees).")] = 0.12,
     feature_angle: Annotated[float, typer.Option("--feature-angle", help="--features dihedral: angle in "
                                                  "degrees, 0 to 180.")] = 30.0,
-    outliers: Annotated[bool, typer.Option("--outliers", help="Point-cloud outlier removal by RPCA on "
+    outliers: Annotated[bool, flag("--outliers", help="Point-cloud outlier removal by RPCA on "
                                            "k-nearest-neighbour matrices; for an animation (.npz or folder "
                                            "of frames), RPCA on the animation matrix (one row per point: "
                                            "its x, y, z in every frame) flags the outlying points of every "
@@ -118,14 +119,14 @@ def denoise(
                                                     "median point spacings (default 0.5; for an animation "
                                                     "max(0.5, 3 x the median score)).",
                                                     show_default=False)] = None,
-    keep_all: Annotated[bool, typer.Option("--keep-all", help="--outliers: write every point with "
+    keep_all: Annotated[bool, flag("--keep-all", help="--outliers: write every point with "
                                            "'outlier_score' and 'outlier_detected' properties (always so "
                                            "for an animation).")] = False,
-    refined: Annotated[bool, typer.Option("--refined", help="--outliers: write the refined (denoised) "
+    refined: Annotated[bool, flag("--refined", help="--outliers: write the refined (denoised) "
                                           "positions instead of the input ones: the merged projections "
                                           "onto the neighbourhoods' robust planes; for an animation, the "
                                           "robust low-rank trajectories.")] = False,
-    dynamic: Annotated[bool, typer.Option("--dynamic", help="Animation denoising: every frame denoised, "
+    dynamic: Annotated[bool, flag("--dynamic", help="Animation denoising: every frame denoised, "
                                           "then RPCA on the (vertices x frames) matrix of normal heights over "
                                           "a smooth base keeps the temporally coherent detail (after "
                                           "Algorithm 4; --coherence normals runs Algorithm 4 as "

@@ -18,6 +18,7 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    flag,
     load_summary,
     metrics_epilog,
     stdout,
@@ -35,7 +36,7 @@ METRICS = LOAD_METRICS + (
 def info(
     mesh: Annotated[str, typer.Argument(help="Mesh or point cloud: .obj, .ply, .off, .stl, or - for stdin.",
                                         metavar="MESH")],
-    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as one JSON object on stdout.")] = False,
+    as_json: Annotated[bool, flag("--json", help="Print the summary as one JSON object on stdout.")] = False,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,

@@ -9,7 +9,7 @@ import typer
 
 import geoproc
 from geoproc_cli import denoise, geodesic, info, morse_simplify, perturb, wos_solve
-from geoproc_cli.common import EXIT_BAD_INPUT, say
+from geoproc_cli.common import EXIT_BAD_INPUT, flag, say
 from geoproc_cli.entry import interruption_line, unreported_interruption
 
 app = typer.Typer(
@@ -41,7 +41,7 @@ def _version(value: bool) -> None:
 @app.callback()
 def _root(
     version: Annotated[
-        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")
+        bool, flag("--version", callback=_version, is_eager=True, help="Print the version and exit.")
     ] = False,
 ) -> None:
     """Geometry-processing research methods as pipeline-friendly tools."""

@@ -23,6 +23,7 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    flag,
     metrics_epilog,
     refuse_options,
     require_extension,
@@ -61,7 +62,7 @@ def morse_simplify(
         "NAME_original, where NAME is x_value, y_value or z_value for a coordinate, mean_curvature or "
         "gaussian_curvature, a vertex property's own name, or a .npy file's stem.", metavar="OUT.ply",
         show_default=False)],
-    relative: Annotated[bool, typer.Option(
+    relative: Annotated[bool, flag(
         "--relative", help="Read P as a fraction of the field's range (max - min).")] = False,
     critical: Annotated[str | None, typer.Option(
         "--critical", help="Write the critical cells before and after, with their pairs, as JSON (- for stdout).",
@@ -74,7 +75,7 @@ def morse_simplify(
         help="After the construction, re-solve exactly (a small mixed-integer program each, scipy/HiGHS) "
         "this many windows around the vertices farthest beyond P/2; -1: every such window, then the 8 "
         "farthest again with wider windows (seconds on 10k vertices, tens of seconds on 40k); 0: off.")] = 4,
-    barycentric: Annotated[bool, typer.Option(
+    barycentric: Annotated[bool, flag(
         "--barycentric",
         help="Write g on the barycentric subdivision of the mesh (every edge and triangle gets a vertex "
         "with its own value; 6 triangles per input triangle), where |f - g| <= P/2 always holds: f there "

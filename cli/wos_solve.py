@@ -17,6 +17,7 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    flag,
     metrics_epilog,
     refuse_options,
     require_extension,
@@ -107,7 +108,7 @@ def wos_solve(
         "deviation [default: 1 for cv-green and npass, 0.1 for cv-angle].", show_default=False)] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed, 0 to 2^64 - 1; same seed, same output bytes.",
                                       min=0, max=2**64 - 1)] = 0,
-    exact: Annotated[bool, typer.Option(
+    exact: Annotated[bool, flag(
         "--exact", help="Declare --boundary harmonic, hence the exact solution: report rmse, "
         "max_abs_error and bias over grid points inside and farther than 2 epsilon from the "
         "boundary.")] = False,
