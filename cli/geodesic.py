@@ -57,6 +57,10 @@ class Reference(StrEnum):
     exact = "exact"
 
 
+MAX_INDEX_DIGITS = 20
+"""Digits of the longest vertex index a sources file may spell (2^64 has 20)."""
+
+
 def read_sources_file(path: str, data: bytes | None = None) -> list[tuple[int, int]]:
     """Vertex indices from a text file (or its content ``data``): integers
     separated by spaces, commas or newlines; ``#`` starts a comment. Returns
@@ -73,6 +77,9 @@ def read_sources_file(path: str, data: bytes | None = None) -> list[tuple[int, i
             if not re.fullmatch(r"[+-]?[0-9]+", tok):  # ASCII digits only (no 1_0, no other scripts)
                 shown = "".join(c if " " <= c <= "~" else ascii(c)[1:-1] for c in tok)  # non-ASCII escaped
                 raise InputError(path, f"line {lineno}: '{shown}' is not a vertex index")
+            if len(tok.lstrip("+-")) > MAX_INDEX_DIGITS:  # int() refuses past 4300 digits
+                raise InputError(path, f"line {lineno}: a {len(tok.lstrip('+-'))}-digit number is beyond any "
+                                       "vertex index")
             out.append((int(tok), lineno))
     if not out:
         raise InputError(path, "no vertex indices in the file")

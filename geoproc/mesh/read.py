@@ -297,6 +297,10 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
     Headers :func:`geoproc.mesh.ply_uniform.parse_ply_header` does not read are
     left to plyfile.
     """
+    long_count = re.search(rb"^element +(\S+) +[0-9]{21,} *$", data[:max(data.find(b"end_header"), 0)], re.M)
+    if long_count:  # plyfile's int() would refuse past 4300 digits, with advice on Python's settings
+        raise InputError(path, f"PLY header declares a count of more than 20 digits for its "
+                               f"'{long_count.group(1).decode('latin-1')}' rows")
     header = parse_ply_header(data)
     if header is None:
         return

@@ -557,6 +557,8 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
         raise InputError(path, f"the key {exc.args[0]!r} is given twice") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(path, f"not valid JSON ({exc})") from None
+    except ValueError as exc:  # an integer past Python's 4300-digit limit for reading one
+        raise InputError(path, f"a number in it is too long to read ({str(exc).split(':')[0]})") from None
     except RecursionError:
         raise InputError(path, "JSON nested too deeply") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("loops"), list):

@@ -84,8 +84,8 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
             try:
                 emit(OP_CONST, float(node.value))
             except OverflowError:  # an integer literal past the float range
-                raise UsageError(f"{shown}: a {len(str(node.value))}-digit integer is beyond the "
-                                 f"floating-point range") from None
+                raise UsageError(f"{shown}: an integer of {node.value.bit_length()} bits is beyond the "
+                                 f"floating-point range") from None  # (str() of it may pass Python's digit limit)
         elif isinstance(node, ast.Name):
             if node.id in VARIABLES:
                 emit(VARIABLES[node.id])

@@ -74,6 +74,8 @@ def test_sources_file_and_stdout(cli, fixture_dir, tmp_path):
     (b"0\n1x\n", "line 2: '1x' is not a vertex index"),
     (b"\xff\xfe1\n", "line 1: '\\xff\\xfe1' is not a vertex index"),  # bytes that are not UTF-8
     ("0 \u0661\n".encode(), "line 1: '\\u0661' is not a vertex index"),  # an Arabic-Indic digit
+    # int() refuses past 4300 digits: the run ended as an internal error, exit 3
+    (b"0\n" + b"9" * 5000 + b"\n", "line 2: a 5000-digit number is beyond any vertex index"),
 ])
 def test_a_bad_token_in_the_sources_file_is_shown_in_ascii(cli, fixture_dir, tmp_path, content, shown):
     sf = tmp_path / "s.txt"

@@ -35,6 +35,8 @@ def inputs(tmp_path_factory):
     for name, doc in files.items():
         (d / f"{name}.json").write_text(json.dumps(doc))
     # json.dumps cannot repeat a key: the last copy was used without a word
+    # past Python's 4300 digits for reading an integer: an internal error, exit 3
+    (d / "longint.json").write_text('{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": [' + "9" * 5000 + "]}")
     (d / "twice.json").write_text('{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "neumann": [0], "neumann": null}')
     wf.write_mask(d / "mask.png", wf.disk_mask(64, 24.0, 8.0))
     wf.write_mask(d / "blank.png", np.zeros((32, 32), bool))
@@ -130,6 +132,8 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     # a misspelt key gave a Dirichlet problem without a word
     ("typo.json", [], "unknown key 'Neumann' (the keys are 'loops', 'neumann' and 'values')"),
     ("twice.json", [], "twice.json: the key 'neumann' is given twice"),
+    ("longint.json", [], "longint.json: a number in it is too long to read (Exceeds the limit (4300 digits)"),
+    ("disk.json", ["--boundary", "0x" + "f" * 4000], "an integer of 16000 bits is beyond the floating-point range"),
     ("disk.json", ["--boundary", "+".join(["x"] * 20000)], "expression nested too deeply"),
     ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
     ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),

@@ -206,6 +206,11 @@ def test_ply_counts_beyond_the_file_are_refused_before_allocating(tmp_path):
         load_mesh(p)
     assert err.value.problem == ("PLY header declares 4000000000 vertex rows and 1 face row, "
                                  "but only 1 line follows it (one per row)")
+    # past Python's 4300 digits for reading an integer: an internal error, exit 3
+    p.write_text(_TRIANGLE_PLY_HEAD.format(fmt="ascii", n="9" * 5000) + "0 0 0\n")
+    with pytest.raises(InputError) as err:
+        load_mesh(p)
+    assert err.value.problem == "PLY header declares a count of more than 20 digits for its 'vertex' rows"
 
 
 def test_ascii_ply_text_after_the_declared_rows_is_refused(tmp_path):
