@@ -45,6 +45,14 @@ class Expression:
     consts: np.ndarray
 
 
+def _integer_size(value: int) -> str:
+    """``'a 401-digit'``, or ``'a 16000-bit'`` past Python's 4300 digits for writing one out."""
+    try:
+        return f"a {len(str(abs(value)))}-digit"
+    except ValueError:
+        return f"a {value.bit_length()}-bit"
+
+
 def parse_expression(text: str, option: str = "--boundary") -> Expression:
     """Parse and compile ``text``; raise :class:`UsageError` naming what is wrong.
 
@@ -84,8 +92,8 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
             try:
                 emit(OP_CONST, float(node.value))
             except OverflowError:  # an integer literal past the float range
-                raise UsageError(f"{shown}: an integer of {node.value.bit_length()} bits is beyond the "
-                                 f"floating-point range") from None  # (str() of it may pass Python's digit limit)
+                raise UsageError(f"{shown}: {_integer_size(node.value)} integer is beyond the "
+                                 f"floating-point range") from None
         elif isinstance(node, ast.Name):
             if node.id in VARIABLES:
                 emit(VARIABLES[node.id])

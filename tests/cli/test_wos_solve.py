@@ -133,7 +133,7 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("typo.json", [], "unknown key 'Neumann' (the keys are 'loops', 'neumann' and 'values')"),
     ("twice.json", [], "twice.json: the key 'neumann' is given twice"),
     ("longint.json", [], "longint.json: a number in it is too long to read (Exceeds the limit (4300 digits)"),
-    ("disk.json", ["--boundary", "0x" + "f" * 4000], "an integer of 16000 bits is beyond the floating-point range"),
+    ("disk.json", ["--boundary", "0x" + "f" * 4000], "a 16000-bit integer is beyond the floating-point range"),
     ("disk.json", ["--boundary", "+".join(["x"] * 20000)], "expression nested too deeply"),
     ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
     ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),

@@ -29,6 +29,19 @@ def test_numpy_and_numba_evaluation_match_reference(text, ref):
     np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-13)
 
 
+def test_exponentials_overflow_where_the_floats_do():
+    # the compiled evaluator gave inf from exp(709), sinh and cosh of +-709: exp(709.5*x)*1e-300
+    # is at most 1.4e8 on the unit square, and the walks called it not finite
+    x = np.array([709.5, 710.0, -710.0, 709.9, 711.0, np.nan])
+    for name, ref in (("exp", np.exp), ("sinh", np.sinh), ("cosh", np.cosh)):
+        e = parse_expression(f"{name}(x)")
+        with np.errstate(over="ignore"):
+            want = ref(x)
+        got = np.array([eval_program(e.code, e.consts, a, 0.0) for a in x])
+        np.testing.assert_allclose(got, want, rtol=1e-13)
+        np.testing.assert_allclose(evaluate(e, x, 0 * x), want, rtol=1e-13)
+
+
 def test_unknown_names_are_named():
     with pytest.raises(UsageError, match=r"unknown names 'foo', 'z'"):
         parse_expression("foo(x) + z")
