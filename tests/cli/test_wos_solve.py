@@ -137,6 +137,9 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("disk.json", ["--boundary", "+".join(["x"] * 20000)], "expression nested too deeply"),
     ("disk.json", ["--boundary", "x + foo(y) + bar"], "unknown names 'bar', 'foo'"),
     ("disk.json", ["--boundary", "x", "--error-image", "e.png"], "--error-image needs --exact"),
+    # NaN inside the domain had given null error metrics without a word
+    ("disk.json", ["--boundary", "sqrt(x*x + y*y - 0.5)", "--exact"],
+     "--exact: --boundary is not finite at 24 grid points inside"),
     ("rect.json", ["--boundary", "x", "--method", "cv-angle"], "cv-angle supports Dirichlet-only"),
     # boundary data must be finite on the boundary, and the solution fit EXR's float32
     ("disk.json", ["--boundary", "log(x - 5)"], "--boundary is not finite on the boundary of"),
