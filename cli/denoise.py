@@ -12,7 +12,7 @@ import typer
 
 from geoproc.animation import Animation, animation_to_bytes, is_animation_path
 from geoproc.denoise import COHERENCE, DEFAULT_METHOD, METHODS
-from geoproc.errors import InputError, UsageError
+from geoproc.errors import InputError, UsageError, shown_number
 from geoproc.mesh import Mesh, load_mesh
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import outlier_flags
@@ -182,17 +182,18 @@ def denoise(
         threshold = 0.5 if threshold is None else threshold
         for option, value in (("--sigma-r", sigma_r), ("--sigma-s", sigma_s)):
             if value is not None and value <= 0:
-                raise UsageError(f"{option} {value:g}: must be > 0")
+                raise UsageError(f"{option} {shown_number(value)}: must be > 0")
         if sigma_r is not None and not sigma_r > 1e-150:  # the range kernel divides by its square (1e-300)
-            raise UsageError(f"--sigma-r {sigma_r:g} is too small: its square underflows")
+            raise UsageError(f"--sigma-r {shown_number(sigma_r)} is too small: the range kernel divides by its square, "
+                             "which must stay above 1e-300")
         if not 0.0 <= fidelity <= 1.0:
             raise UsageError(f"--fidelity {fidelity}: must be within [0, 1]")
         if features not in FEATURE_RULES:
             raise UsageError(f"--features {features}: use l1 or dihedral")
         if feature_tau < 0:
-            raise UsageError(f"--feature-tau {feature_tau:g}: must be >= 0")
+            raise UsageError(f"--feature-tau {shown_number(feature_tau)}: must be >= 0")
         if not 0 <= feature_angle <= 180:
-            raise UsageError(f"--feature-angle {feature_angle:g}: must be within [0, 180] degrees")
+            raise UsageError(f"--feature-angle {shown_number(feature_angle)}: must be within [0, 180] degrees")
         dp = DenoiseParams(outer_iterations=rounds, normal_iterations=normal_iterations,
                            vertex_iterations=vertex_iterations, fidelity=fidelity, sigma_r=sigma_r,
                            sigma_s_scale=sigma_s,

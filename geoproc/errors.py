@@ -44,3 +44,12 @@ def frame_error(path: str | None, t: int, problem: str, frame_files: list[str] |
 
 class UsageError(GeoprocError):
     """Bad parameters or option values (exit code 2)."""
+
+
+def shown_number(x: float) -> str:
+    """``x`` for a message, to every digit it has: Python's shortest text that
+    reads back as ``x``, without a trailing ``.0`` (``400``, ``180.0000001``).
+    ``%g`` keeps six digits, so a value just past a bound read as the bound
+    (``--feature-angle 180: must be within [0, 180]``)."""
+    text = repr(float(x))
+    return text[:-2] if text.endswith(".0") else text

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from geoproc.errors import InputError, UsageError
+from geoproc.errors import InputError, UsageError, shown_number
 from geoproc.geodesic.intrinsic import POISSON_NEEDLE_ANGLE
 from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, LAPLACIANS, METHODS, OPERATORS, SOLVERS
 from geoproc.geodesic.operators import laplacian_and_mass
@@ -86,15 +86,15 @@ def diffusion_time(h: float, time_factor: float | None = 1.0, time: float | None
         if not (math.isfinite(time) and time > 0):
             raise UsageError(f"--time must be a positive finite number, got {time}")
         if time > MAX_TIME_FACTOR * h * h:
-            raise UsageError(f"--time {time:g} is more than {MAX_TIME_FACTOR:g} h^2 = "
-                             f"{MAX_TIME_FACTOR * h * h:g} (h = {h:g}, the mean edge length); "
+            raise UsageError(f"--time {shown_number(time)} is more than {MAX_TIME_FACTOR:g} h^2 = "
+                             f"{shown_number(MAX_TIME_FACTOR * h * h)} (h = {h:g}, the mean edge length); "
                              "the diffusion would be numerically singular")
         return float(time)
     c = 1.0 if time_factor is None else time_factor
     if not (math.isfinite(c) and c > 0):
         raise UsageError(f"--time-factor must be a positive finite number, got {c}")
     if c > MAX_TIME_FACTOR:
-        raise UsageError(f"--time-factor {c:g} is more than {MAX_TIME_FACTOR:g}; "
+        raise UsageError(f"--time-factor {shown_number(c)} is more than {MAX_TIME_FACTOR:g}; "
                          "the diffusion would be numerically singular")
     t = float(c) * h * h
     if not t > 0:

@@ -539,6 +539,8 @@ def test_filter_options_unused_on_a_clean_mesh_are_noted(cli, fixture_dir, tmp_p
     (["--sigma-r", "0"], "error: --sigma-r 0: must be > 0\n"),
     (["--sigma-s", "-2"], "error: --sigma-s -2: must be > 0\n"),
     (["--feature-angle", "400"], "error: --feature-angle 400: must be within [0, 180] degrees\n"),
+    # %g showed a value just past the bound as the bound itself
+    (["--feature-angle", "180.0000001"], "error: --feature-angle 180.0000001: must be within [0, 180] degrees\n"),
     (["--features", "l1", "--feature-tau", "-1"], "error: --feature-tau -1: must be >= 0\n"),
 ])
 def test_a_parameter_out_of_range_is_named_alone(cli, fixture_dir, tmp_path, args, message):

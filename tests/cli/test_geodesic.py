@@ -301,8 +301,9 @@ BAD = [
     # diffusion times double precision cannot carry
     (["-s", "0", "-m", "log-ode", "-t", "5e-324"], "grid.ply", "grid.ply: time step 4.94066e-324 is too small"),
     (["-s", "0", "-m", "log-heat", "-c", "1e4", "-n", "20"], "grid.ply", "grid.ply: the heat at t = "),
-    (["-s", "0", "-m", "log-heat", "-c", "1e13"], "grid.ply", "--time-factor 1e+13 is more than 1e+12"),
+    (["-s", "0", "-m", "log-heat", "-c", "1e13"], "grid.ply", "--time-factor 10000000000000 is more than 1e+12"),
     (["-s", "0", "-m", "heat", "-t", "1e300"], "grid.ply", "is more than 1e+12 h^2"),
+    (["-s", "0", "-m", "heat", "-c", "1.0000001e12"], "grid.ply", "--time-factor 1000000100000 is more than 1e+12"),
     (["--sources-file", "-", "-s", "0"], "-", "standard input can feed only one input"),
     (["-s", "0", "-c", "2", "-t", "0.01"], "grid.ply", "--time-factor and --time: give one"),
     (["-s", "0", "--operators", "intrinsic", "--laplacian", "cotan"], "grid.ply", "not used with --operators intr"),
