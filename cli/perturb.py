@@ -72,8 +72,11 @@ def perturb(
     """
     params = {"input": input, "output": output, "noise": noise, "direction": direction, "impulsive": impulsive,
               "outliers": outliers, "outlier_range": outlier_range, "seed": seed, "clean": not no_clean}
+    animation = input != "-" and is_animation_path(input)
+    needs = ({"a mesh or point cloud (not an animation)": LOAD_METRICS} if animation
+             else {"an animation (.npz or a folder of frames)": ("frames",)})
     with command_run("perturb", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output], inputs=[input], metrics=METRICS) as run:
+                     outputs=[output], inputs=[input], metrics=METRICS, needs=needs) as run:
         if noise < 0:
             raise UsageError(f"--noise {noise}: must be >= 0")
         if direction not in DIRECTIONS:
@@ -92,7 +95,7 @@ def perturb(
         spec = NoiseSpec(sigma=noise, direction=direction, impulsive=impulsive, outliers=outliers,
                          outlier_range=outlier_range)
         rng = np.random.default_rng(seed)
-        if input != "-" and is_animation_path(input):
+        if animation:
             if not output.lower().endswith(".npz"):
                 raise UsageError(f"{output}: an animation is written as .npz")
             refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")

@@ -113,6 +113,24 @@ def test_animation_npz(cli, tmp_path):
     assert not np.allclose(a.V[0], V[0]) and not np.allclose(a.V[0] - V[0], a.V[1] - V[1])
 
 
+def test_checks_on_metrics_of_the_other_kind_of_input_are_refused_before_the_work(cli, fixture_dir, tmp_path):
+    # they had been refused after the run, as "depends on the input's content"
+    dfx = denoise_fixtures()
+    from geoproc.animation import Animation, animation_to_bytes
+
+    src = tmp_path / "wave.npz"
+    src.write_bytes(animation_to_bytes(Animation(*dfx.wave_animation(3))))
+    for input, gate, wanted in ((fixture_dir / "torus.ply", "frames>=1", "only with an animation"),
+                                (src, "input_vertices>=1", "only with a mesh or point cloud (not an animation)")):
+        out = tmp_path / ("o.npz" if input == src else "o.ply")
+        p = cli("perturb", input, "--seed", "1", "-o", out, "--check", gate)
+        assert p.returncode == 2 and wanted in p.stderr and p.stderr.count("\n") == 1, p.stderr
+        assert not out.exists()
+    rep = tmp_path / "r.json"
+    p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "o.npz", "--report", rep)
+    assert p.returncode == 0 and not set(json.loads(rep.read_text())["metrics"]) & {"input_vertices", "input_faces"}
+
+
 def test_moving_point_cloud(cli, tmp_path):
     # a point-cloud animation (no faces) takes noise and outliers; the outlier
     # flags then score denoise --outliers (the README's moving-cloud example)
