@@ -92,7 +92,7 @@ def denoise(
                                                   "differences, as the chord length between unit normals "
                                                   "(> 0; 0.3 is about 17 degrees; default: from the noise level).",
                                                   show_default=False)] = None,
-    sigma_s: Annotated[float | None, typer.Option("--sigma-s", help="Spatial kernel width, in mean "
+    sigma_s: Annotated[float | None, typer.Option("--sigma-s", help="Spatial kernel width, > 0, in mean "
                                                   "distances between adjacent face centroids (default: from "
                                                   "the mesh, 1, up to 2 on coarse meshes without creases).",
                                                   show_default=False)] = None,
@@ -104,7 +104,7 @@ def denoise(
                                           "than --feature-angle apart).",
                                           metavar=choices_metavar(FEATURE_RULES))] = "dihedral",
     feature_tau: Annotated[float, typer.Option("--feature-tau", help="--features l1: cut on the sparse "
-                                               "normal Laplacian, in local mean edge lengths (0.12 is a "
+                                               "normal Laplacian, >= 0, in local mean edge lengths (0.12 is a "
                                                "crease of about 24 degrees).")] = 0.12,
     feature_angle: Annotated[float, typer.Option("--feature-angle", help="--features dihedral: angle in "
                                                  "degrees, 0 to 180.")] = 30.0,
@@ -114,8 +114,8 @@ def denoise(
                                            "its x, y, z in every frame) flags the outlying points of every "
                                            "frame.")] = False,
     k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers, in points "
-                                     "(at least 4, at most the number of points).")] = 16,
-    threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, in "
+                                     "(at least 4, at most the number of distinct points).")] = 16,
+    threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, >= 0, in "
                                                     "median point spacings (default 0.5; for an animation "
                                                     "max(0.5, 3 x the median score)).",
                                                     show_default=False)] = None,

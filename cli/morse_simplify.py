@@ -74,7 +74,8 @@ def morse_simplify(
         "--exact-windows",
         help="After the construction, re-solve exactly (a small mixed-integer program each, scipy/HiGHS) "
         "this many windows around the vertices farthest beyond P/2; -1: every such window, then the 8 "
-        "farthest again with wider windows (seconds on 10k vertices, tens of seconds on 40k); 0: off.")] = 4,
+        "farthest again with wider windows (seconds on 10k vertices, tens of seconds on 40k); 0: off; "
+        "at least -1.")] = 4,
     barycentric: Annotated[bool, flag(
         "--barycentric",
         help="Write g on the barycentric subdivision of the mesh (every edge and triangle gets a vertex "

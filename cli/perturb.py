@@ -41,11 +41,13 @@ def perturb(
                                         "animation.", metavar="OUT")],
     seed: Annotated[int, typer.Option("--seed", help="Random seed, 0 to 2^64 - 1: the same seed gives the same bytes.",
                                       min=0, max=2**64 - 1)],
-    noise: Annotated[float, typer.Option("--noise", help="Gaussian noise standard deviation, in mean edge "
+    noise: Annotated[float, typer.Option("--noise", help="Gaussian noise standard deviation, >= 0, in mean edge "
                                          "lengths (mean nearest-neighbour distance for a point cloud).",
                                          metavar="SIGMA")] = 0.3,
     direction: Annotated[str, typer.Option("--direction", help="normal: along vertex normals of the "
-                                           "consistently oriented faces (the benchmark protocol); random: along "
+                                           "consistently oriented faces (the benchmark protocol; a point "
+                                           "cloud's are the least-variance directions of its 16 nearest "
+                                           "neighbours); random: along "
                                            "random unit directions (sigma/sqrt(3) per axis).",
                                            metavar=choices_metavar(DIRECTIONS))]
     = "normal",
@@ -57,7 +59,7 @@ def perturb(
                                             "any flags the input carries).",
                                             metavar="FRACTION")] = 0.0,
     outlier_range: Annotated[float, typer.Option("--outlier-range", help="Outliers move uniformly within "
-                                                 "a ball of this many bounding-box diagonals around their "
+                                                 "a ball of this many (> 0) bounding-box diagonals around their "
                                                  "noisy position.", metavar="R")] = 0.02,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,

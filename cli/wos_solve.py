@@ -85,13 +85,13 @@ def wos_solve(
     method: Annotated[Method, typer.Option(
         "--method", help="naive: plain walks; cv-green / cv-angle: fit a control variate of "
         "Green / segment-angle kernels, then walk the residual; npass: cv-green refined by Adam "
-        "on fresh walk batches.")] = Method.naive,
+        "on fresh walk batches. cv-angle takes Dirichlet-only domains.")] = Method.naive,
     walks: Annotated[int, typer.Option("--walks", help="Walks per grid point (1 to 10^7).", min=1,
                                        max=10**7)] = 128,
     grid: Annotated[int, typer.Option("--grid", help="Pixels along the bounding box's longer "
                                       "side (1 to 8192).", min=1, max=8192)] = 256,
     epsilon: Annotated[float, typer.Option("--epsilon", help="Stopping distance to the Dirichlet "
-                                           "boundary, in domain length units (the default suits a domain "
+                                           "boundary, > 0, in domain length units (the default suits a domain "
                                            "about 1 across; a note says when it is over 1 % of the "
                                            "bounding-box diagonal).")] = 1e-3,
     kernels: Annotated[int, typer.Option("--kernels", help="Control-variate kernels (1 to 10000; cv-angle "
@@ -104,7 +104,7 @@ def wos_solve(
         "2 x epsilon from the boundary [default: 8 x the kernels used].", min=1, max=10**6,
         show_default=False)] = None,
     ridge: Annotated[float | None, typer.Option(
-        "--ridge", help="Ridge weight of the fit, on kernel columns centred and scaled to unit standard "
+        "--ridge", help="Ridge weight of the fit, >= 0, on kernel columns centred and scaled to unit standard "
         "deviation [default: 1 for cv-green and npass, 0.1 for cv-angle].", show_default=False)] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed, 0 to 2^64 - 1; same seed, same output bytes.",
                                       min=0, max=2**64 - 1)] = 0,
