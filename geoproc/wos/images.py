@@ -62,6 +62,10 @@ def read_exr(path: str) -> np.ndarray:
     return px[..., 0] if px.ndim == 3 else px
 
 
+MAX_HEIGHT_INCHES = 12.0
+"""Height cap of the pictures (100 pixels an inch; they are 6 inches wide)."""
+
+
 def png_bytes(U: np.ndarray, extent: tuple[float, float, float, float], title: str,
               cmap: str = "viridis", contours: int = 12, label: str = "u") -> bytes:
     """Colormapped PNG of a (H, W) field with contour lines; NaN pixels transparent.
@@ -85,7 +89,9 @@ def png_bytes(U: np.ndarray, extent: tuple[float, float, float, float], title: s
 
     H, W = U.shape
     aspect = H / W
-    fig = Figure(figsize=(6.0, max(2.5, 5.0 * aspect)), dpi=100)
+    # at most 12 inches tall, as it is at most 6 wide: a domain 300 times taller than wide
+    # made a 600 x 128,000 pixel picture (2 GB of memory)
+    fig = Figure(figsize=(6.0, min(MAX_HEIGHT_INCHES, max(2.5, 5.0 * aspect))), dpi=100)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     im = ax.imshow(np.ma.masked_invalid(U), cmap=cmap, extent=extent, origin="upper",

@@ -15,7 +15,8 @@ def load_domain(path: str, data: bytes | None = None) -> Domain:
     read from the file again."""
     if data is None:
         data = read_input_bytes(path, "domain file")
-    if data[:64].lstrip().startswith(b"{") or path.lower().endswith(".json"):
+    # (a byte-order mark some editors write may come first: json.loads reads it)
+    if data[:64].removeprefix(b"\xef\xbb\xbf").lstrip().startswith(b"{") or path.lower().endswith(".json"):
         return load_domain_json(path, data)
     if path == "-":
         raise InputError(path, "not a JSON domain (a mask image must be given as a file)")

@@ -1,7 +1,10 @@
 """Domains from binary mask images, traced into polylines.
 
 The mask is read through OpenImageIO (any format it reads); foreground is
-``value > 0.5`` of the first channel (normalized to [0, 1]). Its outline is the
+``value > 0.5`` of the first channel that is not alpha (normalized to [0, 1],
+not multiplied by alpha; see :func:`read_mask`). Foreground pixels that touch
+only at a corner are separate regions (4-connected foreground, 8-connected
+background). Its outline is the
 0.5 iso-contour of the padded mask (contourpy's marching squares), so a traced
 region's area matches its pixel count. Coordinates are pixel units with the
 origin at the image's bottom-left corner and y pointing up: pixel ``(row, col)``
@@ -25,13 +28,24 @@ class NoImageReader(InputError):
 
 
 def read_mask(path: str) -> np.ndarray:
-    """Read an image through OpenImageIO; return (H, W) bool foreground."""
+    """Read an image through OpenImageIO; return (H, W) bool foreground.
+
+    The values are read as stored, not multiplied by alpha (OpenImageIO's
+    default for PNG, which made a half-transparent pixel of value 1 fall below
+    0.5); the mask channel is the first that is not alpha (an OpenEXR file
+    lists its channels by name, so a grey image with alpha reads A before Y);
+    the pixels cover the whole image (an OpenEXR data window smaller than the
+    display window is placed in it, the rest background); and an orientation
+    tag (TIFF, JPEG) is applied, so the mask is traced as displayed.
+    """
     import OpenImageIO as oiio
 
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
     with c_stderr_silenced():
-        buf = oiio.ImageBuf(path)
+        buf = oiio.ImageBuf(path, 0, 0, config)
         opened = not buf.has_error
-        pixels = buf.get_pixels(oiio.FLOAT) if opened else None
+        pixels = _mask_channel(oiio, buf) if opened else None
     if not opened:
         message = buf.geterror().strip().splitlines()[0].removeprefix("Could not open file: ")
         if "could not find a format reader" in message:  # its message repeats the path; say what is read
@@ -48,6 +62,19 @@ def read_mask(path: str) -> np.ndarray:
         pixels = pixels[0]
     chan = pixels[..., 0] if pixels.ndim == 3 else pixels
     return np.nan_to_num(chan) > 0.5
+
+
+def _mask_channel(oiio, buf):
+    """The pixels (H, W, 1) float32 of ``buf``'s first channel that is not
+    alpha, over its display window and as displayed (see :func:`read_mask`);
+    None when they cannot be read."""
+    if buf.orientation != 1:
+        buf = oiio.ImageBufAlgo.reorient(buf)
+    spec = buf.spec()
+    channel = next((c for c in range(spec.nchannels) if c != spec.alpha_channel), 0)
+    roi = oiio.ROI(spec.full_x, spec.full_x + spec.full_width, spec.full_y, spec.full_y + spec.full_height,
+                   spec.z, spec.z + max(spec.depth, 1), channel, channel + 1)
+    return buf.get_pixels(oiio.FLOAT, roi)
 
 
 def trace_mask(mask: np.ndarray) -> list[np.ndarray]:

@@ -298,6 +298,55 @@ def test_mask_image_round_trip_keeps_orientation(tmp_path):
     assert lo[1] > 6  # near the top (y up)
 
 
+def _write_image(path, pixels, channels, fmt="uint8", spec_edit=None, attributes=()):
+    import OpenImageIO as oiio
+
+    pixels = np.asarray(pixels, dtype=np.float32)
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], getattr(oiio, fmt.upper()))
+    spec.channelnames = channels
+    if spec_edit:
+        spec_edit(spec)
+    for name, value in attributes:
+        spec.attribute(name, value)
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec)
+    out.write_image(pixels)
+    out.close()
+
+
+def test_mask_values_are_read_as_stored_from_the_first_channel_that_is_not_alpha(tmp_path):
+    # OpenImageIO multiplied a PNG's grey by its alpha (a value 1 at alpha 0.3 fell below 0.5),
+    # and an OpenEXR file lists its channels by name, so a grey image with alpha read A first
+    mask = np.zeros((8, 8), bool)
+    mask[2:6, 2:6] = True
+    grey_alpha = np.zeros((8, 8, 2))
+    grey_alpha[..., 0] = mask
+    grey_alpha[..., 1] = np.where(mask, 0.3, 1.0)
+    _write_image(tmp_path / "ga.png", grey_alpha, ("Y", "A"))
+    assert np.array_equal(read_mask(str(tmp_path / "ga.png")), mask)
+    _write_image(tmp_path / "ya.exr", grey_alpha, ("Y", "A"), fmt="float")
+    assert np.array_equal(read_mask(str(tmp_path / "ya.exr")), mask)
+
+
+def test_mask_covers_the_display_window_as_displayed(tmp_path):
+    # an OpenEXR data window smaller than the image was traced in its own coordinates,
+    # and a TIFF orientation tag was ignored
+    def window(spec):
+        spec.x, spec.y, spec.full_x, spec.full_y, spec.full_width, spec.full_height = 20, 4, 0, 0, 32, 32
+
+    square = np.zeros((8, 8, 1))
+    square[2:6, 2:6] = 1  # rows 6-9, columns 22-25 of the 32 x 32 image
+    _write_image(tmp_path / "dw.exr", square, ("Y",), fmt="float", spec_edit=window)
+    got = read_mask(str(tmp_path / "dw.exr"))
+    want = np.zeros((32, 32), bool)
+    want[6:10, 22:26] = True
+    assert np.array_equal(got, want)
+    corner = np.zeros((8, 8, 1))
+    corner[:2, :3] = 1  # top left as stored; orientation 3 displays it turned by 180 degrees
+    _write_image(tmp_path / "o.tif", corner, ("Y",), attributes=[("Orientation", 3)])
+    assert np.array_equal(read_mask(str(tmp_path / "o.tif")), corner[::-1, ::-1, 0] > 0.5)
+
+
 def test_mask_without_foreground(tmp_path):
     path = tmp_path / "empty.png"
     wf.write_mask(path, np.zeros((16, 16), bool))
@@ -321,6 +370,16 @@ def test_files_that_are_neither_json_nor_an_image(tmp_path):
     with pytest.raises(InputError) as err:
         load_domain(str(bad))
     assert err.value.problem.startswith("cannot read image: ") and str(bad) not in err.value.problem
+
+
+def test_a_json_domain_with_a_byte_order_mark_is_json_whatever_its_name(tmp_path):
+    # the content test did not skip the mark: the same bytes were refused as d.txt
+    from geoproc.wos.load import load_domain
+
+    path = tmp_path / "d.txt"
+    path.write_bytes(b"\xef\xbb\xbf" + b'{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}')
+    assert load_domain(str(path)).area == 1.0
+    assert load_domain("-", path.read_bytes()).area == 1.0
 
 
 def test_parts_of_nested_and_separate_loops():

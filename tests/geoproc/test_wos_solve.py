@@ -550,3 +550,17 @@ def test_png_puts_the_top_row_of_the_field_at_the_top():
     purple = (plot[..., 0] < 0.35) & (plot[..., 1] < 0.1) & (plot[..., 2] > 0.25)
     assert yellow.sum() > 100 and purple.sum() > 100
     assert rows[yellow].mean() < rows[purple].mean() - 0.3 * plot.shape[0]
+
+
+def test_pictures_of_tall_domains_are_capped():
+    # the picture's height grew with the domain's aspect: 300 times taller than wide made a
+    # 600 x 128,000 pixel PNG (2 GB of memory)
+    import io
+
+    import matplotlib.image
+
+    from geoproc.wos.images import png_bytes
+
+    U = np.ones((3000, 10))
+    img = matplotlib.image.imread(io.BytesIO(png_bytes(U, (0, 1, 0, 300), "tall", contours=0)))
+    assert img.shape[:2] == (1200, 600)
