@@ -431,7 +431,8 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
     the motion; since the nuclear norm shrinks P, every point's trajectory is
     then refitted in that basis by reweighted least squares (the refinement,
     robust to the frames in which it is an outlier), and its score in each
-    frame is its distance to the fit, in median point spacings.
+    frame is its distance to the fit, in point spacings (the median over the
+    frames of each frame's median spacing).
 
     Parameters
     ----------
@@ -456,9 +457,11 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
         raise InputError(path, f"has {T} frames; RPCA on the animation matrix needs at least 3")
     if n < 2:
         raise InputError(path, f"has {n} points per frame; at least 2 are needed")
-    dist, _ = cKDTree(V[0]).query(V[0], k=min(n, 16), workers=-1)
-    spacing = point_spacing(dist)
-    origin = V[0].mean(axis=0)  # centred first: far from 0 the positions' own digits would be lost
+    # the unit and the origin from every frame alike: taken from the first frame, they
+    # made the flags depend on the order of the frames (274 of 160,000 changed when the
+    # frames were rolled by 7)
+    spacing = float(np.median([point_spacing(cKDTree(Vt).query(Vt, k=min(n, 16), workers=-1)[0]) for Vt in V]))
+    origin = V.mean(axis=(0, 1))  # centred first: far from 0 the positions' own digits would be lost
     X = (V - origin).transpose(1, 0, 2) / spacing  # (n, T, 3)
     # in the principal axes of all the positions, which turn with the animation: RPCA's
     # sparse term is entrywise, so in world axes its result did not

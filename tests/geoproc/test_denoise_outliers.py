@@ -259,6 +259,18 @@ def test_animation_outliers_turn_with_the_animation(dfx):
     assert np.abs(a.refined @ Q.T - b.refined).max() < 1e-9 * np.ptp(V[0], axis=0).max()
 
 
+def test_animation_outliers_do_not_depend_on_the_order_of_the_frames(dfx):
+    # the unit and the origin came from the first frame: on a cloud growing from half to
+    # one and a half times its size, played backwards, thousands of flags changed
+    V, flag, _ = dfx.animated_cloud_with_outliers(count=1500, frames=12, sigma=0.3)
+    grow = np.linspace(0.5, 1.5, len(V))[:, None, None]
+    V = V * grow
+    for order in (np.roll(np.arange(len(V)), 7), np.arange(len(V))[::-1]):
+        a, b = rpca_animation_outliers(V), rpca_animation_outliers(V[order])
+        assert np.array_equal(a.outlier[order], b.outlier) and a.outlier.sum() > 1000
+        assert np.abs(a.score[order] - b.score).max() < 1e-8 * a.score.max()
+
+
 def test_animation_outliers_do_not_depend_on_where_the_cloud_is(dfx):
     # trajectories were divided by the spacing without being centred: moved by 1e4
     # diagonals, the scores moved by 5e-6 spacings (the input's own rounding is 1e-10)
