@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 from geoproc.denoise.rpca import rpca
 from geoproc.errors import InputError
 from geoproc.mesh.clean import unique_rows
+from geoproc.mesh.spacing import COPY_DISTANCE, point_spacing
 from geoproc.mesh.validate import mesh_arrays
 
 
@@ -200,7 +201,9 @@ def _score_distinct_points(P, k, threshold, path, lam, refine_passes, merged=Fal
     and the torus fixture stored so scored F1 0.78 instead of 0.90."""
     n = len(P)
     if n < k:
-        raise InputError(path, f"has {n} points, fewer than the neighbourhood size k={k}")
+        # (reached only with near copies merged: rpca_outliers checked the distinct points)
+        raise InputError(path, f"has {n} points once near copies are merged, fewer than the neighbourhood "
+                               f"size k={k}")
     tree = cKDTree(P)
     dist, idx = tree.query(P, k=k, workers=-1)
     far = float(np.median(dist[:, -1]))
@@ -223,31 +226,6 @@ def _score_distinct_points(P, k, threshold, path, lam, refine_passes, merged=Fal
             outlier = score > threshold
     refined = merged_projections(nb, idx, normal, center, ~outlier, P)
     return OutlierResult(score=score, outlier=outlier, threshold=float(threshold), refined=refined)
-
-
-COPY_DISTANCE = 1e-4
-"""Neighbours closer than this fraction of the typical distance to a point's
-farthest listed neighbour count as copies of it (:func:`point_spacing`)."""
-
-
-def point_spacing(dist: np.ndarray) -> float:
-    """The median point spacing: over the points, the median distance to the
-    nearest neighbour that is not a copy.
-
-    ``dist`` (n, k) holds each point's distances to its k nearest points in
-    increasing order, itself first. A neighbour closer than ``COPY_DISTANCE``
-    times the median of the last column counts as a copy: a cloud stored
-    twice, once rounded to float32, had taken the spacing down to the rounding
-    and flagged every point (and a moving cloud stored twice had fallen back to
-    a spacing of 1 length unit and flagged none). A point whose every listed
-    neighbour is a copy takes its farthest one; all points at one place give 1.
-    """
-    far = float(np.median(dist[:, -1]))
-    if not far > 0:
-        return 1.0
-    apart = dist[:, 1:] > COPY_DISTANCE * far
-    first = np.where(apart.any(axis=1), apart.argmax(axis=1), dist.shape[1] - 2)
-    return float(np.median(dist[np.arange(len(dist)), 1 + first]))
 
 
 def near_copy_groups(idx: np.ndarray, dist: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:

@@ -98,10 +98,15 @@ def point_cloud_normals(P: np.ndarray, k: int = 16) -> np.ndarray:
 
 def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     """Unit of ``sigma``: mean edge length of a mesh, or mean nearest-neighbour
-    distance of a point cloud (``F`` with no rows), over its distinct points
-    (a point stored twice is not its own neighbour at distance 0)."""
+    distance of a point cloud (``F`` with no rows), over its distinct points:
+    a point stored twice is not its own neighbour at distance 0, and a near
+    copy (closer than 1e-4 of the typical distance to the 16th neighbour; a
+    cloud stored twice, once rounded to float32) is not its neighbour either,
+    as :func:`geoproc.denoise.outliers.rpca_outliers` counts them (it had made
+    the unit 2.6e-8 of the cloud's spacing)."""
     from scipy.spatial import cKDTree
 
+    from geoproc.mesh.spacing import nearest_distinct_distances
     from geoproc.mesh.topology import mean_edge_length
 
     V, F = mesh_arrays(V, F, allow_point_cloud=True)
@@ -110,8 +115,8 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     U = unique_rows(V)[0]
     if len(U) < 2:
         return 0.0
-    d, _ = cKDTree(U).query(U, k=2, workers=-1)
-    return float(d[:, 1].mean())
+    d, _ = cKDTree(U).query(U, k=min(len(U), 16), workers=-1)
+    return float(nearest_distinct_distances(d).mean())
 
 
 def perturb_positions(

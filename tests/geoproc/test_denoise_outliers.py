@@ -119,6 +119,14 @@ def test_near_copy_groups_link_listed_neighbours_only():
     assert np.array_equal(keep[group], [np.flatnonzero(label == label[i])[0] for i in range(len(Q))])
 
 
+def test_too_few_points_once_near_copies_are_merged_says_so():
+    # 24 distinct points, 12 of them near copies of the others: the error said "has 12 points"
+    P = np.random.default_rng(0).random((12, 3))
+    with pytest.raises(InputError, match="has 12 points once near copies are merged, fewer than the "
+                                         "neighbourhood size k=16"):
+        rpca_outliers(np.vstack([P, P + 1e-9]), k=16)
+
+
 def test_point_spacing_skips_copies():
     from geoproc.denoise.outliers import point_spacing
 

@@ -28,6 +28,10 @@ def test_noise_scale_of_a_cloud_is_the_mean_nearest_neighbour_distance():
     empty = np.zeros((0, 3), dtype=np.int64)
     assert noise_scale(P, empty) == pytest.approx(nearest.mean(), rel=1e-12)
     assert noise_scale(np.vstack([P, P[:1]]), empty) == pytest.approx(nearest.mean(), rel=1e-12)
+    # stored twice, once rounded to float32: the near copies were each other's nearest
+    # neighbours, and the unit came out at the rounding (2.6e-8 of the spacing on a torus cloud)
+    twice = np.vstack([P, P.astype(np.float32).astype(np.float64)])
+    assert noise_scale(twice, empty) == pytest.approx(nearest.mean(), rel=1e-5)
 
 
 @pytest.mark.parametrize("sigma", [0.2, 0.5])
