@@ -107,12 +107,12 @@ def load_animation(path: str | os.PathLike) -> Animation:
     for k, v in data.items():  # per-vertex numeric arrays travel as fields; others are named as unread
         if k == "outlier" and v.shape != V.shape[:2]:  # the flags denoise --outliers scores against
             raise InputError(name, f"'outlier' has shape {v.shape}; expected (frames, n) = {V.shape[:2]}")
-        if v.dtype.kind == "c" and v.shape == V.shape[:2]:  # shaped as a field, but no real values
+        if v.dtype.kind == "c" and k == "outlier":  # left out, the flags to score against would be lost
             raise InputError(name, f"'{k}' must hold real numbers, got dtype {v.dtype}")
         if v.dtype.kind in "fiub" and v.shape == V.shape[:2]:
             fields[k] = np.asarray(v, dtype=np.float64)
-        else:
-            unread.append(f"{k} {tuple(v.shape)}")
+        else:  # (a complex field is named as such: it is shaped as one, but no property holds it)
+            unread.append(f"{k} {tuple(v.shape)}" + (" complex" if v.dtype.kind == "c" else ""))
     return Animation(V, F.astype(np.int64), fields, name, sha256=sha256_bytes(raw), unread=unread)
 
 

@@ -44,6 +44,9 @@ def test_members_that_are_not_numeric_arrays_are_left_out(wave, tmp_path):
     p = _npz(tmp_path / "c.npz", vertices=V, faces=F, outlier=np.zeros(V.shape[:2], complex))
     with pytest.raises(InputError, match="'outlier' must hold real numbers, got dtype complex128"):
         load_animation(p)
+    # any other complex field is left out and named, as other members that do not travel
+    p = _npz(tmp_path / "d.npz", vertices=V, faces=F, phase=np.zeros(V.shape[:2], complex))
+    assert load_animation(p).unread == [f"phase {V.shape[:2]} complex"]
 
 
 @pytest.mark.parametrize("case,message", [
