@@ -114,7 +114,8 @@ def denoise(
                                            "its x, y, z in every frame) flags the outlying points of every "
                                            "frame.")] = False,
     k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers, in points "
-                                     "(at least 4, at most the number of distinct points).")] = 16,
+                                     "(at least 4, at most the number of distinct points; near copies count "
+                                     "once).")] = 16,
     threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, >= 0, in "
                                                     "median point spacings (default 0.5; for an animation "
                                                     "max(0.5, 3 x the median score)).",

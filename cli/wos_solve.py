@@ -68,7 +68,8 @@ def wos_solve(
     domain: Annotated[str, typer.Argument(
         help="Domain: a JSON file {\"loops\": [[[x, y], ...], ...], \"neumann\": [loop indices or "
              "[loop, segment] pairs], \"values\": [[per-vertex values], ...]}, or a binary mask "
-             "image (any format OpenImageIO reads; foreground = first channel other than alpha > 0.5, traced to "
+             "image (any format OpenImageIO reads; foreground = first channel other than alpha, times alpha, "
+             "> 0.5, traced to "
              "polylines in pixel units, y up); - reads the JSON from stdin.", metavar="DOMAIN", show_default=False)],
     output: Annotated[str, typer.Option("--output", "-o", help="Solution image: one-channel float "
                                         "EXR over the domain's bounding box, NaN outside (a file; EXR "

@@ -2,7 +2,7 @@
 
 The mask is read through OpenImageIO (any format it reads); foreground is
 ``value > 0.5`` of the first channel that is not alpha (normalized to [0, 1],
-not multiplied by alpha; see :func:`read_mask`). Foreground pixels that touch
+alpha associated; see :func:`read_mask`). Foreground pixels that touch
 only at a corner are separate regions (4-connected foreground, 8-connected
 background). Its outline is the
 0.5 iso-contour of the padded mask (contourpy's marching squares), so a traced
@@ -30,20 +30,19 @@ class NoImageReader(InputError):
 def read_mask(path: str) -> np.ndarray:
     """Read an image through OpenImageIO; return (H, W) bool foreground.
 
-    The values are read as stored, not multiplied by alpha (OpenImageIO's
-    default for PNG, which made a half-transparent pixel of value 1 fall below
-    0.5); the mask channel is the first that is not alpha (an OpenEXR file
-    lists its channels by name, so a grey image with alpha reads A before Y);
-    the pixels cover the whole image (an OpenEXR data window smaller than the
-    display window is placed in it, the rest background); and an orientation
+    The mask channel is the first that is not alpha (an OpenEXR file lists its
+    channels by name, so a grey image with alpha read A before Y), with alpha
+    associated as OpenImageIO reads it (a PNG's values multiplied by its
+    alpha, an OpenEXR's as stored, already so): transparent pixels are
+    background, so a white cut-out on a transparent background is its shape.
+    The pixels cover the whole image (an OpenEXR data window smaller than the
+    display window is placed in it, the rest background), and an orientation
     tag (TIFF, JPEG) is applied, so the mask is traced as displayed.
     """
     import OpenImageIO as oiio
 
-    config = oiio.ImageSpec()
-    config.attribute("oiio:UnassociatedAlpha", 1)
     with c_stderr_silenced():
-        buf = oiio.ImageBuf(path, 0, 0, config)
+        buf = oiio.ImageBuf(path)
         opened = not buf.has_error
         pixels = _mask_channel(oiio, buf) if opened else None
     if not opened:

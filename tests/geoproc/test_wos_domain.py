@@ -314,18 +314,18 @@ def _write_image(path, pixels, channels, fmt="uint8", spec_edit=None, attributes
     out.close()
 
 
-def test_mask_values_are_read_as_stored_from_the_first_channel_that_is_not_alpha(tmp_path):
-    # OpenImageIO multiplied a PNG's grey by its alpha (a value 1 at alpha 0.3 fell below 0.5),
-    # and an OpenEXR file lists its channels by name, so a grey image with alpha read A first
+def test_mask_is_the_first_channel_that_is_not_alpha_with_alpha_associated(tmp_path):
+    # an OpenEXR file lists its channels by name, so a grey image with alpha read A first
+    # and an opaque image was all foreground
     mask = np.zeros((8, 8), bool)
     mask[2:6, 2:6] = True
-    grey_alpha = np.zeros((8, 8, 2))
-    grey_alpha[..., 0] = mask
-    grey_alpha[..., 1] = np.where(mask, 0.3, 1.0)
-    _write_image(tmp_path / "ga.png", grey_alpha, ("Y", "A"))
-    assert np.array_equal(read_mask(str(tmp_path / "ga.png")), mask)
+    grey_alpha = np.stack([mask, np.ones((8, 8))], axis=2)
     _write_image(tmp_path / "ya.exr", grey_alpha, ("Y", "A"), fmt="float")
     assert np.array_equal(read_mask(str(tmp_path / "ya.exr")), mask)
+    # a white cut-out on a transparent background is its shape (the value times alpha)
+    cutout = np.stack([np.ones((8, 8))] * 3 + [mask], axis=2)
+    _write_image(tmp_path / "cut.png", cutout, ("R", "G", "B", "A"))
+    assert np.array_equal(read_mask(str(tmp_path / "cut.png")), mask)
 
 
 def test_mask_covers_the_display_window_as_displayed(tmp_path):
