@@ -77,9 +77,9 @@ def read_sources_file(path: str, data: bytes | None = None) -> list[tuple[int, i
             if not re.fullmatch(r"[+-]?[0-9]+", tok):  # ASCII digits only (no 1_0, no other scripts)
                 shown = "".join(c if " " <= c <= "~" else ascii(c)[1:-1] for c in tok)  # non-ASCII escaped
                 raise InputError(path, f"line {lineno}: '{shown}' is not a vertex index")
-            if len(tok.lstrip("+-")) > MAX_INDEX_DIGITS:  # int() refuses past 4300 digits
-                raise InputError(path, f"line {lineno}: a {len(tok.lstrip('+-'))}-digit number is beyond any "
-                                       "vertex index")
+            digits = len(tok.lstrip("+-").lstrip("0"))
+            if digits > MAX_INDEX_DIGITS:  # int() refuses past 4300 digits
+                raise InputError(path, f"line {lineno}: a {digits}-digit number is beyond any vertex index")
             out.append((int(tok), lineno))
     if not out:
         raise InputError(path, "no vertex indices in the file")

@@ -79,7 +79,7 @@ def parse_ply_header(data: bytes) -> tuple[str, list[PlyElementHeader], int] | N
             continue
         if words[0] == "format" and len(words) == 3 and words[2] == "1.0" and fmt is None and not elements:
             fmt = words[1]
-        elif words[0] == "element" and len(words) == 3 and words[2].isdigit() and len(words[2]) <= 20:
+        elif words[0] == "element" and len(words) == 3 and words[2].isdigit() and len(words[2].lstrip("0")) <= 20:
             elements.append([words[1], int(words[2]), [], None, None])
         elif words[0] == "property" and elements and len(words) == 3 and words[1] in PLY_TYPES:
             elements[-1][2].append((words[2], PLY_TYPES[words[1]]))

@@ -221,8 +221,15 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     elements = read_uniform_ply(data)
     if elements is None:  # outside the vectorized layout: plyfile reads it, or names the problem
         _require_declared_rows_fit(data, path)
-        elements = _plyfile_elements(data, path)
-        _refuse_text_after_ascii_rows(data, path)  # after plyfile, which names a row split over two lines
+        try:
+            elements = _plyfile_elements(data, path)
+        except InputError as exc:
+            # text beyond the declared rows is the header's count, unless plyfile found a row
+            # ending early: a row written over two lines, which plyfile names
+            if "early end-of-line" not in exc.problem:
+                _refuse_text_after_ascii_rows(data, path)
+            raise
+        _refuse_text_after_ascii_rows(data, path)
     if "vertex" not in elements:
         raise InputError(path, "PLY has no 'vertex' element")
     vert = elements["vertex"]
@@ -297,7 +304,7 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
     Headers :func:`geoproc.mesh.ply_uniform.parse_ply_header` does not read are
     left to plyfile.
     """
-    long_count = re.search(rb"^element +(\S+) +[0-9]{21,} *$", data[:max(data.find(b"end_header"), 0)], re.M)
+    long_count = re.search(rb"^element +(\S+) +0*[1-9][0-9]{20,} *$", data[:max(data.find(b"end_header"), 0)], re.M)
     if long_count:  # plyfile's int() would refuse past 4300 digits, with advice on Python's settings
         raise InputError(path, f"PLY header declares a count of more than 20 digits for its "
                                f"'{long_count.group(1).decode('latin-1')}' rows")

@@ -59,7 +59,7 @@ def test_input_properties_are_kept_and_field_renamed(cli, make_fixtures, tmp_pat
 
 def test_sources_file_and_stdout(cli, fixture_dir, tmp_path):
     sf = tmp_path / "s.txt"
-    sf.write_text("\ufeff# two corners\n0, 440\n", encoding="utf-8")  # a BOM, as some editors write
+    sf.write_text("\ufeff# two corners\n0, 0000000000000000000000000440\n", encoding="utf-8")  # a BOM, leading zeros
     p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", sf, "-m", "exact", "-o", "-")
     assert p.returncode == 0, p.stderr
     assert p.stdout.startswith(b"ply")
@@ -76,6 +76,7 @@ def test_sources_file_and_stdout(cli, fixture_dir, tmp_path):
     ("0 \u0661\n".encode(), "line 1: '\\u0661' is not a vertex index"),  # an Arabic-Indic digit
     # int() refuses past 4300 digits: the run ended as an internal error, exit 3
     (b"0\n" + b"9" * 5000 + b"\n", "line 2: a 5000-digit number is beyond any vertex index"),
+    (b"0\n" + b"0" * 30 + b"9" * 21 + b"\n", "line 2: a 21-digit number is beyond any vertex index"),
 ])
 def test_a_bad_token_in_the_sources_file_is_shown_in_ascii(cli, fixture_dir, tmp_path, content, shown):
     sf = tmp_path / "s.txt"
