@@ -279,6 +279,19 @@ def test_animation_outliers_do_not_depend_on_the_order_of_the_frames(dfx):
         assert np.abs(a.score[order] - b.score).max() < 1e-8 * a.score.max()
 
 
+def test_frames_spacing_leaves_out_frames_at_one_place():
+    # such a frame's spacing reads 1 length unit, which entered the median over the frames
+    from scipy.spatial import cKDTree
+
+    from geoproc.denoise.outliers import frames_spacing
+
+    P = np.random.default_rng(2).random((600, 3))
+    V = np.stack([P * 0.01] * 11 + [np.zeros_like(P)] * 13)
+    one_frame = outliers_mod.point_spacing(cKDTree(V[0]).query(V[0], k=16)[0])
+    assert frames_spacing(V) == pytest.approx(one_frame, rel=1e-12) and one_frame < 0.01
+    assert frames_spacing(np.zeros((3, 5, 3))) == 1.0
+
+
 def test_animation_outliers_do_not_depend_on_where_the_cloud_is(dfx):
     # trajectories were divided by the spacing without being centred: moved by 1e4
     # diagonals, the scores moved by 5e-6 spacings (the input's own rounding is 1e-10)
