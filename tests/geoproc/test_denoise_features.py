@@ -121,6 +121,16 @@ def test_l1_on_the_noisy_input_removes_most_oscillation(dfx):
     assert (res.J[flat] != 0).mean() < 0.2
 
 
+def test_l1_weight_ignores_vertices_no_face_uses(dfx):
+    # their J of 0 entered the spread that sets lambda: half a fandisk kept with its unused
+    # vertices (--no-clean) had lambda 0.005 instead of 0.12 and 118 other feature faces
+    Vn, F, _ = dfx.noisy_cube(n=16, sigma=0.3, seed=5)
+    extra = np.random.default_rng(0).random((3 * len(Vn), 3))
+    a = l1_feature_vertices(Vn, F)
+    b = l1_feature_vertices(np.vstack([Vn, extra]), F)
+    assert b.lam == a.lam and np.array_equal(b.feature[: len(Vn)], a.feature) and not b.feature[len(Vn):].any()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name, p_min, r_min", [("Fandisk0.3", 0.88, 0.89), ("Twelve0.5Impulsive", 0.85, 0.66)])
 def test_shared_pair_features(shared_data, name, p_min, r_min):
