@@ -385,7 +385,9 @@ def denoise_mesh(
     rough = roughness(Vw, conn.F, conn.edge_nb)
     needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
     shape = smoothed_shape(Vw, conn.F, conn) if rough >= 0.03 else None
-    coarse, tail = (0.0, np.inf) if shape is None or not needs_schedule else (shape.coarseness_deg, shape.tail_ratio)
+    # measured whenever the shape is (for the slivers): with --rounds, --normal-iterations and
+    # --sigma-r all given they had read 0 and none, and the default --sigma-s ignored them
+    coarse, tail = (0.0, np.inf) if shape is None else (shape.coarseness_deg, shape.tail_ratio)
     sched = default_schedule(rough, coarse, tail)
     # automatic schedule at strong noise: the last round repairs faces the fit
     # squashed against a crease; on finely meshed surfaces (the narrow-kernel
@@ -404,7 +406,8 @@ def denoise_mesh(
     res.V = res.V[inverse_permutation(vo)]
     inv_fo = inverse_permutation(fo)
     res.normals, res.feature = res.normals[inv_fo], res.feature[inv_fo]
-    res.info = {"noise_median_dihedral_deg": noise_deg, "noise_roughness": rough, "coarseness_deg": coarse,
+    res.info = {"noise_median_dihedral_deg": noise_deg, "noise_roughness": rough,
+                "coarseness_deg": None if shape is None else coarse,  # (not measured on a clean mesh)
                 "dihedral_tail_ratio": tail if np.isfinite(tail) else None, "reoriented_faces": int(flip.sum()),
                 "sliver_faces": 0 if shape is None else int(shape.sliver.sum()),
                 **res.info}

@@ -87,6 +87,24 @@ def test_replacing_an_input_property_is_noted(cli, cube_pair, dfx, tmp_path):
     assert p.returncode == 0 and "note: replacing the input's vertex property 'outlier_score'" in p.stderr, p.stderr
 
 
+def test_shape_statistics_are_reported_whenever_measured(cli, cube_pair, tmp_path):
+    # with --rounds, --normal-iterations and --sigma-r all given, coarseness_deg read 0 and
+    # dihedral_tail_ratio was left out although both had been measured; on a clean mesh,
+    # where neither is measured, coarseness_deg read 0
+    noisy, clean = cube_pair
+    reports = []
+    for name, mesh, args in (("a", noisy, []), ("b", noisy, ["--rounds", "1", "--normal-iterations", "2",
+                                                              "--sigma-r", "0.4"]), ("c", clean, [])):
+        rep = tmp_path / f"{name}.json"
+        p = cli("denoise", mesh, *args, "-o", tmp_path / f"{name}.ply", "--report", rep)
+        assert p.returncode == 0, p.stderr
+        reports.append(_metrics(rep))
+    a, b, c = reports
+    assert a["coarseness_deg"] > 0 and a["dihedral_tail_ratio"] > 1
+    assert b["coarseness_deg"] == a["coarseness_deg"] and b["dihedral_tail_ratio"] == a["dihedral_tail_ratio"]
+    assert "coarseness_deg" not in c and "dihedral_tail_ratio" not in c and c["outer_iterations"] == 0
+
+
 def test_inliers_drop_an_earlier_runs_scores(cli, dfx, tmp_path):
     # an earlier --keep-all run's flags were carried into the inliers: points flagged 1
     # among those this run kept, without a word
