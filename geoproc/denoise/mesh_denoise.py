@@ -303,6 +303,12 @@ def blend_guidance(G: np.ndarray, N: np.ndarray, mix: float) -> np.ndarray:
     return B / np.maximum(np.linalg.norm(B, axis=1, keepdims=True), 1e-300)
 
 
+SPARSE_ROW = 1e-3
+"""Length of a face's row of S (a difference of unit normals) above which the
+report's ``rpca_sparse_faces`` counts the face: RPCA's iterations leave most
+rows a little above zero."""
+
+
 def rpca_guidance(G: np.ndarray, patch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Clean guidance normals with RPCA on the patch matrices.
 
@@ -552,5 +558,5 @@ def filter_and_fit(
     else:
         feature = np.zeros(len(F))
     if method == "rpca":
-        info["rpca_sparse_faces"] = int((sparse > 1e-3).sum())
+        info["rpca_sparse_faces"] = int((sparse > SPARSE_ROW).sum())
     return DenoiseResult(V=X, normals=N, feature=feature, info=info)
