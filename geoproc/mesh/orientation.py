@@ -9,8 +9,10 @@ def consistent_orientation(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Faces turned to agree with their edge neighbours in each connected
     patch (``igl.bfs_orient``): a face stored the other way round turns its
     normal over, so face-normal filters read it as a crease of 180 degrees and
-    vertex normals around it cancel. Each patch keeps the orientation of the
-    face the search starts from.
+    vertex normals around it cancel. Each patch keeps the orientation of most
+    of its faces (the search keeps its first face's, and a patch whose first
+    face was among the few stored the other way round counted all the others
+    as turned: 9,097 of fandisk's 12,946 faces for 3,849 stored so).
 
     Returns the (m, 3) reoriented faces and the (m,) bool mask of the faces turned.
     """
@@ -19,10 +21,14 @@ def consistent_orientation(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     F = np.ascontiguousarray(F, dtype=np.int64)
     if len(F) == 0 or not _repeats_a_directed_edge(F):  # consistent already (the search costs 17x vertex normals)
         return F, np.zeros(len(F), dtype=bool)
-    Fo, _ = igl.bfs_orient(F)
+    Fo, patch = igl.bfs_orient(F)
     Fo = np.asarray(Fo, dtype=np.int64)
+    patch = np.asarray(patch, dtype=np.int64).reshape(-1)
     flip = ~np.any([(Fo == np.roll(F, r, axis=1)).all(axis=1) for r in range(3)], axis=0)
-    return Fo, flip
+    turned = np.bincount(patch, weights=flip, minlength=patch.max() + 1)
+    back = (2 * turned > np.bincount(patch))[patch]  # patches where most faces were turned
+    Fo[back] = Fo[back][:, ::-1]
+    return Fo, flip ^ back
 
 
 def _repeats_a_directed_edge(F: np.ndarray) -> bool:

@@ -128,7 +128,7 @@ def test_face_orientation_does_not_change_the_result(make_fixtures):
     Fm = F.copy()
     Fm[turned] = Fm[turned][:, ::-1]
     a, b = denoise_mesh(Vn, F), denoise_mesh(Vn, Fm)
-    assert b.info["reoriented_faces"] in (turned.sum(), len(F) - turned.sum())
+    assert b.info["reoriented_faces"] == turned.sum()  # the majority's orientation is kept
     assert np.abs(a.V - b.V).max() < 1e-12
     # the filtered normals come back in each run's own face orientation
     assert np.allclose(a.normals[~turned], b.normals[~turned]) and np.allclose(a.normals[turned], -b.normals[turned])

@@ -24,13 +24,21 @@ def test_consistent_faces_come_back_as_they_are(make_fixtures):
 def test_reversed_faces_are_turned_back(make_fixtures):
     V, F = make_fixtures.icosphere(3)
     turn = np.random.default_rng(1).random(len(F)) < 0.3
-    turn[0] = False  # the search keeps the first face of the patch as stored
+    turn[0] = False
     G = F.copy()
     G[turn] = G[turn][:, ::-1]
     Fo, flip = consistent_orientation(G)
     assert _directed_edge_repeats(G) > 0 and _directed_edge_repeats(Fo) == 0
     assert np.array_equal(flip, turn)
     assert np.allclose(igl.doublearea(V, Fo), igl.doublearea(V, F))
+    # with the first face among them, the search kept its orientation and counted all the
+    # other faces as turned (70 % instead of 30 %): each patch keeps its majority's
+    turn[0] = True
+    G = F.copy()
+    G[turn] = G[turn][:, ::-1]
+    Fo, flip = consistent_orientation(G)
+    assert np.array_equal(flip, turn) and np.allclose(igl.doublearea(V, Fo), igl.doublearea(V, F))
+    assert _directed_edge_repeats(Fo) == 0
 
 
 def test_an_edge_of_three_faces_is_searched_without_error():
