@@ -67,26 +67,28 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
 
     fig = plt.figure(figsize=(size_px / 100, size_px / 100), dpi=100)
     ax = fig.add_axes((0, 0, 1, 1) if title is None else (0, 0, 1, 0.95))
-    pad = 0.03 * max(np.ptp(P[:, 0]), np.ptp(P[:, 1]))
-    ax.set_xlim(P[:, 0].min() - pad, P[:, 0].max() + pad)
-    ax.set_ylim(P[:, 1].min() - pad, P[:, 1].max() + pad)
+    Pu = P[np.unique(F)]  # framed on the surface (vertices no face uses are not drawn)
+    pad = 0.03 * max(np.ptp(Pu[:, 0]), np.ptp(Pu[:, 1]))
+    ax.set_xlim(Pu[:, 0].min() - pad, Pu[:, 0].max() + pad)
+    ax.set_ylim(Pu[:, 1].min() - pad, Pu[:, 1].max() + pad)
     ax.set_aspect("equal")
     ax.axis("off")
     front = _front_face_image(fig, ax, P, F, order)
     ax.add_collection(PolyCollection(P[F[order]], facecolors=colors[order], edgecolors="none",
                                      antialiaseds=False))
     if isolines > 0 and fin.any():
-        shown = np.flatnonzero(nz > 0)
-        segs, seg_face = isoline_segments(P, F[shown], d, np.linspace(lo, hi, isolines + 2)[1:-1])
+        # every face, the hidden ones left out by the face-index image: picking the faces
+        # whose winding faces the camera drew none on a mesh wound inwards
+        segs, seg_face = isoline_segments(P, F, d, np.linspace(lo, hi, isolines + 2)[1:-1])
         if len(segs):
-            keep = _seen(ax, front, F, segs.mean(axis=1), F[shown[seg_face]])
+            keep = _seen(ax, front, F, segs.mean(axis=1), F[seg_face])
             ax.add_collection(LineCollection(segs[keep], colors="black", linewidths=0.6))
     if sources is not None:
         s = np.atleast_1d(np.asarray(sources, dtype=np.int64))
         s = s[_seen(ax, front, F, P[s], s[:, None])] if len(s) else s
         ax.plot(P[s, 0], P[s, 1], "o", color="red", markersize=4)
     if title:
-        fig.suptitle(title, fontsize=10)
+        fig.suptitle(title, fontsize=10, parse_math=False)  # a file name may hold '$'
     buf = io.BytesIO()
     fig.savefig(buf, format="png", metadata={"Software": None})
     plt.close(fig)

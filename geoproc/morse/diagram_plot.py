@@ -57,13 +57,13 @@ def persistence_diagram_png(before: PersistencePairs, after: PersistencePairs, t
                        label=f"essential dim {dim} ({int((~fin).sum())})")
         ax.set_xlim(lo - pad, top + pad)
         ax.set_ylim(lo - pad, top + pad)
-        ax.set_xlabel("birth" + unit)
-        ax.set_ylabel("death" + unit)
-        ax.set_title(name)
+        ax.set_xlabel("birth" + unit, parse_math=False)
+        ax.set_ylabel("death" + unit, parse_math=False)
+        ax.set_title(name, parse_math=False)
         ax.set_aspect("equal")
         ax.legend(loc="lower right", fontsize=8)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(title, parse_math=False)  # a file name may hold '$'
     buf = io.BytesIO()
     fig.savefig(buf, format="png", metadata={"Software": None})
     return buf.getvalue()

@@ -103,7 +103,7 @@ def png_bytes(U: np.ndarray, extent: tuple[float, float, float, float], title: s
         xc, yc = (xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2
         ax.contour(xc, yc, np.ma.masked_invalid(U), levels=contours, colors="k", linewidths=0.5)
     fig.colorbar(im, ax=ax, label=label)
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=9, parse_math=False)  # a file name may hold '$'
     ax.set_aspect("equal")
     bio = io.BytesIO()
     fig.savefig(bio, format="png", metadata={"Software": None})

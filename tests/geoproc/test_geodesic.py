@@ -1033,6 +1033,27 @@ def test_render_hides_what_is_behind_the_surface(make_fixtures):
     assert render_distance_png(V, F, d[:len(V)].tolist(), src[0]) == render_distance_png(V, F, d[:len(V)], src)
 
 
+def test_render_draws_isolines_whatever_the_winding_frames_the_surface_and_keeps_dollars(make_fixtures):
+    # isolines went on the faces whose winding faced the camera: none on a mesh wound
+    # inwards; vertices no face uses stretched the frame; a '$' in the title (the file's
+    # name) was read as matplotlib math and ended the run as an internal error
+    import io
+
+    import matplotlib.image
+
+    from geoproc.geodesic.render import render_distance_png
+
+    V, F = make_fixtures.icosphere(3)
+    d = np.linalg.norm(V - V[0], axis=1)
+    img = lambda *a, **k: matplotlib.image.imread(io.BytesIO(render_distance_png(*a, **k)))[..., :3]  # noqa: E731
+    dark = lambda im: (im.max(axis=-1) < 0.15).mean()  # noqa: E731  black isoline pixels
+    out, inward = img(V, F, d), img(V, F[:, ::-1], d)
+    assert dark(out) > 0.001 and abs(dark(inward) - dark(out)) < 0.1 * dark(out)
+    far = np.vstack([V, [[9.0, 9.0, 9.0]]])
+    assert np.array_equal(img(far, F, np.append(d, np.inf)), out)
+    assert img(V, F, d, title="a$_$b.ply: heat").shape == out.shape
+
+
 @pytest.mark.parametrize("method,options", [
     ("log-ode", {}), ("log-heat", {}), ("heat", {"operators": "intrinsic"}),
     ("varadhan", {"laplacian": "intrinsic-delaunay"}),
