@@ -363,10 +363,11 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
     a = _now()
     L, M = laplacian_and_mass(V, F, lap)
     if method == "varadhan":
-        from geoproc.geodesic.varadhan import varadhan_distance
+        from geoproc.geodesic.varadhan import heat_step_factor, varadhan_distance
 
+        factor = heat_step_factor(L, M, t / steps)  # reusable for more sources: setup, as heat's
         timings["setup"] = _now() - a
-        d, u = varadhan_distance(L, M, src, t, steps)
+        d, u = varadhan_distance(L, M, src, t, steps, factor)
         stats["zero_heat_vertices"] = int((u == 0).sum())
         stats["negative_heat_vertices"] = int((u < 0).sum())
         return d

@@ -8,7 +8,14 @@ import scipy.sparse as sp
 from geoproc.geodesic.operators import factor_sparse
 
 
-def backward_euler_heat(L: sp.spmatrix, M: np.ndarray, u0: np.ndarray, dt: float, steps: int) -> np.ndarray:
+def heat_step_factor(L: sp.spmatrix, M: np.ndarray, dt: float):
+    """The factorization of ``M - dt L`` (L (n, n) negative semi-definite, M (n,)
+    lumped mass, dt in area units) that :func:`backward_euler_heat` solves with."""
+    return factor_sparse((sp.diags(M) - dt * L).tocsc())
+
+
+def backward_euler_heat(L: sp.spmatrix, M: np.ndarray, u0: np.ndarray, dt: float, steps: int,
+                        factor=None) -> np.ndarray:
     """``steps`` backward-Euler steps ``(M - dt L) u_{k+1} = M u_k`` (one factorization).
 
     Parameters
@@ -20,8 +27,10 @@ def backward_euler_heat(L: sp.spmatrix, M: np.ndarray, u0: np.ndarray, dt: float
         Step (area unit).
     steps : int
         Number of steps, >= 1.
+    factor : optional
+        :func:`heat_step_factor` of the same L, M and dt, when the caller has it.
     """
-    lu = factor_sparse((sp.diags(M) - dt * L).tocsc())
+    lu = heat_step_factor(L, M, dt) if factor is None else factor
     u = np.asarray(u0, dtype=np.float64)
     for _ in range(steps):
         u = lu.solve(M * u)
@@ -36,8 +45,9 @@ def varadhan_from_heat(u: np.ndarray, T: float) -> np.ndarray:
 
 
 def varadhan_distance(L: sp.spmatrix, M: np.ndarray, sources: np.ndarray, T: float,
-                      steps: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Heat from ``u0 = 1`` at the sources over ``steps`` steps to time ``T``, then Varadhan.
+                      steps: int = 1, factor=None) -> tuple[np.ndarray, np.ndarray]:
+    """Heat from ``u0 = 1`` at the sources over ``steps`` steps to time ``T``, then Varadhan
+    (``factor``: :func:`heat_step_factor` of L, M and ``T / steps``, when the caller has it).
 
     Returns
     -------
@@ -46,5 +56,5 @@ def varadhan_distance(L: sp.spmatrix, M: np.ndarray, sources: np.ndarray, T: flo
     """
     u0 = np.zeros(len(M))
     u0[np.asarray(sources)] = 1.0
-    u = backward_euler_heat(L, M, u0, T / steps, steps)
+    u = backward_euler_heat(L, M, u0, T / steps, steps, factor)
     return varadhan_from_heat(u, T), u

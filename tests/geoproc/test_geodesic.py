@@ -256,6 +256,11 @@ def test_varadhan_matches_direct_heat_solve(make_fixtures):
     u_ref = spsolve(A, M * spsolve(A, M * np.eye(len(M))[0]))
     assert np.allclose(u, u_ref, rtol=1e-10, atol=0)
     assert np.allclose(d, np.sqrt(-4 * T * np.log(u_ref)), rtol=1e-10)
+    # the factorization made ahead (the report's setup, reusable for more sources): same bits
+    from geoproc.geodesic.varadhan import heat_step_factor
+
+    d2, u2 = gd.varadhan_distance(L, M, np.array([0]), T, steps=2, factor=heat_step_factor(L, M, T / 2))
+    assert np.array_equal(d2, d) and np.array_equal(u2, u)
 
 
 # ---- the discrete log ODE -------------------------------------------------------------------
