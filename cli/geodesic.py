@@ -80,7 +80,7 @@ def read_sources_file(path: str, data: bytes | None = None) -> list[tuple[int, i
             digits = len(tok.lstrip("+-").lstrip("0"))
             if digits > MAX_INDEX_DIGITS:  # int() refuses past 4300 digits
                 raise InputError(path, f"line {lineno}: a {digits}-digit number is beyond any vertex index")
-            out.append((int(tok), lineno))
+            out.append((int(tok[0] * (tok[0] in "+-") + (tok.lstrip("+-").lstrip("0") or "0")), lineno))
     if not out:
         raise InputError(path, "no vertex indices in the file")
     return out

@@ -80,7 +80,7 @@ def parse_ply_header(data: bytes) -> tuple[str, list[PlyElementHeader], int] | N
         if words[0] == "format" and len(words) == 3 and words[2] == "1.0" and fmt is None and not elements:
             fmt = words[1]
         elif words[0] == "element" and len(words) == 3 and words[2].isdigit() and len(words[2].lstrip("0")) <= 20:
-            elements.append([words[1], int(words[2]), [], None, None])
+            elements.append([words[1], int(words[2].lstrip("0") or "0"), [], None, None])  # (int() counts zeros)
         elif words[0] == "property" and elements and len(words) == 3 and words[1] in PLY_TYPES:
             elements[-1][2].append((words[2], PLY_TYPES[words[1]]))
         elif (words[0] == "property" and elements and len(words) == 5 and words[1] == "list"

@@ -223,10 +223,10 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
         _require_declared_rows_fit(data, path)
         try:
             elements = _plyfile_elements(data, path)
-        except InputError as exc:
-            # text beyond the declared rows is the header's count, unless plyfile found a row
-            # ending early: a row written over two lines, which plyfile names
-            if "early end-of-line" not in exc.problem:
+        except InputError:
+            # text beyond the declared rows is the header's count, unless a row of the first
+            # element is short: a row written over two lines, which plyfile names
+            if not _first_element_has_a_short_row(data):
                 _refuse_text_after_ascii_rows(data, path)
             raise
         _refuse_text_after_ascii_rows(data, path)
@@ -324,6 +324,19 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
     if need > body:
         raise InputError(path, f"PLY header declares {_row_counts(elements)} (at least {need} bytes), "
                                f"but only {body} byte{'s' * (body != 1)} follow{'s' * (body == 1)} it")
+
+
+def _first_element_has_a_short_row(data: bytes) -> bool:
+    """Whether an ASCII PLY's first element (scalar properties only) has a declared
+    row with fewer values than properties: a row written over two lines. A header
+    that undercounts its rows leaves whole rows over; plyfile then fails on the
+    next element, as it does on a row that ends early."""
+    header = parse_ply_header(data)
+    if header is None or header[0] != "ascii" or not header[1] or header[1][0].list_types is not None:
+        return False
+    first = header[1][0]
+    rows = data[header[2]:].split(b"\n", first.count)[: first.count]
+    return any(len(row.split()) < len(first.scalars) for row in rows)
 
 
 def _refuse_text_after_ascii_rows(data: bytes, path: str) -> None:

@@ -86,6 +86,16 @@ def test_a_bad_token_in_the_sources_file_is_shown_in_ascii(cli, fixture_dir, tmp
     assert p.stderr.isascii() or "s.txt" not in p.stderr
 
 
+def test_leading_zeros_in_the_sources_file_are_read_past_pythons_digit_limit(cli, fixture_dir, tmp_path):
+    # int() counts leading zeros towards its 4300 digits: an internal error, exit 3
+    sf, out = tmp_path / "s.txt", tmp_path / "o.ply"
+    sf.write_text("0\n+" + "0" * 5000 + "440\n")
+    p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", sf, "-m", "exact", "-o", out,
+            "--report", tmp_path / "r.json")
+    assert p.returncode == 0, p.stderr
+    assert json.loads((tmp_path / "r.json").read_text())["metrics"]["sources"] == 2
+
+
 def test_a_source_out_of_range_in_the_sources_file_names_its_line(cli, fixture_dir, tmp_path):
     # it had been reported against the mesh, with no line
     sf = tmp_path / "s.txt"

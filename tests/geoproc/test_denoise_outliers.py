@@ -290,6 +290,7 @@ def test_frames_spacing_leaves_out_frames_at_one_place():
     one_frame = outliers_mod.point_spacing(cKDTree(V[0]).query(V[0], k=16)[0])
     assert frames_spacing(V) == pytest.approx(one_frame, rel=1e-12) and one_frame < 0.01
     assert frames_spacing(np.zeros((3, 5, 3))) == 1.0
+    assert frames_spacing(np.random.default_rng(0).random((3, 1, 3))) == 1.0  # one point: no neighbour
 
 
 def test_animation_outliers_do_not_depend_on_where_the_cloud_is(dfx):
