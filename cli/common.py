@@ -60,6 +60,7 @@ class _StderrConsole(Console):
 stderr = _StderrConsole(stderr=True, highlight=False, soft_wrap=True)
 stdout = Console(highlight=False, soft_wrap=True)
 
+
 def flag(*names: str, help: str, **options):
     """The typer option of a boolean flag, its value column in ``--help`` left
     empty: typer shows ``<bool>`` there, as if the flag took a value."""
@@ -82,7 +83,7 @@ DebugOpt = Annotated[bool, flag("--debug", help="Show the full traceback on erro
 NoCleanOpt = Annotated[
     bool,
     flag("--no-clean", help="Keep the mesh as stored: do not merge coincident vertices "
-                 "or drop unreferenced ones."),
+         "or drop unreferenced ones."),
 ]
 
 

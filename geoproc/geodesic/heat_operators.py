@@ -66,7 +66,8 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     takes :func:`~geoproc.geodesic.operators.intrinsic_delaunay_laplacian`,
     whose weights are non-negative; with weights of -400 along the hull of a
     Delaunay triangulation of random points, the heat went negative on half
-    the vertices and the distance was 32 % of the largest off) or ``"auto"`` (intrinsic on meshes with slivers or
+    the vertices and the mean error was 32 % of the largest distance) or
+    ``"auto"`` (intrinsic on meshes with slivers or
     strongly non-Delaunay triangles, see
     :func:`geoproc.geodesic.intrinsic.face_operators_triangulation`).
     Intrinsic falls back to extrinsic where the triangulation does not apply.
