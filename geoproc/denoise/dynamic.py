@@ -12,15 +12,17 @@
 3. Every frame's vertices move along the base normals to their low-rank heights,
    except those of faces the move would turn more than 20 degrees from the
    frame's own result (:func:`limit_face_turn`): without that guard the move
-   folded faces at thin parts (elephant, 29 frames, noise 0.3: 378 faces
-   newly flipped against 75 frame by frame; with it 71, and 4.58 degrees
-   instead of 4.74).
+   folded faces at thin parts (elephant, 29 frames, noise 0.3, when the guard
+   came in: 378 faces newly flipped against 75 frame by frame; with it 71, and
+   4.58 degrees instead of 4.74; today 66 new flips and 4.54 degrees against
+   70 and 5.05 frame by frame, ``bench/denoise_pairs.py: dynamic_table``).
 
 The review's Algorithm 4 itself (``coherence="normals"``,
 :func:`coherent_normal_fit`) applies RPCA to the stacked face normals and then
 fits the vertices to them; measured against the current frame-by-frame
-method it is worse (elephant, 29 frames, noise 0.3: 5.27 against 5.03 degrees),
-while the heights give 4.58. It is kept to reproduce the review.
+method it is worse (elephant, 29 frames, noise 0.3: 5.24 against 5.05 degrees,
+119 new flips against 70), while the heights give 4.54. It is kept to
+reproduce the review.
 """
 
 from __future__ import annotations
