@@ -77,10 +77,10 @@ def read_sources_file(path: str, data: bytes | None = None) -> list[tuple[int, i
             if not re.fullmatch(r"[+-]?[0-9]+", tok):  # ASCII digits only (no 1_0, no other scripts)
                 shown = "".join(c if " " <= c <= "~" else ascii(c)[1:-1] for c in tok)  # non-ASCII escaped
                 raise InputError(path, f"line {lineno}: '{shown}' is not a vertex index")
-            digits = len(tok.lstrip("+-").lstrip("0"))
-            if digits > MAX_INDEX_DIGITS:  # int() refuses past 4300 digits
-                raise InputError(path, f"line {lineno}: a {digits}-digit number is beyond any vertex index")
-            out.append((int(tok[0] * (tok[0] in "+-") + (tok.lstrip("+-").lstrip("0") or "0")), lineno))
+            digits = tok.lstrip("+-").lstrip("0")  # int() counts leading zeros towards its 4300
+            if len(digits) > MAX_INDEX_DIGITS:
+                raise InputError(path, f"line {lineno}: a {len(digits)}-digit number is beyond any vertex index")
+            out.append((int(tok[0] * (tok[0] in "+-") + (digits or "0")), lineno))
     if not out:
         raise InputError(path, "no vertex indices in the file")
     return out

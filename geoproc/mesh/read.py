@@ -220,16 +220,16 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     (see :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`)."""
     elements = read_uniform_ply(data)
     if elements is None:  # outside the vectorized layout: plyfile reads it, or names the problem
-        _require_declared_rows_fit(data, path)
+        header = _require_declared_rows_fit(data, path)
         try:
             elements = _plyfile_elements(data, path)
         except InputError:
             # text beyond the declared rows is the header's count, unless a row of the first
             # element is short: a row written over two lines, which plyfile names
-            if not _first_element_has_a_short_row(data):
-                _refuse_text_after_ascii_rows(data, path)
+            if not _first_element_has_a_short_row(data, header):
+                _refuse_text_after_ascii_rows(data, path, header)
             raise
-        _refuse_text_after_ascii_rows(data, path)
+        _refuse_text_after_ascii_rows(data, path, header)
     if "vertex" not in elements:
         raise InputError(path, "PLY has no 'vertex' element")
     vert = elements["vertex"]
@@ -295,8 +295,10 @@ def _nonblank_lines_after(data: bytes, offset: int, rows: int) -> int:
     return sum(1 for line in data[end + 1:].split(b"\n") if line.strip())
 
 
-def _require_declared_rows_fit(data: bytes, path: str) -> None:
-    """InputError when the header's row counts cannot fit the bytes after it.
+def _require_declared_rows_fit(data: bytes, path: str):
+    """InputError when the header's row counts cannot fit the bytes after it;
+    else the header (:func:`geoproc.mesh.ply_uniform.parse_ply_header`, None
+    for one it does not read), for the checks after plyfile.
 
     Each binary row takes at least its scalars and its list's count; each ASCII
     row at least one line. plyfile allocates every element before reading it,
@@ -310,7 +312,7 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
                                f"'{long_count.group(1).decode('latin-1')}' rows")
     header = parse_ply_header(data)
     if header is None:
-        return
+        return None
     fmt, elements, offset = header
     body = len(data) - offset
     if fmt == "ascii":
@@ -319,19 +321,20 @@ def _require_declared_rows_fit(data: bytes, path: str) -> None:
         if need > have:
             raise InputError(path, f"PLY header declares {_row_counts(elements)}, but only {have} "
                                    f"line{'s' * (have != 1)} follow{'s' * (have == 1)} it (one per row)")
-        return
+        return header
     need = sum(e.count * smallest_row_bytes(e) for e in elements)
     if need > body:
         raise InputError(path, f"PLY header declares {_row_counts(elements)} (at least {need} bytes), "
                                f"but only {body} byte{'s' * (body != 1)} follow{'s' * (body == 1)} it")
+    return header
 
 
-def _first_element_has_a_short_row(data: bytes) -> bool:
+def _first_element_has_a_short_row(data: bytes, header) -> bool:
     """Whether an ASCII PLY's first element (scalar properties only) has a declared
     row with fewer values than properties: a row written over two lines. A header
     that undercounts its rows leaves whole rows over; plyfile then fails on the
-    next element, as it does on a row that ends early."""
-    header = parse_ply_header(data)
+    next element, as it does on a row that ends early. ``header``: the file's
+    :func:`geoproc.mesh.ply_uniform.parse_ply_header`."""
     if header is None or header[0] != "ascii" or not header[1] or header[1][0].list_types is not None:
         return False
     first = header[1][0]
@@ -339,12 +342,12 @@ def _first_element_has_a_short_row(data: bytes) -> bool:
     return any(len(row.split()) < len(first.scalars) for row in rows)
 
 
-def _refuse_text_after_ascii_rows(data: bytes, path: str) -> None:
+def _refuse_text_after_ascii_rows(data: bytes, path: str, header) -> None:
     """InputError when an ASCII PLY has text after its declared rows (plyfile
     stops at the last row and would drop it without a word); blank lines there
     are harmless. Called once plyfile has read the rows, so that a row written
-    over two lines gets plyfile's message (its row and property), not this one."""
-    header = parse_ply_header(data)
+    over two lines gets plyfile's message (its row and property), not this one.
+    ``header``: the file's :func:`geoproc.mesh.ply_uniform.parse_ply_header`."""
     if header is None or header[0] != "ascii":
         return
     _, elements, offset = header
