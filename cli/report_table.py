@@ -31,34 +31,92 @@ def headline_metrics(metrics: dict) -> list[tuple[str, float]]:
     return first + rest
 
 
-def summary_table(folder: Path, max_metrics: int = 5) -> Table:
-    """One row per report in ``folder``: command, input, a few metrics, total time."""
+def _shown_value(v) -> str:
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def _input_names(rep: dict) -> str:
+    """The input files' names; entries without a path show as ``?``."""
+    inputs = rep.get("inputs")
+    if not isinstance(inputs, list):
+        return ""
+    return ", ".join(Path(i["path"]).name if isinstance(i, dict) and isinstance(i.get("path"), str) else "?"
+                     for i in inputs)
+
+
+def _total_seconds(rep: dict) -> str:
+    timings = rep.get("timings_s")
+    total = timings.get("total") if isinstance(timings, dict) else None
+    return f"{total:.2f}" if isinstance(total, int | float) and not isinstance(total, bool) else ""
+
+
+def read_report(path: Path) -> dict | None:
+    """The report in ``path``, or None when it is not a geoproc report (not
+    JSON, not an object with ``command`` and a ``metrics`` object). Raises
+    OSError when the file cannot be read."""
+    try:
+        rep = json.loads(path.read_bytes())
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        return None
+    if not isinstance(rep, dict) or "command" not in rep or not isinstance(rep.get("metrics"), dict):
+        return None
+    return rep
+
+
+def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[str]]:
+    """One row per report in ``folder``: command, input, a few metrics, total time.
+
+    Returns the table, the number of reports in it and one note per
+    ``*.json`` file that could not be read."""
     t = Table(title=Text(f"geoproc reports in {folder}"))
     for col in ("report", "command", "input", "metrics", "total s"):
         t.add_column(col)
+    rows, notes = 0, []
     for path in sorted(folder.glob("*.json")):
+        if not path.is_file():
+            continue
         try:
-            rep = json.loads(path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError):
+            rep = read_report(path)
+        except OSError as e:
+            notes.append(f"{path}: cannot read ({e.strerror or e})")
             continue
-        if not isinstance(rep, dict) or "command" not in rep or "metrics" not in rep:
+        if rep is None:
             continue
-        shown = [
-            f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
-            for k, v in headline_metrics(rep["metrics"])
-        ][:max_metrics]
-        inputs = ", ".join(Path(i["path"]).name for i in rep.get("inputs", []))
-        t.add_row(Text(path.name), Text(str(rep["command"])), Text(inputs), Text(" ".join(shown)),
-                  f"{rep.get('timings_s', {}).get('total', float('nan')):.2f}")
-    return t
+        shown = [f"{k}={_shown_value(v)}" for k, v in headline_metrics(rep["metrics"])][:max_metrics]
+        t.add_row(Text(path.name), Text(str(rep["command"])), Text(_input_names(rep)), Text(" ".join(shown)),
+                  _total_seconds(rep))
+        rows += 1
+    return t, rows, notes
+
+
+USAGE = "usage: python -m geoproc_cli.report_table [FOLDER]  (default out/demo)"
 
 
 def main(argv: list[str]) -> int:
-    folder = Path(argv[1]) if len(argv) > 1 else Path("out/demo")
+    """Print the table of the reports in ``argv[1]``. Exit 0; 2 for a bad
+    argument, a missing folder or one without reports (one line on stderr)."""
+    args = argv[1:]
+    if args and args[0] in ("-h", "--help"):
+        print(USAGE + "\nPrints one row per geoproc JSON report in FOLDER.")
+        return 0
+    if len(args) > 1 or (args and args[0].startswith("-")):
+        print(f"report_table: error: {USAGE}", file=sys.stderr)
+        return 2
+    folder = Path(args[0]) if args else Path("out/demo")
+    if not folder.is_dir():
+        print(f"report_table: error: {folder}: not a folder", file=sys.stderr)
+        return 2
+    table, rows, notes = summary_table(folder)
+    for note in notes:
+        print(f"report_table: {note}", file=sys.stderr)
+    if rows == 0:
+        print(f"report_table: error: {folder}: no geoproc reports (*.json with command and metrics)",
+              file=sys.stderr)
+        return 2
     console = Console()
     if not console.is_terminal:
         console = Console(width=160)
-    console.print(summary_table(folder))
+    console.print(table)
     return 0
 
 

@@ -1,0 +1,57 @@
+"""The report summary of ``make demo``: ``python -m geoproc_cli.report_table FOLDER``."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from geoproc_cli.report_table import main
+
+
+def _write(folder, name, obj):
+    (folder / name).write_text(obj if isinstance(obj, str) else json.dumps(obj))
+
+
+def test_table_lists_reports_and_skips_other_json(tmp_path, capsys):
+    _write(tmp_path, "a.json", {"command": "example", "metrics": {"mean_relative_error": 0.0123, "nested": {"x": 1}},
+                                "inputs": [{"path": "/x/torus.ply", "sha256": "0"}], "timings_s": {"total": 1.5}})
+    _write(tmp_path, "critical.json", {"critical": []})  # not a report
+    _write(tmp_path, "notes.json", "not json")
+    assert main(["report_table", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "a.json" in out and "torus.ply" in out and "mean_relative_error=0.0123" in out and "1.50" in out
+    assert "critical.json" not in out and "notes.json" not in out
+
+
+@pytest.mark.parametrize("report", [
+    {"command": "x", "metrics": {"rmse": 0.5}, "inputs": [{"p": "x"}]},
+    {"command": "x", "metrics": {"rmse": 0.5}, "inputs": None},
+    {"command": "x", "metrics": {"rmse": 0.5}, "timings_s": None},
+    {"command": "x", "metrics": {"rmse": 0.5}, "timings_s": {"total": "x"}},
+])
+def test_malformed_fields_of_a_report_are_left_blank(tmp_path, capsys, report):
+    # these raised AttributeError / KeyError / TypeError / ValueError (a traceback, exit 1)
+    _write(tmp_path, "a.json", report)
+    assert main(["report_table", str(tmp_path)]) == 0
+    assert "rmse=0.5" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("metrics", [[1, 2], None, "x"])
+def test_a_report_whose_metrics_are_not_an_object_is_not_a_report(tmp_path, capsys, metrics):
+    _write(tmp_path, "a.json", {"command": "x", "metrics": metrics})
+    (tmp_path / "b.json").mkdir()  # a folder named like a report: IsADirectoryError before
+    assert main(["report_table", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "no geoproc reports" in err and len(err.strip().splitlines()) == 1
+
+
+def test_bad_folder_arguments_exit_2_with_one_line(tmp_path, capsys):
+    # a missing folder, a file and an option printed an empty table with exit 0
+    (tmp_path / "f.json").write_text("{}")
+    for args in ([str(tmp_path / "nope")], [str(tmp_path / "f.json")], ["--bogus"], ["a", "b"]):
+        assert main(["report_table", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("report_table: error:") and len(err.strip().splitlines()) == 1
+    assert main(["report_table", "--help"]) == 0
+    assert "usage:" in capsys.readouterr().out
