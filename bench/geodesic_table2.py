@@ -40,7 +40,7 @@ def main(argv):
                     help="leave out the rows whose label contains one of these words (e.g. CVXPY)")
     ap.add_argument("--out", default=str(ROOT / "out" / "bench"))
     args = ap.parse_args(argv)
-    if args.mesh is None:  # the default pair of runs
+    if args.mesh is None:  # the default runs: three meshes
         rc = main(["--mesh", "camelhead.off", "--out", args.out])
         rc = rc or main(["--mesh", "fandisk.off", "--out", args.out])
         return rc or main(["--mesh", "bunny.off", "--out", args.out])
