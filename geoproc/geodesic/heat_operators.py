@@ -13,9 +13,7 @@ from geoproc.geodesic.operators import (
     cotan_laplacian,
     divergence_matrix,
     face_gradient_coefficients,
-    intrinsic_delaunay_laplacian,
     laplacian_and_mass,
-    negative_offdiagonal_count,
     smallest_angles,
     stack_gradient_coefficients,
 )
@@ -61,12 +59,12 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     ``operators``: ``"extrinsic"`` (the heat step with ``laplacian``, the
     mesh's own gradient and divergence, the Poisson step with ``poisson``),
     ``"intrinsic"`` (everything on the intrinsic Delaunay triangulation, its
-    Laplacian in both steps, except where an obtuse angle faces a boundary
-    edge, which no flip removes: its weight is negative, and the heat step then
-    takes :func:`~geoproc.geodesic.operators.intrinsic_delaunay_laplacian`,
-    whose weights are non-negative; with weights of -400 along the hull of a
-    Delaunay triangulation of random points, the heat went negative on half
-    the vertices and the mean error was 32 % of the largest distance) or
+    Laplacian in both steps; where an obtuse angle faces a boundary edge, the
+    triangulation of the doubled cover folded onto the mesh, see
+    :func:`~geoproc.geodesic.operators.intrinsic_delaunay_mesh`: the mesh's own
+    flips leave that edge a negative weight, weights of -400 along the hull of
+    a Delaunay triangulation of random points, where the heat went negative
+    on half the vertices and the mean error was 32 % of the largest distance) or
     ``"auto"`` (intrinsic on meshes with slivers or
     strongly non-Delaunay triangles, see
     :func:`geoproc.geodesic.intrinsic.face_operators_triangulation`).
@@ -85,12 +83,8 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     cotan = functools.cache(lambda: cotan_laplacian(V, F))
     tri = face_operators_triangulation(V, F, operators, angles, cotan)
     if tri is not None:
-        L, M, Fi, lengths = tri
-        coef, G, D = intrinsic_face_operators(Fi, lengths, len(V))
-        poisson_solver = PoissonSolver(L)  # D G = L: the negative weights belong to the Poisson step
-        if negative_offdiagonal_count(L):
-            L, M = intrinsic_delaunay_laplacian(V, F)  # robust-laplacian's tufted cover
-        return HeatOperators("intrinsic", L, M, Fi, coef, G, D, poisson_solver)
+        coef, G, D = intrinsic_face_operators(tri.F, tri.l, len(V), tri.face_share)
+        return HeatOperators("intrinsic", tri.L, tri.M, tri.F, coef, G, D, PoissonSolver(tri.L))  # D G = L
     L, M = laplacian_and_mass(V, F, laplacian)
     coef = gradient_coefficients(V, F)
     G = stack_gradient_coefficients(coef, F, len(V))

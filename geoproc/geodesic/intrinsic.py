@@ -97,9 +97,9 @@ def intrinsic_gradient_coefficients(l: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str, angles=smallest_angles,
                                  cotan=None):
-    """The intrinsic Delaunay mesh (:func:`geoproc.geodesic.operators.intrinsic_delaunay_mesh`,
-    negative weights allowed on boundary edges; None where it does not apply, callers
-    then keep extrinsic operators) when ``operators`` asks for it, else None.
+    """The intrinsic Delaunay mesh (:func:`geoproc.geodesic.operators.intrinsic_delaunay_mesh`;
+    None where it does not apply, callers then keep extrinsic operators) when
+    ``operators`` asks for it, else None.
 
     ``operators``: ``"extrinsic"`` (None), ``"intrinsic"``, or ``"auto"``
     (intrinsic when at least :data:`SLIVER_SHARE` of the faces are slivers, a
@@ -119,14 +119,16 @@ def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str, a
                 >= NEGATIVE_WEIGHT_SHARE):
             return None
     if operators in ("auto", "intrinsic"):
-        return intrinsic_delaunay_mesh(V, F, boundary_negatives=True)
+        return intrinsic_delaunay_mesh(V, F)
     return None
 
 
-def intrinsic_face_operators(Fi: np.ndarray, l: np.ndarray, n: int):
+def intrinsic_face_operators(Fi: np.ndarray, l: np.ndarray, n: int, face_share: float = 1.0):
     """Gradient weights (2, m, 3), gradient (2m, n) and integrated divergence
-    ``-G^T diag(area)`` (n, 2m) of the triangulation ``(Fi, l)`` (n vertices),
-    with ``D G`` its cotan Laplacian."""
+    ``-G^T diag(face_share area)`` (n, 2m) of the triangulation ``(Fi, l)`` (n
+    vertices), with ``D G`` its cotan Laplacian times ``face_share`` (0.5 for
+    the faces of a doubled cover folded onto the mesh, see
+    :class:`geoproc.geodesic.operators.IntrinsicMesh`)."""
     coef, area = intrinsic_gradient_coefficients(l)
     G = stack_gradient_coefficients(coef, Fi, n)
-    return coef, G, integrated_divergence(G, area)
+    return coef, G, integrated_divergence(G, face_share * area)

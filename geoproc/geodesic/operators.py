@@ -9,10 +9,20 @@ components of every face, ``[m, 2m)`` y and ``[2m, 3m)`` z.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 
 from geoproc.geodesic.cocircular import canonical_cocircular_diagonals
+from geoproc.geodesic.doubled_cover import (
+    DELAUNAY_TOL,
+    canonical_cover_diagonals,
+    doubled_cover,
+    folded_laplacian,
+    folded_mass,
+    lawson_flips,
+)
 from geoproc.mesh.topology import boundary_edges, face_areas, undirected_edge_keys
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
@@ -94,13 +104,12 @@ def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
                                  mollify_factor: float = 1e-5) -> tuple[sp.csr_matrix, np.ndarray]:
     """Laplacian of the intrinsic Delaunay triangulation and its lumped mass.
 
-    On an edge-manifold mesh without zero-area faces: libigl's
-    ``intrinsic_delaunay_cotmatrix`` (edge flips on intrinsic lengths) and the
+    On an edge-manifold mesh without zero-area faces:
+    :func:`intrinsic_delaunay_mesh` (libigl's edge flips on intrinsic lengths,
+    on the doubled cover where an obtuse angle faces a boundary edge) and the
     barycentric mass of that triangulation (``massmatrix_intrinsic``).
-    Otherwise, or if that gives a negative weight (an obtuse angle facing a
-    boundary edge, which no flip removes): ``robust_laplacian.mesh_laplacian``
-    (Sharp & Crane 2020: tufted cover and mollification, for non-manifold and
-    degenerate input, where boundary edges are interior edges of the cover), whose L
+    Otherwise: ``robust_laplacian.mesh_laplacian`` (Sharp & Crane 2020: tufted
+    cover and mollification, for non-manifold and degenerate input), whose L
     is positive semi-definite and is negated here. Both agree to rounding on
     ordinary meshes. Off-diagonal weights are non-negative: rounding noise below
     1e-14 of the largest weight is set to zero, and below :data:`ROBUST_ROUNDING`
@@ -125,32 +134,84 @@ def intrinsic_delaunay_laplacian(V: np.ndarray, F: np.ndarray,
     return L, np.asarray(Mp.diagonal(), dtype=np.float64)
 
 
-def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bool = False):
+class IntrinsicMesh(NamedTuple):
+    """An intrinsic Delaunay triangulation on a mesh's vertices with its operators.
+
+    ``L`` (n, n) its Laplacian (negative semi-definite, non-negative
+    off-diagonal weights), ``M`` (n,) its barycentric lumped mass (area unit),
+    ``F`` (m, 3) its faces on the mesh's vertices (on a doubled cover a face
+    may name a vertex twice, once for each of its images), ``l`` (m, 3) their
+    edge lengths, ``l[f, c]`` opposite corner c (length unit), and
+    ``face_share`` the part of each face that lies on the mesh: 1, or 0.5 on
+    the doubled cover, whose faces cover the mesh twice.
+    """
+
+    L: sp.csr_matrix
+    M: np.ndarray
+    F: np.ndarray
+    l: np.ndarray
+    face_share: float
+
+
+def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray) -> IntrinsicMesh | None:
     """libigl's intrinsic Delaunay triangulation of an edge-manifold mesh with its operators.
 
     Cocircular quads get the diagonal that is an edge of ``F``
     (:func:`geoproc.geodesic.cocircular.canonical_cocircular_diagonals`), so
     that the triangulation depends neither on the coordinates' rounding nor on
-    the numbering of the vertices.
-
-    ``boundary_negatives``: also return the triangulation when its only
-    negative weights are on boundary edges (an obtuse angle facing one, which
-    no flip removes). The heat method's linear solves and its gradient and
-    divergence do not need non-negative weights; the log-ODE does.
+    the numbering of the vertices. Where an obtuse angle faces a boundary edge,
+    whose negative weight no flip on the mesh removes, the flips run on the
+    mesh's doubled cover instead (:mod:`geoproc.geodesic.doubled_cover`,
+    Sharp and Crane's tufted cover), where that edge has a second face and can
+    flip; its operators are folded back onto the mesh. On the Delaunay
+    triangulation of 1,804 random points, 1,500 of them in a cluster, the heat
+    method's mean error fell from 1.5, 6.1 and 8.0 % of the largest distance
+    (three source sets) with the mesh's own flips to 0.7, 3.1 and 0.7 %.
 
     Returns
     -------
-    (L, M, Fi, l) or None
-        ``L`` (n, n) its Laplacian (negative semi-definite, non-negative
-        off-diagonal weights but on boundary edges with ``boundary_negatives``),
-        ``M`` (n,) its barycentric lumped mass (area unit), ``Fi`` (m, 3) its
-        faces on the same vertices and ``l`` (m, 3) their edge lengths, ``l[f, c]`` opposite corner c (length unit).
+    IntrinsicMesh or None
         None when the mesh is not edge-manifold, has zero-area faces, or the
-        flips leave a negative weight (on an interior edge, with
-        ``boundary_negatives``).
+        flips leave a negative weight beyond rounding.
     """
     if not is_edge_manifold_nondegenerate(V, F):
         return None
+    tri = _flipped_triangulation(V, F)
+    if tri is None:
+        return None
+    row, col, w = upper_entries(tri.L)
+    negative = w < 0
+    if not negative.any():
+        return tri
+    if not _all_boundary_edges(row[negative], col[negative], tri.F):
+        return None
+    return doubled_cover_mesh(tri.F, tri.l, F, len(V))
+
+
+def doubled_cover_mesh(Fi: np.ndarray, l: np.ndarray, F: np.ndarray, n: int) -> IntrinsicMesh | None:
+    """The intrinsic Delaunay triangulation of the doubled cover of the
+    triangulation ``(Fi, l)`` of the mesh ``F`` (n vertices), folded onto the
+    mesh (:mod:`geoproc.geodesic.doubled_cover`); None where the cover does not
+    apply or the flips do not end."""
+    cover = doubled_cover(Fi, l, F, n)
+    if cover is None:
+        return None
+    C, lc, twin, original = cover
+    if lawson_flips(C, lc, twin, DELAUNAY_TOL, 64 * len(C) + 1024) < 0:
+        return None
+    zero = canonical_cover_diagonals(C, lc, twin, original, F)
+    L = _drop_rounding_negatives(folded_laplacian(C, lc, original, n, zero))
+    if (upper_entries(L)[2] < 0).any() or not np.isfinite(L.data).all():
+        return None
+    import igl
+
+    M2 = np.asarray(igl.massmatrix_intrinsic(lc, C, igl.MASSMATRIX_TYPE_BARYCENTRIC).diagonal(), dtype=np.float64)
+    return IntrinsicMesh(L, folded_mass(M2, original, n), original[C], lc, 0.5)
+
+
+def _flipped_triangulation(V: np.ndarray, F: np.ndarray) -> IntrinsicMesh | None:
+    """The intrinsic Delaunay triangulation of (V, F) with canonical cocircular
+    diagonals, negative weights (on boundary edges) kept; None where a weight is not finite."""
     import igl
 
     Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
@@ -160,16 +221,15 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bo
     if flips or len(cocircular[0]):
         Li = igl.cotmatrix_intrinsic(l, Fi)
         Li.resize((len(V), len(V)))  # vertices after the last one a face uses
-        Li = _without_weights(sp.csr_matrix(Li), *cocircular)  # zero in exact arithmetic
+        E, w, single = cocircular  # weights zero in exact arithmetic: negative ones cleared
+        below = w < 0
+        Li = _without_weights(sp.csr_matrix(Li), E[below], w[below], single[below])
     L = _drop_rounding_negatives(sp.csr_matrix(Li))
     if not np.isfinite(L.data).all():
         return None
-    row, col, w = upper_entries(L)
-    negative = w < 0
-    if negative.any() and not (boundary_negatives and _all_boundary_edges(row[negative], col[negative], Fi)):
-        return None
     M = igl.massmatrix_intrinsic(l, Fi, igl.MASSMATRIX_TYPE_BARYCENTRIC)
-    return L, np.asarray(M.diagonal(), dtype=np.float64), np.asarray(Fi, dtype=np.int64), np.asarray(l)
+    return IntrinsicMesh(L, np.asarray(M.diagonal(), dtype=np.float64), np.asarray(Fi, dtype=np.int64),
+                         np.asarray(l), 1.0)
 
 
 def _all_boundary_edges(i: np.ndarray, j: np.ndarray, F: np.ndarray) -> bool:
