@@ -24,6 +24,7 @@ import contextlib
 import errno
 import math
 import os
+import stat
 import sys
 import time
 import traceback
@@ -406,6 +407,8 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
     seen: set = set()
     sources = {os.path.realpath(p) for p in inputs if p != "-"}
     sources |= {_file_id(p) for p in inputs if p != "-"} - {None}  # hard links too
+    if "-" in inputs:
+        sources |= {_stdin_file_identity()} - {None}  # `- < out.ply` reads the file an output names
     for name in names:
         if name == "-":
             continue
@@ -415,6 +418,16 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
         if real in sources or (ident is not None and ident in sources):
             raise UsageError(f"{name}: is also an input; write the result to another file")
         seen |= {real, ident} - {None}
+
+
+def _stdin_file_identity() -> tuple[int, int] | None:
+    """(device, inode) of the regular file standard input reads, else None
+    (a pipe, a terminal, closed)."""
+    try:
+        st = os.fstat(0)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino) if stat.S_ISREG(st.st_mode) else None
 
 
 def _file_id(path: str) -> tuple[int, int] | None:

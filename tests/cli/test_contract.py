@@ -569,6 +569,18 @@ def test_output_paths_are_refused_before_any_input_is_read(cli, fixture_dir, tmp
             "--report", tmp_path / "linked.json")
     assert p.returncode == 2 and "linked.json: given for two outputs" in p.stderr, p.stderr
     assert garbage.read_bytes() == b"not a mesh"
+    # standard input redirected from the output file: `perturb - -o r.ply < r.ply` replaced it
+    import subprocess
+    import sys
+
+    r = tmp_path / "r.ply"
+    r.write_bytes((fixture_dir / "torus.ply").read_bytes())
+    with open(r, "rb") as stdin:
+        p = subprocess.run([sys.executable, "-m", "geoproc_cli.main", "perturb", "-", "--seed", "1", "-o", str(r),
+                            "-q"], stdin=stdin, capture_output=True, text=True)
+    assert p.returncode == 2 and _one_error_line(p.stderr, str(r)).endswith(
+        "is also an input; write the result to another file"), p.stderr
+    assert r.read_bytes() == (fixture_dir / "torus.ply").read_bytes()
 
 
 def test_inputs_from_pipes_are_hashed_as_read(fixture_dir, tmp_path):
