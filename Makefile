@@ -26,7 +26,7 @@ $(STAMP): pyproject.toml setup.py
 
 fixtures: $(FIXTURES)
 
-$(FIXTURES): fixtures/make_fixtures.py $(wildcard geoproc/mesh/*.py) $(STAMP)
+$(FIXTURES): fixtures/make_fixtures.py $(wildcard geoproc/*.py geoproc/mesh/*.py) $(STAMP)
 	$(PY) fixtures/make_fixtures.py fixtures/data > /dev/null
 	touch $@
 
@@ -79,8 +79,16 @@ demo-summary: $(DEMO_STEPS)
 	$(PY) -m geoproc_cli.report_table $(DEMO)
 
 # ---- benchmarks against peer libraries (never part of `make test`) ----
-bench: $(STAMP)
-	$(PY) -m pip install --quiet -e ".[test,bench]"
+# the bench extras alone, once per change of the package metadata: reinstalling the
+# package on every run removed the editable install under a `make -j test bench`
+BENCH_STAMP := $(VENV)/.bench-stamp
+
+$(BENCH_STAMP): $(STAMP)
+	$(PY) -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['bench']))" > $(VENV)/bench-requirements.txt
+	$(PY) -m pip install --quiet -r $(VENV)/bench-requirements.txt
+	touch $@
+
+bench: $(BENCH_STAMP)
 	@for script in bench/*.py; do echo "== $$script"; $(PY) $$script || exit 1; done
 
 lint: $(STAMP)
