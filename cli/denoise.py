@@ -164,6 +164,7 @@ def denoise(
               "coherence": coherence_used,
               "clean": not no_clean}
     mode = denoise_mode(input, outliers, dynamic)
+    params.update(_options_not_used(mode, features, threshold))
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output], inputs=[input, reference], metrics=METRICS, text_metrics=TEXT_METRICS,
                      needs=_metric_needs(Choices(mode, method, features, refined, reference))) as run:
@@ -180,7 +181,7 @@ def denoise(
         threshold_set = threshold is not None
         if threshold_set and threshold < 0:
             raise UsageError(f"--threshold {threshold}: must be >= 0")
-        threshold = 0.5 if threshold is None else threshold
+        threshold = CLOUD_THRESHOLD if threshold is None else threshold
         for option, value in (("--sigma-r", sigma_r), ("--sigma-s", sigma_s)):
             if value is not None and value <= 0:
                 raise UsageError(f"{option} {shown_number(value)}: must be > 0")
@@ -276,7 +277,30 @@ def _metric_needs(choices: Choices) -> dict[str, tuple[str, ...]]:
 
 
 _FEATURE_OPTIONS = ("features", "feature_tau", "feature_angle")
+CLOUD_THRESHOLD = 0.5
+"""--threshold's default on a point cloud (median point spacings)."""
 _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
+
+
+def _options_not_used(mode: str, features: str, threshold: float | None) -> dict:
+    """The report's values of the options the mode does not use (None, as
+    :func:`_refuse_unused_options` refuses them when given) and of the
+    default threshold of --outliers on a point cloud (0.5)."""
+    unused: tuple[str, ...] = ()
+    if mode in (CLOUD, MOVING_CLOUD):
+        unused += _FILTER_OPTIONS + _FEATURE_OPTIONS + ("reference", "coherence")
+        if mode == MOVING_CLOUD:
+            unused += ("k", "keep_all", "clean")
+    else:
+        unused += _OUTLIER_OPTIONS
+    if mode == DYNAMIC:
+        unused += _FEATURE_OPTIONS + ("clean",)
+    elif mode == MESH:
+        unused += ("coherence", "feature_angle" if features == "l1" else "feature_tau")
+    values = dict.fromkeys(unused)
+    if mode == CLOUD and threshold is None:
+        values["threshold"] = CLOUD_THRESHOLD
+    return values
 
 
 def _refuse_unused_options(ctx: typer.Context, mode: str, features: str) -> None:

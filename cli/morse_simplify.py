@@ -119,7 +119,8 @@ def morse_simplify(
     """
     params = {"mesh": mesh, "field": field, "persistence": persistence, "relative": relative,
               "output": output, "critical": str(critical) if critical else None,
-              "diagram": str(diagram) if diagram else None, "exact_windows": exact_windows,
+              "diagram": str(diagram) if diagram else None,
+              "exact_windows": None if barycentric else exact_windows,  # --barycentric holds P/2 without them
               "barycentric": barycentric, "clean": not no_clean}
     npy_path = field if field.lower().endswith(".npy") else None  # a field read from a file
     with command_run("morse-simplify", params, report=report, checks=check, quiet=quiet, debug=debug,

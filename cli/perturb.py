@@ -75,6 +75,12 @@ def perturb(
     params = {"input": input, "output": output, "noise": noise, "direction": direction, "impulsive": impulsive,
               "outliers": outliers, "outlier_range": outlier_range, "seed": seed, "clean": not no_clean}
     animation = input != "-" and is_animation_path(input)
+    if animation:
+        params["clean"] = None  # frames are read as stored
+    if noise == 0:
+        params["direction"] = params["impulsive"] = None  # no noise to direct
+    if not outliers > 0:
+        params["outlier_range"] = None
     needs = ({"a mesh or point cloud (not an animation)": LOAD_METRICS} if animation
              else {"an animation (.npz or a folder of frames)": ("frames",)})
     with command_run("perturb", params, report=report, checks=check, quiet=quiet, debug=debug,

@@ -848,3 +848,35 @@ def test_with_its_result_on_stdout_a_run_lets_no_other_print_reach_it(fixture_di
     to_file = subprocess.run([sys.executable, "-c", STRAY_PRINT_APP, str(src), "-o", str(tmp_path / "o.ply")],
                              capture_output=True, timeout=120)
     assert to_file.returncode == 0 and b"a compiled library's own line" in to_file.stdout
+
+
+def test_report_params_hold_the_options_used_and_none_for_those_not(cli, fixture_dir, tmp_path):
+    # the report's params named options that a mode refuses when given (k and threshold of
+    # --outliers for a mesh, --exact-windows with --barycentric), called an animation's frames
+    # cleaned, and left the cloud's default threshold of 0.5 as null
+    import numpy as np
+
+    from geoproc.animation import Animation, animation_to_bytes
+
+    def params(*args):
+        rep = tmp_path / "r.json"
+        p = cli(*args, "--report", rep, "-q")
+        assert p.returncode == 0, p.stderr
+        return json.loads(rep.read_text())["params"]
+
+    mesh = params("denoise", fixture_dir / "cube.ply", "-o", tmp_path / "d.ply")
+    assert mesh["k"] is mesh["threshold"] is mesh["coherence"] is mesh["feature_tau"] is None
+    assert mesh["feature_angle"] is not None and mesh["clean"] is True and mesh["method"] == "guided"
+    cloud = params("denoise", fixture_dir / "points.ply", "--outliers", "-o", tmp_path / "c.ply")
+    assert cloud["threshold"] == 0.5 and cloud["k"] == 16
+    assert cloud["method"] is cloud["rounds"] is cloud["features"] is cloud["reference"] is None
+    V, F = load_mesh(fixture_dir / "cube.ply").V, load_mesh(fixture_dir / "cube.ply").F
+    anim = tmp_path / "a.npz"
+    anim.write_bytes(animation_to_bytes(Animation(np.stack([V, 1.01 * V, 1.02 * V]), F)))
+    moved = params("perturb", anim, "--seed", "1", "-o", tmp_path / "p.npz")
+    assert moved["clean"] is None and moved["outlier_range"] is None and moved["direction"] == "normal"
+    dynamic = params("denoise", tmp_path / "p.npz", "--dynamic", "-o", tmp_path / "q.npz")
+    assert dynamic["clean"] is dynamic["features"] is dynamic["k"] is None and dynamic["coherence"] == "heights"
+    exact = params("morse-simplify", fixture_dir / "icosphere.ply", "-f", "z", "-p", "0.1", "--barycentric",
+                   "-o", tmp_path / "m.ply")
+    assert exact["exact_windows"] is None and exact["barycentric"] is True
