@@ -38,10 +38,11 @@ def backward_euler_heat(L: sp.spmatrix, M: np.ndarray, u0: np.ndarray, dt: float
 
 
 def varadhan_from_heat(u: np.ndarray, T: float) -> np.ndarray:
-    """``sqrt(max(0, -4 T log u))``; +inf where ``u <= 0`` (underflow or negative weights)."""
+    """``sqrt(max(0, -4 T log u))``; +inf where ``u <= 0`` (underflow or negative weights);
+    +0.0 where ``u >= 1`` (``log u = 0`` made -0.0 there, which a PLY keeps with its sign)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         w = np.where(u > 0, np.log(np.where(u > 0, u, 1.0)), -np.inf)
-    return np.sqrt(np.maximum(0.0, -4.0 * T * w))
+    return np.sqrt(np.maximum(-4.0 * T * w, 0.0)) + 0.0
 
 
 def varadhan_distance(L: sp.spmatrix, M: np.ndarray, sources: np.ndarray, T: float,

@@ -1426,3 +1426,11 @@ def test_a_thin_strip_keeps_its_weights_along_the_strip(make_fixtures, squash, b
     # (they were 56 % apart; what is left is the rounding of the rectangles' right angles, whose
     # cotangents of ~1e-11 stand beside weights of 3e-6)
     assert np.abs(a - b).max() < 1e-4 * b.max()
+
+
+def test_varadhan_writes_no_negative_zero(make_fixtures):
+    # at a tiny time the heat at a source rounds to 1 or more: -sqrt(0 * log u) gave -0.0,
+    # which a PLY keeps with its sign bit
+    V, F = make_fixtures.icosphere(3)
+    d = gd.geodesic_distance(V, F, [0, 5], method="varadhan", time_factor=1e-30).distance
+    assert not np.signbit(d).any()
