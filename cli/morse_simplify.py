@@ -79,7 +79,9 @@ def morse_simplify(
     barycentric: Annotated[bool, flag(
         "--barycentric",
         help="Write g on the barycentric subdivision of the mesh (every edge and triangle gets a vertex "
-        "with its own value; 6 triangles per input triangle), where |f - g| <= P/2 always holds: f there "
+        "with its own value; 6 triangles per input triangle), where |f - g| <= P/2 holds (but where the field's "
+        "range holds fewer doubles than the subdivision has vertices: breaking ties then moves values farther, "
+        "counted in vertices_beyond_half_threshold): f there "
         "is the lower-star extension (each cell's largest vertex value), and the per-vertex property "
         "cell_dim (0, 1, 2) tells input vertices, edge midpoints and triangle centres apart. "
         "--exact-windows is not used.")] = False,
@@ -104,7 +106,8 @@ def morse_simplify(
     vertex function with exactly the kept extrema cannot always stay within
     P/2); those vertices are counted in vertices_beyond_half_threshold
     (moves past P/2 within 64 units in the last place of max |f| are rounding
-    and not counted).
+    and not counted, nor are rises of up to 1e-6 of P/2 that breaking ties
+    gave).
 
     Metrics: minima/saddles/maxima before and after, euler_characteristic,
     betti_0/1/2, pairs_removed, pairs_kept, max_abs_change, threshold,
@@ -114,8 +117,9 @@ def morse_simplify(
     With --barycentric the cancellation is carried out on the cells
     themselves (Forman's path reversal on the lower-star gradient, values
     assigned cell by cell) and g is written on the barycentric subdivision:
-    |f - g| <= P/2 everywhere, the critical points of g are the barycentres
-    of the kept critical cells, and the "after" counts are taken there.
+    |f - g| <= P/2 everywhere (to the doubles' rounding, as above), the
+    critical points of g are the barycentres of the kept critical cells, and
+    the "after" counts are taken there.
     """
     params = {"mesh": mesh, "field": field, "persistence": persistence, "relative": relative,
               "output": output, "critical": str(critical) if critical else None,
@@ -148,6 +152,7 @@ def morse_simplify(
         from geoproc.morse.diagram_plot import persistence_diagram_png
         from geoproc.morse.fields import field_name, vertex_field
         from geoproc.morse.summary import simplification_summary
+        from geoproc.morse.window_repair import TIE_ROUNDING
 
         npy = read_input_bytes(npy_path, "field file (.npy)") if npy_path else None
         with run.timer("field"):
@@ -176,10 +181,7 @@ def morse_simplify(
         run.metrics.update({"vertices": m.n_vertices, "faces": m.n_faces, **summary.metrics})
         beyond, max_change = summary.metrics["vertices_beyond_half_threshold"], summary.metrics["max_abs_change"]
         if beyond:
-            run.note(f"{beyond} vertices moved by more than P/2 = {threshold / 2:.6g} "
-                     f"(max |f - g| = {max_change:.6g}) where cancelled basins and peaks "
-                     "interact; the critical points are still exactly the kept ones (--barycentric stays within P/2 "
-                     "on the barycentric subdivision)")
+            run.note(_beyond_note(beyond, threshold, max_change, summary, TIE_ROUNDING))
         if barycentric:
             carried = {k: subdivision_values(res, m.F, v) for k, v in m.vertex_fields.items()}  # interpolated
             if name not in ("nx", "ny", "nz"):  # (a normal component simplified as the field stays the field)
@@ -212,3 +214,22 @@ def morse_simplify(
 def register(app: typer.Typer) -> None:
     """Add ``morse-simplify`` to the application."""
     app.command("morse-simplify", epilog=metrics_epilog(METRICS))(morse_simplify)
+
+
+def _beyond_note(beyond: int, threshold: float, max_change: float, summary, tie_rounding: float) -> str:
+    """The note on vertices moved past P/2: where cancelled basins and peaks
+    interact, or where breaking g's ties took more than units in the last
+    place (the field's doubles too coarse for its values)."""
+    head = f"{beyond} vertices moved by more than P/2 = {threshold / 2:.6g} (max |f - g| = {max_change:.6g})"
+    f = summary.f_ref
+    spacing = float(np.spacing(np.abs(f).max())) if len(f) else 0.0
+    if summary.tie_rise <= tie_rounding * threshold / 2 + 64 * spacing:  # within what counts as rounding
+        return (f"{head} where cancelled basins and peaks interact; the critical points are still exactly the kept "
+                "ones (--barycentric stays within P/2 on the barycentric subdivision)")
+    span = float(np.ptp(f)) + threshold
+    crowded = span < spacing * len(f)
+    why = (f"its {len(f)} values are more than the {span / spacing:.3g} doubles within their range" if crowded
+           else "ties take one unit in the last place per tied value")
+    return (f"{head}: g has no ties, and the doubles near the field's largest value are {spacing:.3g} apart "
+            f"({why}), so breaking the ties moved values by up to {summary.tie_rise:.3g}; subtract a constant "
+            "from the field (its mean, say) and run again")

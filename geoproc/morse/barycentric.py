@@ -77,9 +77,9 @@ class BarycentricSimplification:
         Finite persistence pairs with persistence < P (cancelled) and >= P.
     max_abs_change : float
         ``max |f - g|`` over all cells.
-    tie_slack : float
-        The largest rise that breaking g's ties gave a value
-        (:func:`geoproc.morse.simplify.strictly_increasing`).
+    tie_slack : (cells,) float array or 0.0
+        The rise that breaking g's ties gave each value
+        (:func:`geoproc.morse.simplify.strictly_increasing`), in the order of ``g``.
     order, cx, gradient, pairs
         As in :class:`geoproc.morse.MorseSimplification`: the vertex order,
         and the complex, gradient and persistence pairs of f on the
@@ -101,7 +101,7 @@ class BarycentricSimplification:
     cx: SurfaceComplex
     gradient: DiscreteGradient
     pairs: PersistencePairs
-    tie_slack: float = 0.0
+    tie_slack: np.ndarray | float = 0.0
 
 
 @numba.njit(cache=True)
@@ -377,6 +377,10 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
     g_out = np.empty_like(g)
     f_out[to_input] = fc
     g_out[to_input] = g
+    if np.ndim(slack):
+        slack_out = np.empty_like(slack)
+        slack_out[to_input] = slack
+        slack = slack_out
     dim = np.concatenate([np.zeros(n), np.ones(k), np.full(m, 2)]).astype(np.int8)
     return BarycentricSimplification(
         V=V_sd, F=F_sd, E=E_in, dim=dim, f=f_out, g=g_out, threshold=P,

@@ -137,11 +137,12 @@ class Simplification:
     repaired_vertices : int
         Value changes made by the repair sweeps of step 5 (0 when the
         cancellation relation alone gave the right extrema).
-    tie_slack : float
-        The largest rise that breaking ties gave a value (step 8, and before
+    tie_slack : (n,) float array or 0.0
+        The rise that breaking ties gave each value (step 8, and before
         the windows of step 7): one unit in the last place per tied vertex, so
         a plateau of k vertices at f + P/2 ends up to k units beyond it. Moves
-        past P/2 within it are tie-breaking, not counted in ``widened_vertices``.
+        past P/2 within it, up to :data:`~geoproc.morse.window_repair.TIE_ROUNDING`
+        of P/2, are tie-breaking, not counted in ``widened_vertices``.
     """
 
     g: np.ndarray
@@ -153,7 +154,7 @@ class Simplification:
     max_abs_change: float
     widened_vertices: np.ndarray
     repaired_vertices: int
-    tie_slack: float = 0.0
+    tie_slack: np.ndarray | float = 0.0
 
 
 @numba.njit(cache=True)
@@ -289,11 +290,13 @@ def _wrong_extrema(g, keep_min, keep_max, boundary, adj_ptr, adj_nbr):
     return bad
 
 
-def strictly_increasing(g: np.ndarray) -> tuple[np.ndarray, float]:
+def strictly_increasing(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """g (n,) with its ties broken upwards in (value, index) order (step 8), and
-    the largest rise that gave a value (0 without ties)."""
+    the rise that gave each value (n,), 0 without ties. A plateau of k values
+    rises by up to k units in the last place; where the field's range holds
+    fewer doubles than there are values, the rises run on past the range."""
     out = _make_strict(g, np.lexsort((np.arange(len(g)), g)))
-    return out, float(np.max(out - g, initial=0.0))
+    return out, out - g
 
 
 @numba.njit(cache=True)
@@ -496,7 +499,7 @@ def simplify_function(cx: SurfaceComplex, f: np.ndarray, threshold: float,
             for radius in () if exact_windows >= 0 else (2, 4):  # all: the 8 farthest again, wider
                 repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, 8, radius, 120, 50, slack=slack)
         g, rise = strictly_increasing(g)
-        slack += rise
+        slack = slack + rise
     return Simplification(
         g=g,
         threshold=P,

@@ -39,6 +39,9 @@ class SimplificationSummary:
         ``pairs_kept``, ``max_abs_change``, ``threshold`` and
         ``vertices_beyond_half_threshold`` (moves past P/2 beyond rounding and
         tie-breaking, :func:`~geoproc.morse.window_repair.half_bound_tolerance`).
+    tie_rise : float
+        The largest move that breaking g's ties made (units in the last place,
+        unless the field's range holds too few doubles for its vertices).
     """
 
     before: PersistencePairs
@@ -48,6 +51,7 @@ class SimplificationSummary:
     f_ref: np.ndarray
     g: np.ndarray
     metrics: dict
+    tie_rise: float = 0.0
 
 
 def simplification_summary(res: MorseSimplification | BarycentricSimplification, f: np.ndarray,
@@ -113,4 +117,5 @@ def simplification_summary(res: MorseSimplification | BarycentricSimplification,
         "threshold": threshold,
         "vertices_beyond_half_threshold": beyond,
     }
-    return SimplificationSummary(before, after, cx_after, order_after, f_ref, g, metrics)
+    return SimplificationSummary(before, after, cx_after, order_after, f_ref, g, metrics,
+                                 float(np.max(tie_slack, initial=0.0)))

@@ -412,3 +412,25 @@ def test_long_double_field_beyond_float64_is_one_line(cli, fixture_dir, tmp_path
     p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", field, "-p", "0.1", "-o", out)
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
     assert "field 'ld' has 1 values beyond the float64 range (first: vertex 5)" in p.stderr and not out.exists()
+
+
+@pytest.mark.parametrize("barycentric", [False, True])
+def test_a_field_too_coarse_for_its_values_counts_the_moves_past_half(cli, make_fixtures, tmp_path, barycentric):
+    # a field of range ~2 offset by 1e15: its range holds ~16 doubles for 642 (or 3842) values, and
+    # breaking g's ties moved them by many units of P; those moves had been excused as tie-breaking
+    # whatever their size (vertices_beyond_half_threshold 0, no note, bunny: 20,027 of 20,900 beyond)
+    V, F = make_fixtures.icosphere(3)
+    src, field = tmp_path / "s.ply", tmp_path / "f.npy"
+    save_mesh(src, Mesh(V, F))
+    np.save(field, 1e15 + V[:, 2])
+    rep = tmp_path / "r.json"
+    extra = ["--barycentric"] if barycentric else []
+    p = cli("morse-simplify", src, "-f", field, "-p", "0.1", "--relative", *extra, "-o", tmp_path / "o.ply",
+            "--report", rep)
+    assert p.returncode == 0, p.stderr
+    met = json.loads(rep.read_text())["metrics"]
+    g, f = (load_mesh(tmp_path / "o.ply").vertex_fields[k] for k in ("f", "f_original"))
+    assert met["max_abs_change"] > met["threshold"]
+    assert met["vertices_beyond_half_threshold"] > len(g) / 4
+    assert met["vertices_beyond_half_threshold"] <= int((np.abs(g - f) > met["threshold"] / 2).sum())
+    assert "subtract a constant from the field" in p.stderr
