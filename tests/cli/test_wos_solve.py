@@ -141,7 +141,7 @@ def test_neumann_rectangle(cli, inputs, tmp_path):
     ("disk.json", ["--boundary", "sqrt(x*x + y*y - 0.5)", "--exact"],
      "--exact: --boundary is not finite at 24 grid points inside"),
     # the problem is in the domain file, which the message had not named
-    ("rect.json", ["--boundary", "x", "--method", "cv-angle"], "rect.json: has Neumann segments, and cv-angle supports"),
+    ("rect.json", ["--boundary", "x", "--method", "cv-angle"], "rect.json: has Neumann segments, and cv-angle"),
     # boundary data must be finite on the boundary, and the solution fit EXR's float32
     ("disk.json", ["--boundary", "log(x - 5)"], "--boundary is not finite on the boundary of"),
     ("disk.json", ["--boundary", "1/(x*x + y*y - 1)"], "--boundary is not finite on the boundary"),
