@@ -137,6 +137,20 @@ def require_vertex_field(mesh: Mesh, values: np.ndarray, name: str, path: str | 
     return vertex_field_values(values, len(mesh.V), name, path or mesh.log.path or None)
 
 
+def _require_integers_apart(values: np.ndarray, a: np.ndarray, name: str, path: str | None) -> None:
+    """InputError when integers beyond 2^53 (int64, uint64) that differ become
+    equal as doubles (``a``): the field's order, which decides its critical
+    points, would change."""
+    wide = (values > 2**53) | (values < -(2**53))
+    if not wide.any():
+        return
+    distinct, after = len(np.unique(values)), len(np.unique(a))
+    if after < distinct:
+        raise InputError(path, f"field '{name}' has integers beyond 2^53, where doubles cannot tell them apart: "
+                               f"its {distinct} distinct values become {after}; subtract a constant (its "
+                               "minimum, say) first")
+
+
 def vertex_field_values(values, n: int, name: str, path: str | None = None) -> np.ndarray:
     """Check a scalar field on ``n`` vertices: real numbers, one per vertex, all
     finite, spanning a finite range (max - min, which persistence and relative
@@ -154,6 +168,8 @@ def vertex_field_values(values, n: int, name: str, path: str | None = None) -> n
     a = np.asarray(values, dtype=np.float64).reshape(-1)
     if len(a) != n:
         raise InputError(path, f"field '{name}' has {len(a)} values for {n} vertices")
+    if values.dtype.kind in "iu":
+        _require_integers_apart(values.reshape(-1), a, name, path)
     bad = ~np.isfinite(a)
     if bad.any():
         raise InputError(

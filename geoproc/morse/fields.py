@@ -97,6 +97,8 @@ def vertex_field(mesh: Mesh, spec: str, data: bytes | None = None) -> np.ndarray
     elif spec.lower().endswith(".npy"):
         if data is None:
             data = read_input_bytes(spec, "field file (.npy)")
+        if data and not data.startswith(b"\x93NUMPY"):  # np.load reads any other bytes as a pickle, then refuses it
+            raise InputError(spec, "cannot read field: not a NumPy .npy file (it does not start with \\x93NUMPY)")
         try:
             values = np.load(io.BytesIO(data), allow_pickle=False)
         except (OSError, ValueError, EOFError) as exc:  # EOFError: an empty file

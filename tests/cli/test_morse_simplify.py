@@ -203,8 +203,14 @@ def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
     empty, near = tmp_path / "empty.npy", tmp_path / "near.npy"
     empty.write_bytes(b"")
     np.save(near, np.where(np.arange(n) % 2, 8.9e307, -8.9e307))  # its range fits, twice it does not
+    big, text = tmp_path / "big.npy", tmp_path / "text.npy"
+    np.save(big, 2**60 + np.arange(n, dtype=np.int64))  # doubles 256 apart there: read as a few distinct values
+    text.write_text("0 1 2\n")  # np.load took it for a pickle and asked for allow_pickle
     out = tmp_path / "o.ply"
     cases = [
+        (["--field", big, "--persistence", "1"], f"big.npy: field 'big' has integers beyond 2^53, where doubles "
+                                                 f"cannot tell them apart: its {n} distinct values become"),
+        (["--field", text, "--persistence", "1"], "text.npy: cannot read field: not a NumPy .npy file"),
         (["--field", short, "--persistence", "1"], f"{n - 1} values for {n} vertices"),
         (["--field", nan, "--persistence", "1"], "non-finite"),
         (["--field", cplx, "--persistence", "1"], "cplx.npy: field 'cplx' must hold real numbers"),
@@ -224,6 +230,8 @@ def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
         assert not out.exists()
     p = cli("morse-simplify", ico, "--field", "z", "--persistence", "1", "-o", tmp_path / "o.obj")
     assert p.returncode == 2 and ".ply" in p.stderr
+    np.save(big, 2**60 * (np.arange(n, dtype=np.int64) % 3))  # beyond 2^53 but exact as doubles: read
+    assert cli("morse-simplify", ico, "--field", big, "--persistence", "1", "-o", out).returncode == 0
 
 
 def test_npy_with_one_value_per_stored_vertex_names_the_clean_up(cli, fixture_dir, tmp_path):
