@@ -22,6 +22,8 @@ from corner c + 1 to corner c + 2; ``l[f, c]`` is its length.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -85,9 +87,12 @@ def doubled_cover(Fi: np.ndarray, l: np.ndarray, F: np.ndarray, n: int):
 
 
 def _corner_cot(l: np.ndarray, f: int, c: int) -> float:
-    """Cotangent of the angle at corner c of face f (edge lengths ``l``), as
-    :func:`geoproc.geodesic.cocircular.corner_cotangents` computes it."""
-    return float(corner_cotangents(l[f:f + 1])[0, c])
+    """Cotangent of the angle at corner c of face f (edge lengths ``l``), by
+    the formula of :func:`geoproc.geodesic.cocircular.corner_cotangents`."""
+    a, b, e = float(l[f, c]), float(l[f, (c + 1) % 3]), float(l[f, (c + 2) % 3])
+    s = 0.5 * (a + b + e)
+    area = math.sqrt(max(s * (s - a) * (s - b) * (s - e), 0.0))
+    return (b * b + e * e - a * a) / (4.0 * max(area, 1e-300))
 
 
 def flip_edge(Fi: np.ndarray, l: np.ndarray, twin: np.ndarray, h: int) -> None:
@@ -161,18 +166,21 @@ def canonical_cover_diagonals(C, lc, twin, original, F, max_passes: int = 64) ->
     cocircular edges left whose weight, zero in exact arithmetic, came out
     negative: they are given none (a positive one is kept, as a quad within
     the tolerance of cocircular can be a thin strip's only link along it)."""
-    keys, base = np.unique(undirected_edge_keys(F)), edge_key_base(F)
+    keys, base = None, edge_key_base(F)  # F's edges, sorted when a cocircular quad first asks
     flat = C.ravel()
     for _ in range(max_passes):
         h, t = _edges_once(twin)
         cot = corner_cotangents(lc).ravel()
         on = _cocircular(cot, h, t, TOL)
-        a, b = original[flat[3 * (h // 3) + (h + 1) % 3]], original[flat[3 * (h // 3) + (h + 2) % 3]]
-        p, q = original[flat[h]], original[flat[t]]
-        want = on & (np.minimum(p, q) < np.minimum(a, b))
         at = np.flatnonzero(on)
-        now, other = (_are_edges(keys, base, x[at], y[at]) for x, y in ((a, b), (p, q)))
-        want[at] = np.where(now == other, want[at], other)
+        want = np.zeros(len(h), dtype=bool)
+        if len(at):
+            ha, ta = h[at], t[at]
+            a, b = original[flat[3 * (ha // 3) + (ha + 1) % 3]], original[flat[3 * (ha // 3) + (ha + 2) % 3]]
+            p, q = original[flat[ha]], original[flat[ta]]
+            keys = np.unique(undirected_edge_keys(F)) if keys is None else keys
+            now, other = (_are_edges(keys, base, x, y) for x, y in ((a, b), (p, q)))
+            want[at] = np.where(now == other, np.minimum(p, q) < np.minimum(a, b), other)
         if not want.any():
             return _negative_halves(twin, h, t, cot, on)
         used = np.zeros(len(C), dtype=bool)
