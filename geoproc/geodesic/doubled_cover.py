@@ -11,7 +11,10 @@ too, into an edge that runs from a vertex to its own mirror image.
 The cover can join two vertices by two edges (an interior edge between two
 boundary vertices and its mirror image), which a vertex-indexed mesh cannot
 hold, so the cover is kept as faces, edge lengths and an explicit twin for
-every half-edge, and flipped here (Lawson's algorithm). A function
+every half-edge, and flipped here (Lawson's algorithm, compiled in
+:mod:`geoproc.geodesic.cover_flips`, which loads numba only for a mesh
+that needs the cover: a Delaunay mesh of a long strip made 130,678 flips,
+16 s in Python). A function
 on the mesh lifts to the cover by taking the same value on both copies; the
 Dirichlet energy of the lift is twice the mesh's, so the cover's Laplacian,
 mass and face areas, folded onto the mesh's vertices, are halved.
@@ -21,8 +24,6 @@ from corner c + 1 to corner c + 2; ``l[f, c]`` is its length.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import scipy.sparse as sp
@@ -86,69 +87,21 @@ def doubled_cover(Fi: np.ndarray, l: np.ndarray, F: np.ndarray, n: int):
     return C, lc, cover_twin, original
 
 
-def _corner_cot(l: np.ndarray, f: int, c: int) -> float:
-    """Cotangent of the angle at corner c of face f (edge lengths ``l``), by
-    the formula of :func:`geoproc.geodesic.cocircular.corner_cotangents`."""
-    a, b, e = float(l[f, c]), float(l[f, (c + 1) % 3]), float(l[f, (c + 2) % 3])
-    s = 0.5 * (a + b + e)
-    area = math.sqrt(max(s * (s - a) * (s - b) * (s - e), 0.0))
-    return (b * b + e * e - a * a) / (4.0 * max(area, 1e-300))
-
-
-def flip_edge(Fi: np.ndarray, l: np.ndarray, twin: np.ndarray, h: int) -> None:
-    """Flip half-edge h and its twin in place: triangles (p, a, b) and (q, b, a)
-    across edge a-b become (p, a, q) and (q, b, p), the new edge p-q at corner 1
-    of both, its length from the quad laid out flat; the twins of the four
-    outer edges follow them."""
-    t = int(twin[h])
-    f, c, g, d = h // 3, h % 3, t // 3, t % 3
-    c1, c2, d1, d2 = (c + 1) % 3, (c + 2) % 3, (d + 1) % 3, (d + 2) % 3
-    a, b, p, q = Fi[f, c1], Fi[f, c2], Fi[f, c], Fi[g, d]
-    ab, bp, pa, aq, qb = (float(x) for x in (l[f, c], l[f, c1], l[f, c2], l[g, d1], l[g, d2]))
-    cos1 = min(max((ab * ab + pa * pa - bp * bp) / (2 * ab * pa), -1.0), 1.0)
-    cos2 = min(max((ab * ab + aq * aq - qb * qb) / (2 * ab * aq), -1.0), 1.0)
-    theta = np.arccos(cos1) + np.arccos(cos2)
-    pq = np.sqrt(max(pa * pa + aq * aq - 2 * pa * aq * np.cos(theta), 0.0))
-    old = (3 * f + c1, 3 * f + c2, 3 * g + d1, 3 * g + d2)  # edges b-p, p-a, a-q, q-b
-    new = (3 * g, 3 * f + 2, 3 * f, 3 * g + 2)  # where each goes
-    outer = [int(twin[e]) for e in old]
-    Fi[f], l[f] = (p, a, q), (aq, pq, pa)
-    Fi[g], l[g] = (q, b, p), (bp, pq, qb)
-    twin[3 * f + 1], twin[3 * g + 1] = 3 * g + 1, 3 * f + 1
-    for k in range(4):
-        o = new[old.index(outer[k])] if outer[k] in old else outer[k]  # an outer twin inside the quad moved too
-        twin[new[k]], twin[o] = o, new[k]
-
-
-def _not_delaunay(ca: float, cb: float, tol: float) -> bool:
-    return ca + cb < -tol * max(1.0, abs(ca), abs(cb))
-
-
 def lawson_flips(Fi: np.ndarray, l: np.ndarray, twin: np.ndarray, tol: float, max_flips: int) -> int:
     """Flip non-Delaunay edges (opposite cotangents summing below ``-tol`` times
     the larger of 1 and their sizes) until none is left, in place. Returns the
-    number of flips, or -1 past ``max_flips``.
+    number of flips, or -1 past ``max_flips``. The edges are tested all at
+    once first; the compiled loop (:func:`geoproc.geodesic.cover_flips.lawson_flips`)
+    starts from those that fail."""
+    from geoproc.geodesic.cover_flips import lawson_flips as compiled
 
-    The edges are tested all at once first; only those that fail, and the
-    edges around each flip, are visited one by one (on a triangulation that
-    the mesh's own flips have made Delaunay but at the boundary, a few)."""
     h, t = _edges_once(twin)
     cot = corner_cotangents(l).ravel()
     ca, cb = cot[h], cot[t]
-    stack = h[(ca + cb < -tol * np.maximum(1.0, np.maximum(np.abs(ca), np.abs(cb)))) & (h // 3 != t // 3)].tolist()
-    flips = 0
-    while stack:
-        e = stack.pop()
-        o = int(twin[e])
-        f, g = e // 3, o // 3
-        if f == g or not _not_delaunay(_corner_cot(l, f, e % 3), _corner_cot(l, g, o % 3), tol):
-            continue
-        flip_edge(Fi, l, twin, e)
-        flips += 1
-        if flips > max_flips:
-            return -1
-        stack.extend((3 * f, 3 * f + 2, 3 * g, 3 * g + 2))
-    return flips
+    start = h[(ca + cb < -tol * np.maximum(1.0, np.maximum(np.abs(ca), np.abs(cb)))) & (h // 3 != t // 3)]
+    if not len(start):
+        return 0
+    return int(compiled(Fi, l, twin, start, float(tol), int(max_flips)))
 
 
 def _edges_once(twin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -166,6 +119,8 @@ def canonical_cover_diagonals(C, lc, twin, original, F, max_passes: int = 64) ->
     cocircular edges left whose weight, zero in exact arithmetic, came out
     negative: they are given none (a positive one is kept, as a quad within
     the tolerance of cocircular can be a thin strip's only link along it)."""
+    from geoproc.geodesic.cover_flips import flip_edge
+
     keys, base = None, edge_key_base(F)  # F's edges, sorted when a cocircular quad first asks
     flat = C.ravel()
     for _ in range(max_passes):

@@ -23,6 +23,7 @@ from geoproc.geodesic.doubled_cover import (
     folded_mass,
     lawson_flips,
 )
+from geoproc.mesh.orientation import consistent_orientation
 from geoproc.mesh.topology import boundary_edges, face_areas, undirected_edge_keys
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
@@ -185,7 +186,14 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray) -> IntrinsicMesh | Non
         return tri
     if not _all_boundary_edges(row[negative], col[negative], tri.F):
         return None
-    return doubled_cover_mesh(tri.F, tri.l, F, len(V))
+    # the cover pairs each half-edge with one running the other way: faces wound
+    # against their neighbours are turned first (the surface is the same)
+    Fo, turned = consistent_orientation(F)
+    if turned.any():
+        tri = _flipped_triangulation(V, Fo)
+        if tri is None:
+            return None
+    return doubled_cover_mesh(tri.F, tri.l, Fo, len(V))
 
 
 def doubled_cover_mesh(Fi: np.ndarray, l: np.ndarray, F: np.ndarray, n: int) -> IntrinsicMesh | None:
