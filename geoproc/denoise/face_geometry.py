@@ -55,6 +55,51 @@ def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
     return N, A
 
 
+def collinear_middles(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The middle corners of the degenerate faces whose three corners lie on a
+    line (:data:`DEGENERATE_SINE`), such as T-junction fillers: an edge's
+    midpoint stored as a face's third corner.
+
+    Returns
+    -------
+    mid, a, b : (k,) int arrays
+        For each such face, the corner between the other two and the ends of
+        its longest edge (faces with coincident corners are left out).
+    t : (k,) float array
+        Where ``mid`` lies on the segment, ``V[mid] = V[a] + t (V[b] - V[a])``.
+    """
+    e1, e2 = face_corner_edges(V, F)
+    bad = np.flatnonzero(row_norms(cross_rows(e1, e2)) <= DEGENERATE_SINE * row_norms(e1) * row_norms(e2))
+    if not len(bad):
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty, empty, np.zeros(0)
+    Fb = F[bad]
+    length = np.stack([row_norms(V[Fb[:, (c + 2) % 3]] - V[Fb[:, (c + 1) % 3]]) for c in range(3)], axis=1)
+    c = np.argmax(length, axis=1)  # the corner opposite the longest edge lies between its ends
+    r = np.arange(len(Fb))
+    mid, a, b = Fb[r, c], Fb[r, (c + 1) % 3], Fb[r, (c + 2) % 3]
+    ok = (length[r, c] > 0) & (length[r, (c + 1) % 3] > 0) & (length[r, (c + 2) % 3] > 0)
+    mid, a, b = mid[ok], a[ok], b[ok]
+    t = row_norms(V[mid] - V[a]) / row_norms(V[b] - V[a])
+    return mid, a, b, t
+
+
+def keep_on_segments(X: np.ndarray, middles, fixed: np.ndarray | None = None) -> np.ndarray:
+    """``X`` with each collinear middle corner (:func:`collinear_middles`) put
+    back on the segment between the other two, where it was in the input, so
+    that a T-junction filler stays flat (fitted to its real faces alone, such
+    a vertex left its edge and the filler opened into a fin). Vertices that
+    are ``fixed`` stay."""
+    mid, a, b, t = middles
+    if not len(mid):
+        return X
+    X = X.copy()
+    for i, j, k, s in zip(mid.tolist(), a.tolist(), b.tolist(), t.tolist(), strict=True):
+        if fixed is None or not fixed[i]:
+            X[i] = X[j] + s * (X[k] - X[j])
+    return X
+
+
 def face_aspect(V: np.ndarray, F: np.ndarray, N: np.ndarray | None = None) -> np.ndarray:
     """(m,) each triangle's height over its longest edge, ``2 A / l_max^2``:
     sqrt(3)/2 for an equilateral triangle, near 0 for a sliver or a needle

@@ -36,10 +36,12 @@ from geoproc.denoise.bilateral import bilateral_normal_filter, spatial_weights
 from geoproc.denoise.connectivity import FaceConnectivity, face_connectivity
 from geoproc.denoise.crease_targets import bisect_collapsed_targets, input_side_targets
 from geoproc.denoise.face_geometry import (
+    collinear_middles,
     face_aspect,
     face_centroids,
     face_edge_neighbors,
     face_normals_and_areas,
+    keep_on_segments,
 )
 from geoproc.denoise.features import dihedral_feature_faces, l1_feature_faces
 from geoproc.denoise.guidance import guidance_normals
@@ -474,13 +476,16 @@ def filter_and_fit(
     N, A = face_normals_and_areas(X, F)
     N_input, A_input = N.copy(), A.copy()
 
+    middles = collinear_middles(X, F)  # T-junction fillers: their middle corner stays on its segment
+
     def fit(X, N):
         keep = N_input if sliver is None else np.where(sliver[:, None], N, N_input)
         X = update_vertices(X, F, N, p.vertex_iterations, fixed=fixed, keep_orientation=keep,
                             anchor=V, fidelity=p.fidelity)
+        folded = 0
         if p.unfold_rounds > 0:
-            return unfold_faces(X, F, N, edge_nb, fixed, keep, p.unfold_rounds)
-        return X, 0
+            X, folded = unfold_faces(X, F, N, edge_nb, fixed, keep, p.unfold_rounds)
+        return keep_on_segments(X, middles, fixed), folded
 
     if initial_normals is not None:
         N = np.asarray(initial_normals, dtype=np.float64)
