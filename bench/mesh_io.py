@@ -10,10 +10,13 @@ tables of median wall-clock times and ratios to the fastest peer.
 2. PLY, the format subcommands hand to each other: armadillo.obj upsampled by
    libigl (``igl.upsample``, 4 and 16 times the faces), written with a
    per-vertex field as geoproc writes it (binary and ASCII), then read back
-   (3 runs each). geoproc's load (validation, clean-up, fields) against
+   (3 runs each for binary files). geoproc's load (validation, clean-up, fields) against
    trimesh (process=False), libigl and plyfile (the element parse alone: the
    reader geoproc used before its vectorized path); writing against trimesh's
-   export and plyfile's writer.
+   export and plyfile's writer. The ASCII files and plyfile's columns are
+   read once (they take seconds to minutes).
+3. OFF and OBJ at the larger size (3 runs each): geoproc's load against
+   trimesh (process=False) and libigl.
 """
 
 from __future__ import annotations
@@ -91,6 +94,27 @@ def ply_table() -> None:
                       f"{ours / min(tm, il):.2f} | {w:.2f} | {tw:.2f} | {pw:.2f} |", flush=True)
 
 
+def text_table(repeat: int = 3) -> None:
+    """OFF and OBJ at pipeline size: armadillo upsampled to 16 times its faces,
+    written by geoproc, loaded by geoproc (validation and clean-up included),
+    libigl and trimesh (process=False); median of ``repeat`` runs."""
+    base = load_mesh(SHARED / "armadillo.obj")
+    V, F = igl.upsample(*igl.upsample(base.V, base.F))
+    print("\n| text format | faces | MB | geoproc load s | trimesh s | libigl s "
+          "| load ratio (geoproc / fastest peer) |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for fmt in ("off", "obj"):
+            path = Path(tmp) / f"arma16.{fmt}"
+            data = mesh_to_bytes(Mesh(V, F, {}, {}), fmt)
+            path.write_bytes(data)
+            ours = median_time(lambda p=path: load_mesh(p), repeat)
+            tm = median_time(lambda p=path: trimesh.load(p, process=False, force="mesh"), repeat)
+            il = median_time(lambda p=path: igl.read_triangle_mesh(str(p)), repeat)
+            print(f"| armadillo x16 {fmt.upper()} | {len(F)} | {len(data) / 1e6:.1f} | {ours:.2f} | {tm:.2f} | "
+                  f"{il:.2f} | {ours / min(tm, il):.2f} |", flush=True)
+
+
 def main() -> int:
     argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()  # --help, and no stray arguments
     if not SHARED.is_dir():
@@ -114,6 +138,7 @@ def main() -> int:
         tt = median_time(trimesh_topology)
         print(f"| {path.name} | {ours:.4f} | {tm:.4f} | {il:.4f} | {ours / min(tm, il):.2f} | {info:.4f} | {tt:.4f} |")
     ply_table()
+    text_table()
     return 0
 
 
