@@ -34,7 +34,8 @@ from geoproc.mesh.topology import boundary_edges, edge_key_base, undirected_edge
 DELAUNAY_TOL = 1e-9
 """Lawson's flips turn an edge whose opposite cotangents sum below ``-DELAUNAY_TOL``
 times the larger of 1 and their sizes; quads within :data:`~geoproc.geodesic.cocircular.TOL`
-of cocircular are then set to a canonical diagonal and their weight to zero."""
+of cocircular are then set to a canonical diagonal, and their weight to zero
+where it came out negative (:func:`canonical_cover_diagonals`)."""
 
 
 def doubled_cover(Fi: np.ndarray, l: np.ndarray, F: np.ndarray, n: int):

@@ -155,7 +155,8 @@ class IntrinsicMesh(NamedTuple):
 
 
 def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray) -> IntrinsicMesh | None:
-    """libigl's intrinsic Delaunay triangulation of an edge-manifold mesh with its operators.
+    """The intrinsic Delaunay triangulation of an edge-manifold mesh with its operators
+    (libigl's flips, or on the doubled cover the project's own).
 
     Cocircular quads get the diagonal that is an edge of ``F``
     (:func:`geoproc.geodesic.cocircular.canonical_cocircular_diagonals`), so
