@@ -59,8 +59,9 @@ def perturb(
                                             "any flags the input carries).",
                                             metavar="FRACTION")] = 0.0,
     outlier_range: Annotated[float, typer.Option("--outlier-range", help="Outliers move uniformly within "
-                                                 "a ball of this many (> 0) bounding-box diagonals around their "
-                                                 "noisy position.", metavar="R")] = 0.02,
+                                                 "a ball of this many (> 0) bounding-box diagonals (of the vertices "
+                                                 "the faces use) around their noisy position.",
+                                                 metavar="R")] = 0.02,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,

@@ -37,3 +37,37 @@ def point_spacing(dist: np.ndarray) -> float:
     if not float(np.median(dist[:, -1])) > 0:
         return 1.0
     return float(np.median(nearest_distinct_distances(dist)))
+
+
+def near_copy_groups(P: np.ndarray, k: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """Points (n, 3) gathered with their near copies (:data:`COPY_DISTANCE`
+    times the median distance to the k-th nearest point, chained).
+
+    Returns
+    -------
+    first : (g,) int array
+        One point of each group, its lowest index (all points when no two are near copies).
+    group : (n,) int array
+        Each point's group, an index into ``first``.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(P)
+    if n < 2:
+        return np.arange(n), np.arange(n)
+    tree = cKDTree(P)
+    dist, _ = tree.query(P, k=min(n, k), workers=-1)
+    far = float(np.median(dist[:, -1]))
+    pairs = tree.query_pairs(COPY_DISTANCE * far, output_type="ndarray") if far > 0 else np.zeros((0, 2), int)
+    if not len(pairs):
+        return np.arange(n), np.arange(n)
+    _, label = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                    directed=False)
+    first = np.full(label.max() + 1, n)
+    np.minimum.at(first, label, np.arange(n))
+    order = np.argsort(first)  # groups numbered by their lowest point
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return first[order], rank[label]

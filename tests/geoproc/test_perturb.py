@@ -130,6 +130,29 @@ def test_point_cloud_stored_twice_has_the_spacing_and_normals_of_one_copy(make_f
     assert abs(along.std() / noise_scale(V, none) - 0.3) < 0.1 * 0.3
 
 
+def test_point_cloud_of_near_copy_clumps_takes_normals_among_the_clumps(make_fixtures):
+    # each point of a sphere cloud replaced by a clump of 15 near copies (1e-7 of its spacing
+    # apart): the noise unit counted a clump once, but the normals were fitted to a point's 16
+    # nearest points, mostly its own clump's jitter (a sheet: median 45 degrees off its normal)
+    V, _ = make_fixtures.icosphere(3)
+    h = noise_scale(V, np.zeros((0, 3), int))
+    rng = np.random.default_rng(5)
+    clumps = (V[:, None, :] + 1e-7 * h * rng.standard_normal((len(V), 15, 3))).reshape(-1, 3)
+    N = point_cloud_normals(clumps)
+    radial = np.repeat(V / np.linalg.norm(V, axis=1, keepdims=True), 15, axis=0)
+    assert np.abs(np.einsum("ij,ij->i", N, radial)).min() > 0.99
+    assert np.array_equal(N, np.repeat(N[::15], 15, axis=0))  # one normal per clump
+
+
+def test_outlier_range_ignores_vertices_no_face_uses(sphere):
+    # a stray vertex kept by --no-clean had widened the box: outliers moved 700 times too far
+    V, F = sphere
+    V2 = np.vstack([V, [[100.0, 100.0, 100.0]]])
+    Vn, flag = perturb_positions(V2, F, NoiseSpec(outliers=0.5, outlier_range=0.02), np.random.default_rng(3))
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    assert np.linalg.norm(Vn - V2, axis=1).max() <= 0.02 * diag
+
+
 def test_vertex_normals_of_sphere_are_radial(make_fixtures):
     V, F = make_fixtures.icosphere(3)
     assert np.einsum("ij,ij->i", vertex_normals(V, F), V).min() > 0.999
