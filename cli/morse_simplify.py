@@ -134,7 +134,7 @@ def morse_simplify(
         if not np.isfinite(persistence) or persistence < 0:
             raise UsageError(f"--persistence must be a finite number >= 0, got {persistence:g}")
         if barycentric:
-            refuse_options(ctx, ("exact_windows",), "not used with --barycentric (which holds P/2 exactly)")
+            refuse_options(ctx, ("exact_windows",), "not used with --barycentric (which holds P/2 by construction)")
         if exact_windows < -1:
             raise UsageError(f"--exact-windows must be -1, 0 or a positive count, got {exact_windows}")
         require_ply_output(output, "the fields are vertex properties")
@@ -225,7 +225,7 @@ def _beyond_note(beyond: int, threshold: float, max_change: float, summary, tie_
     spacing = float(np.spacing(np.abs(f).max())) if len(f) else 0.0
     if summary.tie_rise <= tie_rounding * threshold / 2 + 64 * spacing:  # within what counts as rounding
         return (f"{head} where cancelled basins and peaks interact; the critical points are still exactly the kept "
-                "ones (--barycentric stays within P/2 on the barycentric subdivision)")
+                "ones (--barycentric stays within P/2 on the barycentric subdivision, up to the doubles' rounding)")
     span = float(np.ptp(f)) + threshold
     crowded = span < spacing * len(f)
     why = (f"its {len(f)} values are more than the {span / spacing:.3g} doubles within their range" if crowded

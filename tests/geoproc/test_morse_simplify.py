@@ -409,3 +409,21 @@ def test_simplified_field_follows_a_change_of_unit(make_fixtures):
                 scaled = simplify_function(cx, s * f, s * P, exact_windows=0).g / s
                 assert np.abs(scaled - g).max() <= 1e-8 * np.ptp(f), (seed, axis, s)
 
+
+
+def test_tie_allowances_count_each_vertex_its_own(make_fixtures):
+    # each vertex's tie-breaking allowance is in the relabelled order of the simplification;
+    # compared against the input's order, vertices got one another's (a plateau field offset by
+    # 1e6 on a twice-looped torus: 1218 reported past P/2, 859 in truth)
+    import igl
+
+    from geoproc.morse import morse_simplify
+    from geoproc.morse.summary import simplification_summary
+
+    V, F = make_fixtures.torus()
+    V, F = igl.loop(*igl.loop(V, F))
+    y = (V[:, 1] - V[:, 1].min()) / np.ptp(V[:, 1])
+    f = np.round(y + 0.05 * np.random.default_rng(0).standard_normal(len(V)), 1) + 1e6
+    res = morse_simplify(F, f, 0.1)
+    summary = simplification_summary(res, f, 0.1)
+    assert summary.metrics["vertices_beyond_half_threshold"] == len(res.simplification.widened_vertices) > 0
