@@ -13,7 +13,9 @@ from geoproc.geodesic.operators import (
     cotan_laplacian,
     divergence_matrix,
     face_gradient_coefficients,
+    intrinsic_delaunay_laplacian,
     laplacian_and_mass,
+    negative_offdiagonal_count,
     smallest_angles,
     stack_gradient_coefficients,
 )
@@ -64,7 +66,11 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     :func:`~geoproc.geodesic.operators.intrinsic_delaunay_mesh`: the mesh's own
     flips leave that edge a negative weight, weights of -400 along the hull of
     a Delaunay triangulation of random points, where the heat went negative
-    on half the vertices and the mean error was 32 % of the largest distance) or
+    on half the vertices and the mean error was 32 % of the largest distance;
+    on a non-orientable mesh, which has no such cover, the mesh's own
+    triangulation with the heat step on
+    :func:`~geoproc.geodesic.operators.intrinsic_delaunay_laplacian`'s
+    non-negative weights) or
     ``"auto"`` (intrinsic on meshes with slivers or
     strongly non-Delaunay triangles, see
     :func:`geoproc.geodesic.intrinsic.face_operators_triangulation`).
@@ -84,7 +90,10 @@ def heat_operators(V: np.ndarray, F: np.ndarray, laplacian: str, operators: str,
     tri = face_operators_triangulation(V, F, operators, angles, cotan)
     if tri is not None:
         coef, G, D = intrinsic_face_operators(tri.F, tri.l, len(V), tri.face_share)
-        return HeatOperators("intrinsic", tri.L, tri.M, tri.F, coef, G, D, PoissonSolver(tri.L))  # D G = L
+        L, M = tri.L, tri.M
+        if negative_offdiagonal_count(L):  # no cover (a non-orientable mesh): the heat step needs weights >= 0
+            L, M = intrinsic_delaunay_laplacian(V, F)
+        return HeatOperators("intrinsic", L, M, tri.F, coef, G, D, PoissonSolver(tri.L))  # D G = L
     L, M = laplacian_and_mass(V, F, laplacian)
     coef = gradient_coefficients(V, F)
     G = stack_gradient_coefficients(coef, F, len(V))

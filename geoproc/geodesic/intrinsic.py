@@ -119,7 +119,7 @@ def face_operators_triangulation(V: np.ndarray, F: np.ndarray, operators: str, a
                 >= NEGATIVE_WEIGHT_SHARE):
             return None
     if operators in ("auto", "intrinsic"):
-        return intrinsic_delaunay_mesh(V, F)
+        return intrinsic_delaunay_mesh(V, F, boundary_negatives=True)
     return None
 
 

@@ -99,8 +99,9 @@ class LogHeatSolver:
         Where the gradient, divergence and Poisson Laplacian live: on the mesh
         itself, or on its intrinsic Delaunay triangulation
         (:mod:`geoproc.geodesic.intrinsic`; its Laplacian then serves the
-        Poisson step and the heat step, except where an obtuse angle faces a
-        boundary edge: the heat step then takes
+        Poisson step and the heat step: where an obtuse angle faces a boundary
+        edge, that of the doubled cover folded onto the mesh, and on a
+        non-orientable mesh, which has no such cover, the heat step takes
         :func:`~geoproc.geodesic.operators.intrinsic_delaunay_laplacian`,
         whose weights are non-negative). ``auto``: intrinsic when at least
         :data:`~geoproc.geodesic.intrinsic.SLIVER_SHARE` of the faces have a

@@ -154,7 +154,7 @@ class IntrinsicMesh(NamedTuple):
     face_share: float
 
 
-def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray) -> IntrinsicMesh | None:
+def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bool = False) -> IntrinsicMesh | None:
     """The intrinsic Delaunay triangulation of an edge-manifold mesh with its operators
     (libigl's flips, or on the doubled cover the project's own).
 
@@ -170,11 +170,19 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray) -> IntrinsicMesh | Non
     method's mean error fell from 1.5, 6.1 and 8.0 % of the largest distance
     (three source sets) with the mesh's own flips to 0.7, 3.1 and 0.7 %.
 
+    ``boundary_negatives``: where the cover does not apply (a non-orientable
+    mesh, such as a Möbius band, whose half-edges do not pair up into a
+    cover), return the mesh's own triangulation with its negative boundary
+    weights instead of None (the heat method's gradient, divergence and
+    Poisson step take them; its heat step then takes
+    :func:`intrinsic_delaunay_laplacian`'s).
+
     Returns
     -------
     IntrinsicMesh or None
         None when the mesh is not edge-manifold, has zero-area faces, or the
-        flips leave a negative weight beyond rounding.
+        flips leave a negative weight beyond rounding (on an interior edge,
+        with ``boundary_negatives``).
     """
     if not is_edge_manifold_nondegenerate(V, F):
         return None
@@ -190,11 +198,11 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray) -> IntrinsicMesh | Non
     # the cover pairs each half-edge with one running the other way: faces wound
     # against their neighbours are turned first (the surface is the same)
     Fo, turned = consistent_orientation(F)
+    plain = tri
     if turned.any():
         tri = _flipped_triangulation(V, Fo)
-        if tri is None:
-            return None
-    return doubled_cover_mesh(tri.F, tri.l, Fo, len(V))
+    cover = doubled_cover_mesh(tri.F, tri.l, Fo, len(V)) if tri is not None else None
+    return cover if cover is not None or not boundary_negatives else plain
 
 
 def doubled_cover_mesh(Fi: np.ndarray, l: np.ndarray, F: np.ndarray, n: int) -> IntrinsicMesh | None:

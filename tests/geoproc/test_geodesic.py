@@ -1447,3 +1447,27 @@ def test_doubled_cover_does_not_depend_on_the_winding():
     a, b = (gd.geodesic_distance(V, FF, sources, method="heat") for FF in (F, F2))
     assert a.stats["operators"] == b.stats["operators"] == "intrinsic"
     assert np.abs(a.distance - b.distance).max() < 1e-12 * a.distance.max()
+
+
+def test_a_moebius_band_with_obtuse_boundary_angles_keeps_the_intrinsic_operators():
+    # a non-orientable mesh has no doubled cover (its half-edges do not pair up): the
+    # triangulation with negative boundary weights had been dropped for the extrinsic operators
+    nu, nv = 60, 6
+    rows = [-1.0, -0.99, *np.linspace(-1, 1, nv + 1)[2:-2], 0.99, 1.0]  # thin boundary rows: obtuse angles
+    t = 2 * np.pi * np.arange(nu)[:, None] / nu
+    w = 0.3 * np.array(rows)[None, :]
+    V = np.stack([(1 + w * np.cos(t / 2)) * np.cos(t), (1 + w * np.cos(t / 2)) * np.sin(t),
+                  w * np.sin(t / 2)], axis=-1).reshape(-1, 3)
+
+    def vid(i, j):
+        return j + (nv + 1) * i if i < nu else nv - j  # the last column joins the first turned over
+
+    quads = [(vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1)) for i in range(nu) for j in range(nv)]
+    F = np.array([f for a, b, c, d in quads for f in ([a, b, c], [a, c, d])])
+    from geoproc.geodesic.operators import _flipped_triangulation, upper_entries
+
+    assert (upper_entries(_flipped_triangulation(V, F).L)[2] < 0).any()
+    for method in ("heat", "log-heat"):
+        res = gd.geodesic_distance(V, F, [3], method=method, operators="intrinsic")
+        assert res.stats["operators"] == "intrinsic"
+        assert np.isfinite(res.distance).all() and res.stats.get("negative_heat_vertices", 0) == 0
