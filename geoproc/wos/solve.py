@@ -248,8 +248,8 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
                     if residual_seconds > 0 else float("nan"),
                     "mean_steps_per_walk": float(steps.sum()) / (len(X) * walks)})
     se = np.sqrt(var / walks) if walks > 1 else np.full(len(var), np.nan)  # one walk: no spread to measure
-    # over the points the error metrics use: within 2 epsilon of the boundary walks stop at
-    # once, with a standard error of 0 (on a 1 cm square, 112 of 256 points halved the mean)
+    # over the points the error metrics use: within 2 epsilon of the boundary many walks stop
+    # at once, with a standard error of 0 (on a 1 cm square, 112 of 256 points halved the mean)
     far = d_all[inside] > 2 * eps
     metrics["mean_standard_error"] = float(se[far].mean() if far.any() else se.mean())
 

@@ -581,7 +581,7 @@ def test_green_control_variate_is_scored_at_the_boundary_point(method):
 
 
 def test_mean_standard_error_is_over_the_scored_points():
-    # points within 2 epsilon of the boundary stop at once with a standard error of 0; the mean
+    # points within 2 epsilon of the boundary, many with a standard error of 0 (walks that stop at once); the mean
     # had taken them in while rmse leaves them out (a 1 cm square: 112 of 256 points)
     sq = build_domain([[[0, 0], [0.01, 0], [0.01, 0.01], [0, 0.01]]])
     res = solve_laplace(sq, parse_expression("(x*x - y*y)*10000"), method="naive", walks=64, grid=16, eps=1e-3,
