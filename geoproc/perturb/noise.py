@@ -18,7 +18,6 @@ import numpy as np
 from geoproc.errors import InputError, UsageError, frame_error
 from geoproc.mesh.clean import unique_rows
 from geoproc.mesh.read import MAX_COORDINATE
-from geoproc.mesh.topology import used_bbox_diagonal
 from geoproc.mesh.validate import mesh_arrays
 
 DIRECTIONS = ("normal", "random")
@@ -201,6 +200,8 @@ def _add_noise(out: np.ndarray, outlier: np.ndarray, V: np.ndarray, F: np.ndarra
             D[none] = _random_directions(rng, int(none.sum()))
         out += D * amount[:, None]
     if spec.outliers > 0:
+        from geoproc.mesh.topology import used_bbox_diagonal  # (scipy: loaded when outliers ask)
+
         diag = used_bbox_diagonal(V, F)  # a stray vertex kept by --no-clean does not widen it
         idx = np.sort(rng.permutation(n)[: int(round(spec.outliers * n))])
         u = rng.standard_normal((len(idx), 3))
