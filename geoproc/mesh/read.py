@@ -100,7 +100,7 @@ def sniff_format(data: bytes, path: str = "-") -> str:
         return "off"
     if re.match(rb"\d+[ \t]+\d+([ \t]+\d+)?[ \t]*(#[^\n]*)?\r?\n", head):  # OFF without its keyword
         return "off"
-    if head.startswith(b"solid") and b"facet" in data[:4096]:
+    if head[:5].lower() == b"solid" and b"facet" in data[:4096].lower():  # (upper case too, as by name)
         return "stl"
     if re.search(rb"^[ \t]*(v|vt|vn|vp|f|l|o|g|s|usemtl|mtllib)[ \t]", data[:65536], flags=re.M):
         return "obj"
@@ -218,6 +218,7 @@ def _scalar_property(dtype: np.dtype, name: str) -> bool:
 def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     """The mesh, its polygon count (as :func:`_fans`) and the properties not read
     (see :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`)."""
+    data = _without_blank_ascii_rows(_plain_ply_header(data))
     elements = read_uniform_ply(data)
     if elements is None:  # outside the vectorized layout: plyfile reads it, or names the problem
         header = _require_declared_rows_fit(data, path)
@@ -284,15 +285,49 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     return Mesh(V, F, vfields, ffields), polys, unread
 
 
+def _plain_ply_header(data: bytes) -> bytes:
+    """The PLY with trailing white space cut from its header lines (``ply ``,
+    ``end_header ``) and bytes beyond ASCII in its comment and obj_info lines
+    replaced by ``?`` (a comment naming an author as UTF-8): MeshLab and
+    trimesh read such headers, and plyfile had refused them ("the header is
+    not ASCII text", "expected one of {}"). Other files unchanged."""
+    m = re.search(rb"end_header[ \t\r]*\n", data[:1 << 20])
+    if m is None or not data.startswith(b"ply"):
+        return data
+    head = data[:m.end()]
+    if head.isascii() and not re.search(rb"[ \t]+\r?\n", head):
+        return data
+    lines = []
+    for line in head[:-1].split(b"\n"):
+        cr = line.endswith(b"\r")
+        line = line.rstrip(b" \t\r")
+        if line.startswith((b"comment", b"obj_info")):
+            line = bytes(c if c < 128 else 63 for c in line)
+        lines.append(line + b"\r" * cr)
+    return b"\n".join(lines) + b"\n" + data[m.end():]
+
+
+def _without_blank_ascii_rows(data: bytes) -> bytes:
+    """An ASCII PLY without the blank lines among its rows, which hold no row
+    (MeshLab and trimesh read such files; plyfile took a blank line between
+    the vertices and the faces for an empty face row). Other files unchanged."""
+    end = data.find(b"end_header")
+    start = data.find(b"\n", end) + 1 if end >= 0 else 0
+    if not start or b"format ascii" not in data[:end]:
+        return data
+    body = data[start:].rstrip()
+    if not re.search(rb"(\A|\n)[ \t\r\f\v]*(\n|\Z)", body):
+        return data
+    return data[:start] + b"\n".join(line for line in body.split(b"\n") if line.strip()) + b"\n"
+
+
 def _nonblank_lines_after(data: bytes, offset: int, rows: int) -> int:
-    """Number of lines holding anything but white space after the first
-    ``rows`` lines that follow byte ``offset`` (the header's end). A blank line
-    among the rows is refused by the row parsers, so these are the lines
-    after the declared rows."""
-    end = offset - 1
-    if rows:  # the newline that ends the last row
-        end = offset + int(np.flatnonzero(np.frombuffer(data, dtype=np.uint8, offset=offset) == 10)[rows - 1])
-    return sum(1 for line in data[end + 1:].split(b"\n") if line.strip())
+    """Number of lines holding anything but white space after byte ``offset``
+    (the header's end), beyond ``rows``: the lines after the declared rows.
+    Blank lines are not rows wherever they stand (plyfile skips them; counted
+    as rows, one between the vertices and the faces had been reported as
+    data after the rows)."""
+    return max(0, len(re.findall(rb"^[ \t\r\f\v]*[^\s]", data[offset:], flags=re.M)) - rows)
 
 
 def _require_declared_rows_fit(data: bytes, path: str):
@@ -361,7 +396,7 @@ def _refuse_text_after_ascii_rows(data: bytes, path: str, header) -> None:
 
 def _row_counts(elements: list) -> str:
     """``'3 vertex rows and 1 face row'``: the header's counts for a message."""
-    parts = [f"{e.count} {e.name} row{'s' * (e.count != 1)}" for e in elements]
+    parts = [f"{e.count} {e.name} row{'s' * (e.count != 1)}" for e in elements]  # header or plyfile elements
     return " and ".join(parts) if len(parts) < 3 else ", ".join(parts[:-1]) + " and " + parts[-1]
 
 
@@ -382,6 +417,12 @@ def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
         if stream.negative_read:
             raise InputError(path, "unparseable PLY: a binary list row has a negative count") from None
         raise InputError(path, f"unparseable PLY: {_one_line(exc)}") from exc
+    if not ply.text:  # plyfile stops at the last declared row: more rows would be dropped without a word
+        rest = data[stream.tell():]
+        if rest.strip():
+            counts = _row_counts(ply.elements)
+            raise InputError(path, f"PLY header declares {counts}, but {len(rest)} more bytes follow them: "
+                                   "data after the declared rows")
     return {e.name: e.data for e in ply.elements}
 
 

@@ -292,6 +292,10 @@ def test_sniffing_standard_input(sphere, fmt):
     assert sniff_format(data) == fmt
     m = read_mesh_bytes(data, fmt, "-")
     assert len(m.F) == len(sphere.F)
+    if fmt == "stl":  # an ASCII STL in upper case, read by name, was not told apart on standard input
+        text = (b"SOLID T\n FACET NORMAL 0 0 1\n  OUTER LOOP\n   VERTEX 0 0 0\n   VERTEX 1 0 0\n"
+                b"   VERTEX 0 1 0\n  ENDLOOP\n ENDFACET\nENDSOLID T\n")
+        assert sniff_format(text) == "stl" and len(read_mesh_bytes(text, "stl", "-").F) == 1
 
 
 def test_ascii_stl_of_several_solids_keeps_its_corners_as_stored():
@@ -710,3 +714,38 @@ def test_vertex_fields_follow_their_vertices_through_the_clean_up(tmp_path):
     assert label.tolist() == [0, 1, 3, 4]
     assert np.array_equal(m.V, V[label.astype(int)])
     assert np.array_equal(m.V[m.F], V[F])  # every face keeps its corners' positions
+
+
+def test_binary_ply_rows_after_the_declared_ones_are_refused(tmp_path):
+    # plyfile stops at the declared rows: a tetrahedron whose header said 2 faces of its 4 was
+    # read as an open mesh of 2 faces without a word (the ASCII twin was refused)
+    import struct
+
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n")
+    V = struct.pack("<12f", 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1)
+    F = b"".join(struct.pack("<B3i", 3, *f) for f in ((0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)))
+    p = tmp_path / "t.ply"
+    p.write_bytes(head.encode() + V + F)
+    with pytest.raises(InputError) as err:
+        load_mesh(p)
+    assert err.value.problem == ("PLY header declares 4 vertex rows and 2 face rows, but 26 more bytes follow "
+                                 "them: data after the declared rows")
+    p.write_bytes(head.encode() + V + F[:26] + b"\n")  # a newline after the rows is harmless
+    assert len(load_mesh(p, clean=False).F) == 2
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+def test_ply_headers_other_readers_take(tmp_path, fmt):
+    # a UTF-8 comment and trailing spaces on 'ply' and 'end_header' (MeshLab and trimesh read
+    # them; plyfile had refused them), and blank lines among ASCII rows
+    mesh = Mesh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
+    data = mesh_to_bytes(mesh, "ply", binary=fmt != "ascii")
+    end = data.index(b"end_header\n")
+    data = (data[:end].replace(b"ply\n", "ply \ncomment Author: Jos\u00e9 M\u00fcller\n".encode(), 1)
+            + b"end_header \n" + data[end + len(b"end_header\n"):])
+    if fmt == "ascii":
+        body = data.index(b"end_header \n") + len(b"end_header \n")
+        data = data[:body] + b"\n" + data[body:].replace(b"\n", b"\n\n", 3)
+    got = read_mesh_bytes(data, "ply", clean=False)
+    assert np.array_equal(got.V, mesh.V) and np.array_equal(got.F, mesh.F)
