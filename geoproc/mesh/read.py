@@ -218,8 +218,12 @@ def _scalar_property(dtype: np.dtype, name: str) -> bool:
 def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     """The mesh, its polygon count (as :func:`_fans`) and the properties not read
     (see :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`)."""
-    data = _without_blank_ascii_rows(_plain_ply_header(data))
+    data = _plain_ply_header(data)
     elements = read_uniform_ply(data)
+    if elements is None:  # blank lines among ASCII rows: read without them
+        unblank = _without_blank_ascii_rows(data)
+        if unblank is not data:
+            data, elements = unblank, read_uniform_ply(unblank)
     if elements is None:  # outside the vectorized layout: plyfile reads it, or names the problem
         header = _require_declared_rows_fit(data, path)
         try:
@@ -290,30 +294,41 @@ def _plain_ply_header(data: bytes) -> bytes:
     ``end_header ``) and bytes beyond ASCII in its comment and obj_info lines
     replaced by ``?`` (a comment naming an author as UTF-8): MeshLab and
     trimesh read such headers, and plyfile had refused them ("the header is
-    not ASCII text", "expected one of {}"). Other files unchanged."""
-    m = re.search(rb"end_header[ \t\r]*\n", data[:1 << 20])
+    not ASCII text", "expected one of {}"). Line ends (LF, CRLF, CR) are
+    kept; other files are returned unchanged."""
+    m = re.search(rb"end_header[ \t]*(\r\n|\n|\r)", data[:1 << 20])
     if m is None or not data.startswith(b"ply"):
         return data
     head = data[:m.end()]
-    if head.isascii() and not re.search(rb"[ \t]+\r?\n", head):
+    if head.isascii() and not re.search(rb"[ \t]+(\r\n|\n|\r)", head):
         return data
-    lines = []
-    for line in head[:-1].split(b"\n"):
-        cr = line.endswith(b"\r")
-        line = line.rstrip(b" \t\r")
+    parts = re.split(rb"(\r\n|\n|\r)", head)  # lines and their ends, alternating, then b""
+    for k in range(0, len(parts), 2):
+        line = parts[k].rstrip(b" \t")
         if line.startswith((b"comment", b"obj_info")):
             line = bytes(c if c < 128 else 63 for c in line)
-        lines.append(line + b"\r" * cr)
-    return b"\n".join(lines) + b"\n" + data[m.end():]
+        parts[k] = line
+    return b"".join(parts) + data[m.end():]
+
+
+def _ascii_ply_body_start(data: bytes) -> int:
+    """Offset of an ASCII PLY's body (after ``end_header`` and its line end),
+    or 0 when the file is not an ASCII PLY (its ``format`` line says so, not a
+    comment that mentions it)."""
+    m = re.search(rb"end_header[ \t]*(\r\n|\n|\r)", data[:1 << 20])
+    if m is None or not re.search(rb"^format[ \t]+ascii\b", data[:m.start()], flags=re.M):
+        return 0
+    return m.end()
 
 
 def _without_blank_ascii_rows(data: bytes) -> bytes:
     """An ASCII PLY without the blank lines among its rows, which hold no row
     (MeshLab and trimesh read such files; plyfile took a blank line between
-    the vertices and the faces for an empty face row). Other files unchanged."""
-    end = data.find(b"end_header")
-    start = data.find(b"\n", end) + 1 if end >= 0 else 0
-    if not start or b"format ascii" not in data[:end]:
+    the vertices and the faces for an empty face row). Other files are
+    returned unchanged (the same object). Called only when the file did not
+    read as it is: the search costs about a second per 70 MB."""
+    start = _ascii_ply_body_start(data)
+    if not start:
         return data
     body = data[start:].rstrip()
     if not re.search(rb"(\A|\n)[ \t\r\f\v]*(\n|\Z)", body):
@@ -419,10 +434,10 @@ def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
         raise InputError(path, f"unparseable PLY: {_one_line(exc)}") from exc
     if not ply.text:  # plyfile stops at the last declared row: more rows would be dropped without a word
         rest = data[stream.tell():]
-        if rest.strip():
+        if rest.strip(b" \t\r\n\x0b\x0c\x00"):  # white space or zero padding is no row
             counts = _row_counts(ply.elements)
-            raise InputError(path, f"PLY header declares {counts}, but {len(rest)} more bytes follow them: "
-                                   "data after the declared rows")
+            raise InputError(path, f"PLY header declares {counts}, but {len(rest)} more "
+                                   f"byte{'s' * (len(rest) != 1)} follow them: data after the declared rows")
     return {e.name: e.data for e in ply.elements}
 
 

@@ -749,3 +749,20 @@ def test_ply_headers_other_readers_take(tmp_path, fmt):
         data = data[:body] + b"\n" + data[body:].replace(b"\n", b"\n\n", 3)
     got = read_mesh_bytes(data, "ply", clean=False)
     assert np.array_equal(got.V, mesh.V) and np.array_equal(got.F, mesh.F)
+
+
+def test_binary_ply_bodies_are_never_read_as_text(tmp_path):
+    # a comment mentioning "format ascii" had made the blank-line clean-up rewrite a binary body
+    # whose bytes held newlines (a vertex coordinate of bytes 0x0a); zero padding after the rows
+    # is no row either
+    import struct
+
+    head = (b"ply\nformat binary_little_endian 1.0\ncomment converted from format ascii\nelement vertex 3\n"
+            b"property float x\nproperty float y\nproperty float z\nelement face 1\n"
+            b"property list uchar int vertex_indices\nend_header\n")
+    x = struct.unpack("<f", b"\n\n\n\n")[0]
+    V = struct.pack("<9f", x, 0, 0, 1, 0, 0, 0, 1, 0)
+    F = struct.pack("<B3i", 3, 0, 1, 2)
+    for tail in (b"", b"\x00", b"\n\x00\x00"):
+        m = read_mesh_bytes(head + V + F + tail, "ply", clean=False)
+        assert m.V[0, 0] == np.float32(x) and m.F.tolist() == [[0, 1, 2]]
