@@ -30,7 +30,9 @@ def mesh_info(mesh: Mesh) -> dict:
     dict
         ``vertices, faces, edges`` (unique undirected), ``components`` (edge-connected,
         over referenced vertices), ``boundary_edges, boundary_loops``,
-        ``euler_characteristic`` (V - E + F, V counting referenced vertices),
+        ``euler_characteristic`` (V - E + F, V counting referenced vertices;
+        the topology entries count the faces with three distinct corners
+        only, a face repeating one being a degenerate face),
         ``genus`` (closed, orientable, edge- and vertex-manifold meshes only, summed
         over components: (2C - chi) / 2; else None), ``closed, edge_manifold,
         vertex_manifold, orientable, consistently_oriented``,
@@ -65,15 +67,21 @@ def mesh_info(mesh: Mesh) -> dict:
              "degenerate_faces", "mean_edge_length"]))
         info["unreferenced_vertices"] = 0
         return info
-    edges = unique_edges(F)
+    # the topology of the faces with three distinct corners: a face that repeats one (an STL
+    # facet whose corners merged) bounds no surface, and its "edge" from a vertex to itself
+    # had counted as a non-manifold or boundary edge of length 0 (a closed tetrahedron with
+    # such a facet read as open, not edge-manifold, mean edge length 1.035 for 1.138);
+    # degenerate_faces counts it
+    Ft = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    edges = unique_edges(Ft)
     E, _, count = edges
-    n_used = int(referenced_vertices(F, n).sum())
-    n_comp, _ = vertex_components(F, n)
+    n_used = int(referenced_vertices(Ft, n).sum())
+    n_comp, _ = vertex_components(Ft, n)
     nm_e = int((count > 2).sum())
-    nm_v = len(nonmanifold_vertices(F, n))
-    orientable, oriented = orientation_status(F, edges)
+    nm_v = len(nonmanifold_vertices(Ft, n))
+    orientable, oriented = orientation_status(Ft, edges)
     n_boundary = int((count == 1).sum())
-    chi = n_used - len(E) + len(F)
+    chi = n_used - len(E) + len(Ft)
     closed = n_boundary == 0
     manifold = nm_e == 0 and nm_v == 0
     genus = None
@@ -84,7 +92,7 @@ def mesh_info(mesh: Mesh) -> dict:
         edges=len(E),
         components=n_comp,
         boundary_edges=n_boundary,
-        boundary_loops=count_boundary_loops(F, edges),
+        boundary_loops=count_boundary_loops(Ft, edges),
         euler_characteristic=int(chi),
         genus=genus,
         closed=bool(closed),
@@ -95,7 +103,7 @@ def mesh_info(mesh: Mesh) -> dict:
         nonmanifold_edges=nm_e,
         nonmanifold_vertices=nm_v,
         degenerate_faces=len(degenerate_faces(V, F, diagonal=diag)),
-        unreferenced_vertices=n - n_used,
+        unreferenced_vertices=n - int(referenced_vertices(F, n).sum()),
         mean_edge_length=float(lengths.mean()) if len(lengths) else 0.0,
     )
     return info

@@ -317,3 +317,16 @@ def test_genus_and_euler_characteristic_by_hand(make_fixtures):
     assert (k["components"], k["boundary_loops"], k["euler_characteristic"]) == (1, 0, 0)
     assert k["nonmanifold_edges"] == k["nonmanifold_vertices"] == 0
     assert k["orientable"] is False and k["genus"] is None
+
+
+@pytest.mark.parametrize("extra", [[3, 3, 3], [3, 3, 0]])
+def test_faces_repeating_a_corner_are_left_out_of_the_topology(extra):
+    # an STL facet whose corners merged: its "edge" from a vertex to itself had counted as a
+    # non-manifold (or boundary) edge of length 0, and a closed tetrahedron read as open
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3], extra])
+    info = mesh_info(Mesh(V, F))
+    assert info["faces"] == 5 and info["degenerate_faces"] == 1 and info["edges"] == 6
+    assert info["closed"] and info["edge_manifold"] and info["vertex_manifold"] and info["genus"] == 0
+    assert info["euler_characteristic"] == 2 and info["boundary_loops"] == 0
+    assert info["mean_edge_length"] == pytest.approx((3 + 3 * np.sqrt(2)) / 6, rel=1e-12)
