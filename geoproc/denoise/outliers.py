@@ -21,7 +21,7 @@ from scipy.spatial import cKDTree
 from geoproc.denoise.rpca import rpca
 from geoproc.errors import InputError
 from geoproc.mesh.clean import unique_rows
-from geoproc.mesh.spacing import COPY_DISTANCE, point_spacing
+from geoproc.mesh.spacing import COPY_DISTANCE, near_copy_groups, point_spacing
 from geoproc.mesh.validate import mesh_arrays
 
 
@@ -226,39 +226,6 @@ def _score_distinct_points(P, k, threshold, path, lam, refine_passes, merged=Fal
             outlier = score > threshold
     refined = merged_projections(nb, idx, normal, center, ~outlier, P)
     return OutlierResult(score=score, outlier=outlier, threshold=float(threshold), refined=refined)
-
-
-def near_copy_groups(idx: np.ndarray, dist: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Points linked by chains of neighbour pairs closer than ``radius`` form a group.
-
-    Parameters
-    ----------
-    idx, dist : (n, k) each point's k nearest points (itself first) and their
-        distances, as ``cKDTree.query`` gives them.
-    radius : float, length units.
-
-    Returns
-    -------
-    (g,) the index of each group's first point, increasing, and (n,) each
-    point's group (a position in the first array).
-
-    Only the listed neighbours are linked, so the graph has at most n k edges:
-    all pairs within ``radius`` (``cKDTree.query_pairs``) grow as the square of
-    a clump's size, and a clump of 20,000 near copies in a million points took
-    11.4 GB. A clump of more than k points can then split into a few groups,
-    which are still near copies scored apart, as before this merging.
-    """
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-
-    n = len(idx)
-    i, j = np.nonzero(dist <= radius)
-    graph = sp.coo_matrix((np.ones(len(i)), (i, idx[i, j])), shape=(n, n))
-    count, label = connected_components(graph, directed=False)
-    first = np.full(count, n)
-    np.minimum.at(first, label, np.arange(n))
-    keep = np.sort(first)
-    return keep, np.searchsorted(keep, first[label])
 
 
 def median_plane_distance(nb: np.ndarray, idx: np.ndarray, center: np.ndarray, normal: np.ndarray,

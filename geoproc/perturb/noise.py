@@ -92,10 +92,13 @@ def point_cloud_normals(P: np.ndarray, k: int = 16) -> np.ndarray:
     the surface normal."""
     from scipy.spatial import cKDTree
 
-    from geoproc.mesh.spacing import near_copy_groups
+    from geoproc.mesh.spacing import COPY_DISTANCE, near_copy_groups
 
     U, inverse = unique_rows(P)
-    first, group = near_copy_groups(U)
+    dist, idx = cKDTree(U).query(U, k=min(k, len(U)), workers=-1)
+    far = float(np.median(dist[:, -1]))
+    first, group = (near_copy_groups(idx, dist, COPY_DISTANCE * far) if far > 0
+                    else (np.arange(len(U)), np.arange(len(U))))
     R = U[first]
     k = min(k, len(R))
     _, idx = cKDTree(R).query(R, k=k, workers=-1)
