@@ -289,6 +289,12 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     return Mesh(V, F, vfields, ffields), polys, unread
 
 
+def _ply_header_end(data: bytes) -> re.Match | None:
+    """The ``end_header`` line of a PLY (trailing blanks and any line end:
+    LF, CRLF or CR), searched in its first MiB."""
+    return re.search(rb"end_header[ \t]*(\r\n|\n|\r)", data[:1 << 20])
+
+
 def _plain_ply_header(data: bytes) -> bytes:
     """The PLY with trailing white space cut from its header lines (``ply ``,
     ``end_header ``) and bytes beyond ASCII in its comment and obj_info lines
@@ -296,7 +302,7 @@ def _plain_ply_header(data: bytes) -> bytes:
     trimesh read such headers, and plyfile had refused them ("the header is
     not ASCII text", "expected one of {}"). Line ends (LF, CRLF, CR) are
     kept; other files are returned unchanged."""
-    m = re.search(rb"end_header[ \t]*(\r\n|\n|\r)", data[:1 << 20])
+    m = _ply_header_end(data)
     if m is None or not data.startswith(b"ply"):
         return data
     head = data[:m.end()]
@@ -315,7 +321,7 @@ def _ascii_ply_body_start(data: bytes) -> int:
     """Offset of an ASCII PLY's body (after ``end_header`` and its line end),
     or 0 when the file is not an ASCII PLY (its ``format`` line says so, not a
     comment that mentions it)."""
-    m = re.search(rb"end_header[ \t]*(\r\n|\n|\r)", data[:1 << 20])
+    m = _ply_header_end(data)
     if m is None or not re.search(rb"^format[ \t]+ascii\b", data[:m.start()], flags=re.M):
         return 0
     return m.end()
