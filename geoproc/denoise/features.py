@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoproc.denoise.face_geometry import vertex_normals
-from geoproc.mesh.topology import unique_edges
+from geoproc.mesh.topology import referenced_vertices, unique_edges
 from geoproc.mesh.validate import mesh_arrays
 
 #: default cut on |J| (local mean edge lengths): a crease of about 24 degrees on a regular mesh
@@ -238,9 +238,7 @@ def l1_feature_vertices(
     J0, A, _ = normal_laplacian(V, F)
     # over the vertices of the surface: those no face uses have J = 0, and kept in the
     # file (--no-clean) they had pulled the spread down (lambda 0.12 -> 0.005 on half a fandisk)
-    used = np.zeros(len(J0), dtype=bool)
-    used[np.asarray(F).reshape(-1)] = True
-    lam_used = default_lam(J0[used]) if lam is None else float(lam)
+    lam_used = default_lam(J0[referenced_vertices(F, len(J0))]) if lam is None else float(lam)
     d, z, it, ok = l1_sparse_normal_laplacian(J0, A, lam_used, max_iter=max_iter)
     return L1FeatureResult(J=z, J0=J0, offset=d, feature=np.abs(z) > tau, lam=lam_used, tau=float(tau),
                            iterations=it, converged=ok)
