@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from geoproc.errors import InputError, UsageError
+from geoproc.errors import UsageError
 from geoproc.fileio import require_input_file
 from geoproc_cli.common import (
     CheckOpt,
@@ -165,9 +165,6 @@ def wos_solve(
 
         with run.timer("load"):
             dom = run.read_input(domain, load_domain, "domain file")
-        if method == Method.cv_angle and dom.has_neumann:
-            raise InputError(domain, "has Neumann segments, and cv-angle supports Dirichlet-only domains (its "
-                             "kernels' normal derivatives are singular on Neumann segments); use cv-green or npass")
         if dom.traced:
             run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
                      f"area {dom.area:.6g} px^2")

@@ -157,9 +157,9 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         raise UsageError(f"--ridge must be non-negative, got {ridge}")
     if exact and boundary is None:
         raise UsageError("--exact needs --boundary 'EXPR' (the declared exact solution)")
-    if method == "cv-angle" and domain.has_neumann:
-        raise UsageError("cv-angle supports Dirichlet-only domains (its kernels' normal "
-                         "derivatives are singular on Neumann segments); use cv-green or npass")
+    if method == "cv-angle" and domain.has_neumann:  # the domain file is what does not suit: name it
+        raise InputError(domain.source, "has Neumann segments, and cv-angle supports Dirichlet-only domains (its "
+                         "kernels' normal derivatives are singular on Neumann segments); use cv-green or npass")
     report = progress or (lambda f: None)
     problem = WalkProblem(domain, boundary, flux, eps)
     gs = grid_over(domain, grid)
