@@ -58,6 +58,12 @@ class PlyElementHeader:
     list_name: str | None = None
 
 
+MAX_COUNT_DIGITS = 20
+"""Digits of the longest element count a PLY header may give (2^64 has 20);
+longer ones are refused (:mod:`geoproc.mesh.read`) before ``int()``, which
+counts leading zeros and stops at 4300 digits."""
+
+
 def parse_ply_header(data: bytes) -> tuple[str, list[PlyElementHeader], int] | None:
     """The format (``ascii``, ``binary_little_endian``, ``binary_big_endian``),
     the elements and the offset of the body, or None when the header is not
@@ -79,7 +85,8 @@ def parse_ply_header(data: bytes) -> tuple[str, list[PlyElementHeader], int] | N
             continue
         if words[0] == "format" and len(words) == 3 and words[2] == "1.0" and fmt is None and not elements:
             fmt = words[1]
-        elif words[0] == "element" and len(words) == 3 and words[2].isdigit() and len(words[2].lstrip("0")) <= 20:
+        elif (words[0] == "element" and len(words) == 3 and words[2].isdigit()
+              and len(words[2].lstrip("0")) <= MAX_COUNT_DIGITS):
             elements.append([words[1], int(words[2].lstrip("0") or "0"), [], None, None])  # (int() counts zeros)
         elif words[0] == "property" and elements and len(words) == 3 and words[1] in PLY_TYPES:
             elements[-1][2].append((words[2], PLY_TYPES[words[1]]))

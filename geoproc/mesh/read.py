@@ -26,7 +26,7 @@ from geoproc.errors import InputError
 from geoproc.fileio import file_extension, read_input_bytes, require_input_file, sha256_bytes
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
-from geoproc.mesh.ply_uniform import parse_ply_header, read_uniform_ply, smallest_row_bytes
+from geoproc.mesh.ply_uniform import MAX_COUNT_DIGITS, parse_ply_header, read_uniform_ply, smallest_row_bytes
 from geoproc.mesh.text_numbers import numbers_on_lines, uniform_rows
 from geoproc.mesh.validate import require_indices_below
 
@@ -362,9 +362,10 @@ def _require_declared_rows_fit(data: bytes, path: str):
     Headers :func:`geoproc.mesh.ply_uniform.parse_ply_header` does not read are
     left to plyfile.
     """
-    long_count = re.search(rb"^element +(\S+) +0*[1-9][0-9]{20,} *$", data[:max(data.find(b"end_header"), 0)], re.M)
+    long_count = re.search(rb"^element +(\S+) +0*[1-9][0-9]{%d,} *$" % MAX_COUNT_DIGITS,
+                           data[:max(data.find(b"end_header"), 0)], re.M)
     if long_count:  # plyfile's int() would refuse past 4300 digits, with advice on Python's settings
-        raise InputError(path, f"PLY header declares a count of more than 20 digits for its "
+        raise InputError(path, f"PLY header declares a count of more than {MAX_COUNT_DIGITS} digits for its "
                                f"'{long_count.group(1).decode('latin-1')}' rows")
     header = parse_ply_header(data)
     if header is None:
