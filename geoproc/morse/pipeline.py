@@ -43,6 +43,16 @@ class MorseSimplification:
     simplification: Simplification
     g: np.ndarray
 
+    @property
+    def tie_slack(self) -> np.ndarray | float:
+        """The simplification's ``tie_slack`` indexed like the input vertices, as ``g`` is."""
+        slack = self.simplification.tie_slack
+        if not np.ndim(slack):
+            return slack
+        out = np.empty_like(slack)
+        out[self.order] = slack
+        return out
+
 
 def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | None = None,
                    exact_windows: int = 4) -> MorseSimplification:

@@ -88,11 +88,7 @@ def simplification_summary(res: MorseSimplification | BarycentricSimplification,
     else:
         cx_after, order_after, f_ref, g = res.cx, res.order, f, res.g
         after = lower_star_persistence(cx_after, res.simplification.g)
-        max_change, tie_slack = res.simplification.max_abs_change, res.simplification.tie_slack
-        if np.ndim(tie_slack):  # relabelled order (g[order] = simplification.g): back to the input's
-            slack = np.empty_like(tie_slack)
-            slack[res.order] = tie_slack
-            tie_slack = slack
+        max_change, tie_slack = res.simplification.max_abs_change, res.tie_slack
     chi = cx.euler_characteristic
     c_before, c_after = critical_counts(before), critical_counts(after)
     for c, when in [(c_before, "f"), (c_after, "g")]:
