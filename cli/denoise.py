@@ -282,22 +282,36 @@ CLOUD_THRESHOLD = 0.5
 _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 
 
+def _unused_option_groups(mode: str, features: str) -> list[tuple[tuple[str, ...], str]]:
+    """The options (parameter names) the mode does not use, in groups with
+    the reason a given one is refused."""
+    groups = []
+    if mode in (CLOUD, MOVING_CLOUD):
+        groups.append((_FILTER_OPTIONS + _FEATURE_OPTIONS, "not used by --outliers"))
+        groups.append((("reference",), "not used by --outliers (precision, recall and F1 come from the "
+                       "input's 'outlier' property)"))
+        if mode == MOVING_CLOUD:
+            groups.append((("k", "keep_all", "no_clean"), "not used for an animation (its outliers come "
+                           "from the animation matrix, every point is written, frames are read as stored)"))
+    else:
+        groups.append((_OUTLIER_OPTIONS, "only with --outliers"))
+    if mode == DYNAMIC:
+        groups.append((_FEATURE_OPTIONS + ("no_clean",), "not used by --dynamic (the .npz output has no "
+                       "feature property; frames are read as stored)"))
+    else:
+        groups.append((("coherence",), "only with --dynamic"))
+    groups.append((("feature_angle",), "only with --features dihedral") if features == "l1"
+                  else (("feature_tau",), "only with --features l1"))
+    return groups
+
+
 def _options_not_used(mode: str, features: str, threshold: float | None) -> dict:
     """The report's values of the options the mode does not use (None, as
-    :func:`_refuse_unused_options` refuses them when given) and of the
-    default threshold of --outliers on a point cloud (0.5)."""
-    unused: tuple[str, ...] = ()
-    if mode in (CLOUD, MOVING_CLOUD):
-        unused += _FILTER_OPTIONS + _FEATURE_OPTIONS + ("reference", "coherence")
-        if mode == MOVING_CLOUD:
-            unused += ("k", "keep_all", "clean")
-    else:
-        unused += _OUTLIER_OPTIONS
-    if mode == DYNAMIC:
-        unused += _FEATURE_OPTIONS + ("clean",)
-    elif mode == MESH:
-        unused += ("coherence", "feature_angle" if features == "l1" else "feature_tau")
-    values = dict.fromkeys(unused)
+    :func:`_refuse_unused_options` refuses them when given; ``no_clean`` is
+    the report's ``clean``) and of the default threshold of --outliers on a
+    point cloud (0.5)."""
+    values = {("clean" if name == "no_clean" else name): None
+              for names, _ in _unused_option_groups(mode, features) for name in names}
     if mode == CLOUD and threshold is None:
         values["threshold"] = CLOUD_THRESHOLD
     return values
@@ -305,22 +319,8 @@ def _options_not_used(mode: str, features: str, threshold: float | None) -> dict
 
 def _refuse_unused_options(ctx: typer.Context, mode: str, features: str) -> None:
     """Options the chosen mode would ignore are refused (exit 2), not dropped."""
-    if mode in (CLOUD, MOVING_CLOUD):
-        refuse_options(ctx, _FILTER_OPTIONS + _FEATURE_OPTIONS, "not used by --outliers")
-        refuse_options(ctx, ("reference",), "not used by --outliers (precision, recall and F1 come from the "
-                       "input's 'outlier' property)")
-        if mode == MOVING_CLOUD:
-            refuse_options(ctx, ("k", "keep_all", "no_clean"), "not used for an animation (its outliers come "
-                           "from the animation matrix, every point is written, frames are read as stored)")
-    else:
-        refuse_options(ctx, _OUTLIER_OPTIONS, "only with --outliers")
-    if mode == DYNAMIC:
-        refuse_options(ctx, _FEATURE_OPTIONS + ("no_clean",), "not used by --dynamic (the .npz output has no "
-                       "feature property; frames are read as stored)")
-    else:
-        refuse_options(ctx, ("coherence",), "only with --dynamic")
-    refuse_options(ctx, ("feature_angle",) if features == "l1" else ("feature_tau",),
-                   "only with --features dihedral" if features == "l1" else "only with --features l1")
+    for names, reason in _unused_option_groups(mode, features):
+        refuse_options(ctx, names, reason)
 
 
 def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str]) -> None:
