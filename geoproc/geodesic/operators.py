@@ -24,7 +24,7 @@ from geoproc.geodesic.doubled_cover import (
     lawson_flips,
 )
 from geoproc.mesh.orientation import consistent_orientation
-from geoproc.mesh.topology import boundary_edges, face_areas, undirected_edge_keys
+from geoproc.mesh.topology import boundary_edges, face_areas, repeated_corner_faces, undirected_edge_keys
 from geoproc.mesh.topology import mean_edge_length as mean_edge_length  # part of geoproc.geodesic's API
 
 # robust-laplacian's weights that are zero in exact arithmetic come out negative by
@@ -350,7 +350,7 @@ def stack_gradient_coefficients(coef: np.ndarray, F: np.ndarray, n: int) -> sp.c
     from per-face weights ``coef`` (k, m, 3) on the faces ``F`` (m, 3)."""
     k, m = coef.shape[:2]
     F = np.asarray(F, dtype=np.int64)
-    if ((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])).any():
+    if repeated_corner_faces(F).any():
         # a repeated vertex: its entries are summed into one
         rows = np.broadcast_to((np.arange(k)[:, None] * m + np.arange(m))[:, :, None], coef.shape)
         cols = np.broadcast_to(F[None], coef.shape)

@@ -12,6 +12,7 @@ from geoproc.mesh.topology import (
     nonmanifold_vertices,
     orientation_status,
     referenced_vertices,
+    repeated_corner_faces,
     unique_edges,
     used_bbox_diagonal,
     vertex_components,
@@ -72,7 +73,7 @@ def mesh_info(mesh: Mesh) -> dict:
     # had counted as a non-manifold or boundary edge of length 0 (a closed tetrahedron with
     # such a facet read as open, not edge-manifold, mean edge length 1.035 for 1.138);
     # degenerate_faces counts it
-    Ft = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    Ft = F[~repeated_corner_faces(F)]
     edges = unique_edges(Ft)
     E, _, count = edges
     n_used = int(referenced_vertices(Ft, n).sum())

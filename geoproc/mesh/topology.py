@@ -239,10 +239,24 @@ def orientation_status(F: np.ndarray, edges: tuple | None = None) -> tuple[bool,
     return bool(orientable), False
 
 
+def repeated_corner_faces(F: np.ndarray) -> np.ndarray:
+    """(m,) bool: the triangles of F (m, 3) that list a vertex twice (an STL
+    facet whose corners merged): they bound no surface."""
+    F = np.asarray(F).reshape(-1, 3)
+    return (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+
+
 def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
-    """Mean length h of the mesh's undirected edges (each once), in V's unit."""
-    E = unique_edges(F)[0]
-    return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
+    """Mean length h of the mesh's undirected edges (each once), in V's unit;
+    0 when there is none.
+
+    The edges are those of the faces with three distinct corners, as
+    :func:`geoproc.mesh.info.mesh_info` counts them: a face that repeats a
+    corner had added an edge from a vertex to itself, of length 0.
+    """
+    F = np.asarray(F).reshape(-1, 3)
+    E = unique_edges(F[~repeated_corner_faces(F)])[0]
+    return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()) if len(E) else 0.0
 
 
 def face_cross_products(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -299,7 +313,7 @@ def degenerate_faces(V: np.ndarray, F: np.ndarray, rel_tol: float = 1e-12,
     ``rel_tol`` times the squared :func:`used_bbox_diagonal` (given as
     ``diagonal`` when the caller has it)."""
     diag2 = (used_bbox_diagonal(V, F) if diagonal is None else diagonal) ** 2
-    repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    repeated = repeated_corner_faces(F)
     tiny = face_areas(V, F) <= rel_tol * max(diag2, np.finfo(float).tiny)
     return np.flatnonzero(repeated | tiny)
 

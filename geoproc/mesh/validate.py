@@ -100,10 +100,10 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> Non
     """Refuse a face that repeats a vertex (its edges would count twice) or an
     edge shared by more than two faces, naming the first; ``why`` ends the
     message (``"; denoising needs ..."``)."""
-    from geoproc.mesh.topology import nonmanifold_edges
+    from geoproc.mesh.topology import nonmanifold_edges, repeated_corner_faces
 
     F = np.asarray(F).reshape(-1, 3)
-    rep = np.flatnonzero((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2]))
+    rep = np.flatnonzero(repeated_corner_faces(F))
     if len(rep):
         k = int(rep[0])
         one = len(rep) == 1

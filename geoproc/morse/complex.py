@@ -9,6 +9,7 @@ import numba
 import numpy as np
 
 from geoproc.errors import InputError
+from geoproc.mesh.topology import repeated_corner_faces
 
 
 @dataclass
@@ -140,7 +141,7 @@ def _build_edges(F, n):
 
 def require_distinct_corners(F: np.ndarray, path: str | None = None) -> None:
     """Raise InputError naming the first triangle of ``F`` (m, 3) that repeats a vertex."""
-    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    rep = repeated_corner_faces(F)
     if rep.any():
         raise InputError(path, f"triangle {int(np.flatnonzero(rep)[0])} repeats a vertex")
 

@@ -330,3 +330,18 @@ def test_faces_repeating_a_corner_are_left_out_of_the_topology(extra):
     assert info["closed"] and info["edge_manifold"] and info["vertex_manifold"] and info["genus"] == 0
     assert info["euler_characteristic"] == 2 and info["boundary_loops"] == 0
     assert info["mean_edge_length"] == pytest.approx((3 + 3 * np.sqrt(2)) / 6, rel=1e-12)
+
+
+def test_mean_edge_length_skips_faces_that_repeat_a_corner():
+    # a closed tetrahedron plus an STL facet whose corners merged, [0, 0, 1]: its edge
+    # from vertex 0 to itself had counted with length 0 (1.035 for the tetrahedron's
+    # (3 + 3 sqrt 2) / 6 = 1.207), and so had perturb's noise unit
+    from geoproc.mesh.topology import mean_edge_length
+    from geoproc.perturb.noise import noise_scale
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    F = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2], [0, 0, 1]])
+    expected = (3 + 3 * np.sqrt(2)) / 6
+    assert mean_edge_length(V, F) == pytest.approx(expected, rel=1e-15)
+    assert noise_scale(V, F) == pytest.approx(expected, rel=1e-15)
+    assert mean_edge_length(V, F[4:]) == 0.0  # no edge at all
