@@ -96,7 +96,11 @@ def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low:
 
     - Surfaces with creases (``sharp_weight`` 1): 3 rounds of 3 to 5 passes,
       sigma_r 0.2 to 0.35; creases stand far above weak noise, so many passes
-      with a narrow kernel flatten the noise and keep them.
+      with a narrow kernel flatten the noise and keep them. Coarse ones move
+      to 1 round of 1 pass rising to the 2 rounds of 2 passes with sigma_r
+      0.8 that the strong schedule starts from on them (the teapot at 0.2
+      mean edge lengths, just below ``low``, had ended at 15.85 degrees with
+      the narrow passes, and at 10.11 at 0.3 with the broad ones).
     - Smooth surfaces: 1 round of 1 pass rising to 2 rounds of 2 passes;
       sigma_r 0.45 to 0.5 when finely meshed, 0.45 widening to 1 on coarse
       meshes (the strong branch's plain bilateral filter).
@@ -113,7 +117,12 @@ def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low:
     # smooth surfaces: the same counts finely meshed or coarse, only sigma_r differs
     smooth_sigma_r = (1 - w) * (0.45 + 0.05 * u) + w * float(np.interp(u, [0.0, 0.4], [0.45, 1.0]))
     smooth = (1 + (u - 0.1), 1 + (u + 0.2), smooth_sigma_r)
-    sharp = (3, 3 + 2 * u, 0.2 + 0.15 * u)
+    # with creases: many narrow passes when finely meshed; coarse meshes (whose curved
+    # facets a narrow kernel carves into false creases) move to the broad and short
+    # filter that the strong schedule starts from on them (2 rounds of 2 passes, sigma_r 0.8)
+    sharp_fine = (3, 3 + 2 * u, 0.2 + 0.15 * u)
+    sharp_coarse = (1 + (u - 0.1), 1 + (u + 0.2), 0.45 + 0.35 * u)
+    sharp = tuple((1 - w) * a + w * b for a, b in zip(sharp_fine, sharp_coarse, strict=True))
     rounds, passes, sigma_r = ((1 - ws) * a + ws * b for a, b in zip(smooth, sharp, strict=True))
     if fade <= 0.0:
         rounds = passes = 0
@@ -146,13 +155,20 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: floa
     with sigma_r 0.5 on smooth surfaces (smooth organic surfaces at moderate
     noise lose detail under stronger filtering) and from 3 rounds of 5
     passes with sigma_r 0.35 where there are creases (where the light
-    schedule ends). From 3.5 to 5 degrees of coarseness the schedule moves to
+    schedule ends). Surfaces with fine detail of their own (scans; tail
+    ratio 5 to 8, weight ``w_smooth`` rising from tail 4 to 5 and falling
+    from 8 to 9.5; a plain sphere reads 3 to 4) go instead to the organic
+    end below (2 rounds of 2 passes, sigma_r 1, 2 centroid spacings, plain
+    bilateral), up to roughness 0.26, and back to the 5 x 10 passes by 0.32
+    (noise of 0.5 mean edge lengths, which the short filter leaves behind):
+    the narrow passes smoothed that detail away (Bunny0.2's clean scan at
+    0.3: 7.90 degrees against 6.14). From 3.5 to 5 degrees of coarseness the schedule moves to
     broad and short (2 + t rounds of 2 + t passes, sigma_r 0.8 - 0.1 t).
     Coarse meshes without creases (weight ``o = w (1 - w_sharp)``) move
-    further, to a plain bilateral filter: 2 rounds of 2 passes, sigma_r 1, a
-    spatial kernel of 2 centroid spacings, and guidance normals blended with
-    the normals themselves by ``o`` (``guidance_mix``; 1 is the plain
-    bilateral filter).
+    further, to the organic end, a plain bilateral filter: 2 rounds of 2
+    passes, sigma_r 1, a spatial kernel of 2 centroid spacings, and guidance
+    normals blended with the normals themselves by ``o`` (``guidance_mix``;
+    1 is the plain bilateral filter).
 
     Returns
     -------
@@ -167,16 +183,27 @@ def default_schedule(rough: float, coarseness_deg: float = 0.0, tail_ratio: floa
     if rough < low:
         return light_schedule(rough, w, w_sharp, low)
     t = float(np.clip((rough - low) / (0.205 - low), 0.0, 1.0))
+    organic = (2, 2, 1.0)
     start = [(1 - w_sharp) * a + w_sharp * b for a, b in zip((2, 2, 0.5), (3, 5, 0.35), strict=True)]
-    fine = [(1 - t) * a + t * b for a, b in zip(start, (5, 10, 0.3), strict=True)]
+    # the strong end: many narrow passes where creases may survive or the surface is
+    # plainly smooth (a sphere's tail ratio is 3 to 4), the organic filter on surfaces
+    # with fine detail of their own (scans: tail ratio 5 to 8)
+    # up to noise of about 0.3 mean edge lengths (roughness 0.26; at 0.5, 0.33 and up,
+    # the short filter leaves too much of it)
+    w_smooth = float(np.clip(min(tail_ratio - 4.0, (9.5 - tail_ratio) / 1.5), 0.0, 1.0))
+    w_smooth *= float(np.clip((0.32 - rough) / 0.06, 0.0, 1.0))
+    end = [w_smooth * a + (1 - w_smooth) * b for a, b in zip(organic, (5, 10, 0.3), strict=True)]
+    fine = [(1 - t) * a + t * b for a, b in zip(start, end, strict=True)]
     coarse = (2 + t, 2 + t, 0.8 - 0.1 * t)
     base = tuple((1 - w) * a + w * b for a, b in zip(fine, coarse, strict=True))
     base = (round(base[0]), round(base[1]), base[2])
     o = w * (1.0 - w_sharp)
-    organic = (2, 2, 1.0)
     mix = [(1 - o) * a + o * b for a, b in zip(base, organic, strict=True)]
+    # the broad kernel and plain bilateral filter of the organic end, reached by
+    # coarse smooth meshes (o) and by finely meshed smooth ones at strong noise (t)
+    broad = o + (1.0 - o) * t * w_smooth
     return {"outer_iterations": int(round(mix[0])), "normal_iterations": int(round(mix[1])),
-            "sigma_r": mix[2], "spatial_scale": 1.0 + o, "guidance_mix": o, "coarse_weight": w}
+            "sigma_r": mix[2], "spatial_scale": 1.0 + broad, "guidance_mix": broad, "coarse_weight": w}
 
 
 @dataclass(frozen=True)
@@ -407,7 +434,7 @@ def denoise_mesh(
         sigma_r=sched["sigma_r"] if p.sigma_r is None else p.sigma_r,
         spatial_scale=sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale,
         guidance_mix=sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0,
-        strong=strong, fine=strong and sched["coarse_weight"] < 0.5)
+        strong=strong, fine=strong and sched["coarse_weight"] < 0.5 and sched["guidance_mix"] < 0.5)
     res = filter_and_fit(Vw, conn, method, p, plan, progress,
                          None if initial_normals is None else np.asarray(initial_normals)[fo],
                          sliver=None if shape is None else shape.sliver)
