@@ -43,7 +43,9 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
     stream_seed_of : callable
         ``stream_seed_of(step)``: random-stream seed of a step's walks.
     steps, batch, walks, lr
-        Adam steps, points per batch, walks per point, learning rate.
+        Adam steps, points per batch, walks per point, learning rate (relative
+        to the standard deviation of the fitted control variate over
+        ``candidates``, so that the result scales with the data).
     dPhi, flux : optional
         Neumann rows of the fit (:func:`geoproc.wos.fit.ridge_fit`); their squared
         misfit joins the loss.
@@ -54,8 +56,16 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
     b : float
     walks_total, steps_total : int
     """
-    mu = kernel_matrix(candidates, kernels).mean(axis=0)
+    K = kernel_matrix(candidates, kernels)
+    mu = K.mean(axis=0)
     s = np.append(sigma * scale, b + sigma @ mu)  # b: the constant of the centred columns
+    # Adam's steps have the size lr in the units of s, the data's: taken relative to the
+    # spread of the fitted control variate over the interior, so that scaling the
+    # boundary data scales the result (with lr absolute, data of size 1e-3 had ended
+    # ten times worse than plain walks, relative to its size)
+    spread = float(np.std((K - mu) @ sigma))
+    unit = spread if spread > 0 else (abs(float(s[-1])) or 1.0)
+    step = lr * unit
     m1 = np.zeros_like(s)
     m2 = np.zeros_like(s)
     mean_s = np.zeros_like(s)  # the average of the iterates from step `steps // 2` on
@@ -77,7 +87,7 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
         m2 = beta2 * m2 + (1 - beta2) * grad**2
         mh = m1 / (1 - beta1 ** (it + 1))
         vh = m2 / (1 - beta2 ** (it + 1))
-        s = s - lr * mh / (np.sqrt(vh) + tiny)
+        s = s - step * mh / (np.sqrt(vh) + tiny * unit)
         if it >= steps // 2:
             mean_s += (s - mean_s) / (it - steps // 2 + 1)
         walks_total += batch * walks

@@ -136,6 +136,10 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         Seed of every random stream.
     exact : bool
         ``boundary`` is harmonic: use it as the exact solution for error metrics.
+    npass_steps, npass_batch, npass_walks, npass_lr : optional
+        ``npass``: Adam steps, points per step, walks per point, learning rate
+        (relative to the spread of the fitted control variate,
+        :func:`geoproc.wos.npass.adam_refine`).
     progress : callable, optional
         ``progress(fraction_done)``.
 

@@ -182,9 +182,10 @@ def test_walks_stop_within_epsilon_and_not_before(eps):
 
 
 def test_npass_first_adam_step_moves_every_coefficient_by_the_learning_rate():
-    # Adam's bias-corrected first step is lr * g / (|g| + 1e-8): each coefficient (in the
-    # fit's scale, the constant included) moves by lr against its gradient's sign; without
-    # the bias correction it moved by 0.1 lr. The walks are replaced by the exact solution.
+    # Adam's bias-corrected first step is lr * g / (|g| + 1e-8) in units of the fitted
+    # control variate's spread: each coefficient (in the fit's scale, the constant
+    # included) moves by lr times that spread against its gradient's sign; without the
+    # bias correction it moved by 0.1 lr. The walks are replaced by the exact solution.
     from geoproc.wos.fit import green_kernels
     from geoproc.wos.kernels import kernel_matrix
     from geoproc.wos.npass import adam_refine
@@ -205,7 +206,8 @@ def test_npass_first_adam_step_moves_every_coefficient_by_the_learning_rate():
                                      steps=1, batch=64, walks=4, lr=lr)
     before = np.append(sigma0 * scale, b0 + sigma0 @ mu)
     after = np.append(sigma * scale, b + sigma @ mu)
-    np.testing.assert_allclose(np.abs(after - before), lr, rtol=1e-3)  # a gradient of 1e-5 moves by 0.999 lr
+    unit = np.std((kernel_matrix(cand, ks) - mu) @ sigma0)
+    np.testing.assert_allclose(np.abs(after - before), lr * unit, rtol=1e-3)  # a gradient of 1e-5: 0.999 lr
     assert walks == 64 * 4
 
 
@@ -227,6 +229,17 @@ def test_rmse_falls_like_inverse_sqrt_walks():
                      .metrics["rmse"] for w in walks])
     slope = np.polyfit(np.log(walks), np.log(rmse), 1)[0]
     assert slope == pytest.approx(-0.5, abs=0.08), rmse
+
+
+@pytest.mark.parametrize("k", [1e-3, 1e3])
+def test_npass_result_scales_with_the_data(k):
+    # Adam's steps were absolute, in the data's units: on the unit square with
+    # k (x^2 - y^2), rmse / k was 0.0005 at k = 1, 0.35 at k = 1e-3 (ten times plain
+    # walks') and the refinement did nothing at k = 1e9
+    kw = dict(walks=32, grid=16, exact=True, seed=2, kernels=24, npass_steps=64, method="npass")
+    one = solve_laplace(DISK, RE_Z3, **kw).metrics["rmse"]
+    scaled = solve_laplace(DISK, parse_expression(f"{k!r} * (x**3 - 3*x*y**2)"), **kw).metrics["rmse"]
+    assert scaled / k == pytest.approx(one, rel=1e-6)
 
 
 def test_control_variates_reduce_rmse_on_disk_re_z3():
