@@ -426,6 +426,8 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
         out.vertex_fields["outlier_detected"] = res.outlier.astype(np.float64)
     else:
         out = _inliers(run, _without_earlier_scores(run, cloud), P, ~res.outlier)
+    if refined:  # moved vertices: a mesh's stored normals follow them (a cloud's stay)
+        run.refresh_normals(out.V, out.F, out.vertex_fields)
     run.write_mesh(output, out)
 
 
@@ -478,6 +480,8 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
     fields["outlier_score"] = res.score
     fields["outlier_detected"] = res.outlier.astype(np.float64)
     V = res.refined if refined else anim.V
+    if refined:
+        run.refresh_normals(V, anim.F, fields)
     run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, fields, output)))
 
 

@@ -487,6 +487,24 @@ def test_animation_outliers_npz(cli, dfx, tmp_path):
     assert np.abs(a.V - V_clean).mean() < 0.5 * np.abs(V - V_clean).mean()
 
 
+def test_refined_animation_outliers_recompute_stored_normals(cli, dfx, tmp_path):
+    # --refined moves every frame's vertices; per-frame nx, ny, nz had been written unchanged
+    import igl
+
+    Vn, F, _ = dfx.noisy_wave(frames=6)
+    N = np.stack([igl.per_vertex_normals(v, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA) for v in Vn])
+    src, out = tmp_path / "wave.npz", tmp_path / "o.npz"
+    src.write_bytes(animation_to_bytes(Animation(Vn, F, {"nx": N[..., 0], "ny": N[..., 1], "nz": N[..., 2]})))
+    p = cli("denoise", src, "--outliers", "--refined", "-o", out)
+    assert p.returncode == 0 and "note: recomputed the vertex normals (nx, ny, nz)" in p.stderr, p.stderr
+    a = load_animation(out)
+    assert np.abs(a.V - Vn).max() > 0  # moved
+    for t in range(len(Vn)):
+        own = igl.per_vertex_normals(a.V[t], F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)
+        stored = np.stack([a.fields[k][t] for k in ("nx", "ny", "nz")], axis=1)
+        np.testing.assert_allclose(stored, own, atol=1e-12)
+
+
 def test_animation_outliers_bad_usage(cli, dfx, tmp_path):
     V, flag, _ = dfx.animated_cloud_with_outliers(count=300, frames=10)
     src = tmp_path / "cloud.npz"

@@ -42,8 +42,10 @@ def test_stored_normals_follow_the_moved_vertices(cli, fixture_dir, tmp_path):
     R = m.V / np.linalg.norm(m.V, axis=1, keepdims=True)
     src = tmp_path / "n.ply"
     save_mesh(src, Mesh(m.V, m.F, {"nx": R[:, 0], "ny": R[:, 1], "nz": R[:, 2], "label": np.arange(len(m.V)) * 1.0}))
-    noisy, clean = tmp_path / "p.ply", tmp_path / "d.ply"
-    for args in (("perturb", src, "--noise", "0.5", "--seed", "3", "-o", noisy), ("denoise", noisy, "-o", clean)):
+    noisy, clean, refined = tmp_path / "p.ply", tmp_path / "d.ply", tmp_path / "r.ply"
+    # (denoise --outliers --refined moves a mesh's vertices too: its normals had stayed the input's)
+    for args in (("perturb", src, "--noise", "0.5", "--seed", "3", "-o", noisy), ("denoise", noisy, "-o", clean),
+                 ("denoise", noisy, "--outliers", "--refined", "--keep-all", "-o", refined)):
         p = cli(*args)
         assert p.returncode == 0 and "note: recomputed the vertex normals (nx, ny, nz)" in p.stderr, p.stderr
         out = load_mesh(args[-1])
