@@ -111,6 +111,7 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
     """Parse ``data`` in format ``fmt`` (see :func:`load_mesh`)."""
     if len(data) == 0:
         raise InputError(path, "file is empty")
+    digest = sha256_bytes(data)  # of the bytes as stored, as sha256sum gives it
     if data.startswith(b"\xef\xbb\xbf") and fmt in ("obj", "off"):  # a UTF-8 byte order mark
         data = data[3:]
     unread: list[str] = []
@@ -129,7 +130,7 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
         stored_faces=len(mesh.F),
         triangulated_polygons=polys,
         cleaned=clean,
-        sha256=sha256_bytes(data),
+        sha256=digest,
         unread_properties=unread,
     )
     validate_arrays(mesh.V, mesh.F, path, allow_point_cloud=(fmt == "ply"))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import pytest
 import trimesh
@@ -348,6 +350,8 @@ def test_utf8_byte_order_mark_is_skipped():
     body = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"
     m = read_mesh_bytes(b"\xef\xbb\xbf" + body, "obj", clean=False)
     assert len(m.V) == 4 and m.F.tolist() == read_mesh_bytes(body, "obj", clean=False).F.tolist()
+    # the report's hash is of the file as stored (sha256sum's), mark included: it had been the text's
+    assert m.log.sha256 == hashlib.sha256(b"\xef\xbb\xbf" + body).hexdigest()
 
 
 def test_off_mixing_triangles_and_polygons(tmp_path):
@@ -617,8 +621,6 @@ def test_keywordless_off_with_a_comment_on_its_counts_line_is_sniffed():
 
 
 def test_the_log_carries_the_hash_of_the_bytes_parsed(fixture_dir):
-    import hashlib
-
     path = fixture_dir / "icosphere.ply"
     assert load_mesh(path).log.sha256 == hashlib.sha256(path.read_bytes()).hexdigest()
 
