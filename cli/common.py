@@ -410,7 +410,9 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
     if "-" in inputs:
         sources |= {_stdin_file_identity()} - {None}  # `- < out.ply` reads the file an output names
     for name in names:
-        if name == "-":
+        if name == "-":  # standard output redirected into an input (`-o - >> in.ply`)
+            if stdout_id is not None and stdout_id in sources:
+                raise UsageError("standard output (-) is also an input; write the result to another file")
             continue
         real, ident = os.path.realpath(name), _file_id(name)
         if real in seen or (ident is not None and ident in seen):

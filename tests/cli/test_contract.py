@@ -581,6 +581,15 @@ def test_output_paths_are_refused_before_any_input_is_read(cli, fixture_dir, tmp
     assert p.returncode == 2 and _one_error_line(p.stderr, str(r)).endswith(
         "is also an input; write the result to another file"), p.stderr
     assert r.read_bytes() == (fixture_dir / "torus.ply").read_bytes()
+    # standard output appended to an input: `perturb r.ply -o - >> r.ply` added a second PLY to it
+    # (refused as /dev/stdout was); --report - the same
+    for out in (["-o", "-"], ["-o", str(tmp_path / "s.ply"), "--report", "-"]):
+        with open(r, "ab") as stdout:
+            p = subprocess.run([sys.executable, "-m", "geoproc_cli.main", "perturb", str(r), "--seed", "1", *out],
+                               stdout=stdout, stderr=subprocess.PIPE, text=True)
+        assert p.returncode == 2 and p.stderr.strip().endswith(
+            "standard output (-) is also an input; write the result to another file"), p.stderr
+        assert r.read_bytes() == (fixture_dir / "torus.ply").read_bytes()
 
 
 def test_inputs_from_pipes_are_hashed_as_read(fixture_dir, tmp_path):
