@@ -89,9 +89,13 @@ NoCleanOpt = Annotated[
 
 
 def say(line: str) -> None:
-    """Print one line on stderr. A stderr that cannot be written (a closed pipe,
-    a full disk) loses the line but not the exit code: the run's outcome is its
-    outputs and its status, and a write error here would turn both into exit 1."""
+    """Print one line on stderr, control characters and undecodable bytes (e.g.
+    in file names) escaped as \\n, \\udcff: each error, note or check line is
+    one record (a note naming ``two\\nlines.obj`` had printed two lines). A
+    stderr that cannot be written (a closed pipe, a full disk) loses the line
+    but not the exit code: the run's outcome is its outputs and its status, and
+    a write error here would turn both into exit 1."""
+    line = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in line)
     try:
         stderr.print(line, markup=False)
     except OSError:
@@ -99,10 +103,8 @@ def say(line: str) -> None:
 
 
 def _fail(message: str, code: int) -> typer.Exit:
-    """Print ``error: <message>`` as one line (control characters and undecodable
-    bytes, e.g. in file names, escaped as \\n, \\udcff) and return the exit."""
-    line = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in message)
-    say(f"error: {line}")
+    """Print ``error: <message>`` as one line (see :func:`say`) and return the exit."""
+    say(f"error: {message}")
     return typer.Exit(code)
 
 

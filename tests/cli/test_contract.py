@@ -638,6 +638,11 @@ def test_error_lines_escape_control_characters_and_bare_command_is_usage(cli, tm
 
     p = cli("info", tmp_path / "two\nlines.ply")
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "two\\nlines.ply: no such file" in p.stderr
+    # notes too: a quad file's triangulation note had printed the name over two lines
+    quads = tmp_path / "two\nlines.obj"
+    quads.write_bytes(b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    p = cli("info", quads)
+    assert p.returncode == 0 and p.stderr.count("\n") == 1 and "two\\nlines.obj: triangulated" in p.stderr, p.stderr
     p = subprocess.run([sys.executable, "-m", "geoproc_cli.main"], capture_output=True, text=True)
     assert p.returncode == 2 and p.stdout == "" and p.stderr.startswith("error: missing command")
 
