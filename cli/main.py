@@ -80,7 +80,22 @@ def command():
     group = typer.main.get_command(app)
     for sub in group.commands.values():
         sub.make_parser = _refusing_repeats(sub.make_parser)
+        sub.get_help_option = _without_value_column(sub.get_help_option)
+    group.get_help_option = _without_value_column(group.get_help_option)
     return group
+
+
+def _without_value_column(get_help_option):
+    """``get_help_option`` whose option shows no value column in ``--help``
+    (typer showed ``<bool>`` there, as if ``--help`` took a value; the
+    project's own flags leave it empty, see :func:`cli.common.flag`)."""
+    def get(ctx):
+        option = get_help_option(ctx)
+        if option is not None:
+            option.metavar = ""
+        return option
+
+    return get
 
 
 def _stop(exc: KeyboardInterrupt) -> None:
