@@ -30,9 +30,21 @@ def mean_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n,) pointwise Gaussian curvature per vertex, in 1/length^2: libigl's
-    angle defect divided by the vertex's Voronoi area; 0 where that area is 0
-    (a vertex no face uses)."""
+    angle defect (``2 pi`` minus the angles around the vertex) divided by the
+    vertex's Voronoi area; 0 where that area is 0 (a vertex no face uses).
+
+    On a boundary the angle defect measures how the boundary turns, not the
+    surface's curvature: the interior formula gave the straight edge of a flat
+    unit square pi / area (2513 on a 21 x 21 grid), and ``pi`` minus the angles
+    (the boundary convention of geometry-central) still gives its corners and
+    a jagged cut through a sphere values from -392 to 835. A boundary vertex
+    takes the Voronoi-area-weighted mean of its interior neighbours' values
+    instead (0 when it has none).
+    """
     import igl
+    import scipy.sparse as sp
+
+    from geoproc.mesh.topology import boundary_vertices, unique_edges
 
     V = np.ascontiguousarray(V)
     F = np.ascontiguousarray(F)
@@ -42,7 +54,18 @@ def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     # stored last (kept by --no-clean) have no entry there
     area = np.zeros(len(V))
     area[:M.shape[0]] = M.diagonal()
-    return np.divide(K, area, out=np.zeros_like(K), where=area > 0)
+    K = np.divide(K, area, out=np.zeros_like(K), where=area > 0)
+    b = boundary_vertices(F)
+    if len(b):
+        inside = np.ones(len(V), dtype=bool)
+        inside[b] = False
+        E = unique_edges(F)[0]
+        E = E[E[:, 0] != E[:, 1]]
+        A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
+                          shape=(len(V), len(V))).tocsr()[b]
+        w = A @ (area * inside)
+        K[b] = np.divide(A @ (area * inside * K), w, out=np.zeros(len(b)), where=w > 0)
+    return K
 
 
 def field_name(spec: str) -> str:

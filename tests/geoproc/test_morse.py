@@ -224,6 +224,22 @@ def test_curvatures_of_a_sphere_approach_its_analytic_values():
     np.testing.assert_allclose(gaussian_curvature(2 * V, F), K / 4, rtol=1e-9)
 
 
+def test_gaussian_curvature_on_a_boundary_follows_the_surface(make_fixtures):
+    # the interior angle defect 2 pi - sum of angles gave the straight edge of a flat square
+    # pi / area (2513 on the 21 x 21 grid) and its corners 3 pi / (2 area); a boundary vertex
+    # now takes its interior neighbours' values: 0 on the plane, 1 on a unit sphere's cap
+    from geoproc.mesh.topology import boundary_vertices
+    from geoproc.morse.fields import gaussian_curvature
+
+    V, F = make_fixtures.grid(21)
+    assert np.abs(gaussian_curvature(V, F)).max() < 1e-9
+    V, F = make_fixtures.icosphere(4)
+    F = F[(V[F][:, :, 2] > 0.05).all(axis=1)]  # a cap with a jagged boundary
+    K = gaussian_curvature(V, F)
+    b = boundary_vertices(F)
+    assert len(b) > 50 and np.abs(K[b] - 1).max() < 0.002
+
+
 def test_gaussian_curvature_with_an_unused_vertex_stored_last():
     # libigl's mass matrix stops at the largest face index: --no-clean with a vertex no face
     # uses, stored last, failed to broadcast (exit 3)
