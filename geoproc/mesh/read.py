@@ -153,7 +153,11 @@ def require_coordinates_in_range(V: np.ndarray, path: str) -> None:
         raise InputError(path, f"coordinates as large as {big:.3g} overflow products of squared lengths "
                          f"(each must stay within +-{MAX_COORDINATE:.0e}; rescale the input)")
     P = V.reshape(-1, V.shape[-1]) if V.size else V
-    extent = float(np.linalg.norm(P.max(axis=0) - P.min(axis=0))) if V.size else 0.0
+    span = (P.max(axis=0) - P.min(axis=0)) if V.size else np.zeros(1)
+    top = float(np.abs(span).max())
+    # the box diagonal, scaled by its largest side first: squared, a side of 1e-170 underflowed
+    # to 0 and read as points that all coincide
+    extent = top * float(np.linalg.norm(span / top)) if top > 0 else 0.0
     if 0.0 < extent < MIN_EXTENT:
         raise InputError(path, f"the points span only {extent:.3g}; areas underflow below an extent of "
                          f"{MIN_EXTENT:.0e} (rescale the input)")

@@ -616,7 +616,10 @@ def test_inputs_from_pipes_are_hashed_as_read(fixture_dir, tmp_path):
 
 def test_coordinates_beyond_the_safe_range_are_refused(cli, fixture_dir, tmp_path):
     torus = load_mesh(fixture_dir / "torus.ply")
-    for scale, fragment in ((1e80, "overflow products of squared lengths"), (1e-60, "areas underflow")):
+    # (1e-200: the extent was measured as a norm whose squares underflowed to 0, so the points
+    # read as all coinciding and were accepted; info reported a diagonal of 0)
+    for scale, fragment in ((1e80, "overflow products of squared lengths"), (1e-60, "areas underflow"),
+                            (1e-200, "areas underflow")):
         path = tmp_path / f"t{scale:g}.ply"
         from geoproc.mesh import save_mesh
 
