@@ -121,6 +121,7 @@ def morse_simplify(
     critical points of g are the barycentres of the kept critical cells, and
     the "after" counts are taken there.
     """
+    persistence = persistence + 0.0  # -0 is 0 (the report had carried -0.0)
     params = {"mesh": mesh, "field": field, "persistence": persistence, "relative": relative,
               "output": output, "critical": str(critical) if critical else None,
               "diagram": str(diagram) if diagram else None,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -443,3 +444,13 @@ def test_a_field_too_coarse_for_its_values_counts_the_moves_past_half(cli, make_
     assert met["vertices_beyond_half_threshold"] > len(g) / 4
     assert met["vertices_beyond_half_threshold"] <= int((np.abs(g - f) > met["threshold"] / 2).sum())
     assert "subtract a constant from the field" in p.stderr
+
+
+def test_negative_zero_persistence_is_reported_as_zero(cli, fixture_dir, tmp_path):
+    # -p -0 is P = 0; the report had carried "threshold": -0.0
+    rep = tmp_path / "r.json"
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", "z", "-p", "-0", "-o", tmp_path / "t.ply",
+            "--report", rep)
+    assert p.returncode == 0, p.stderr
+    r = json.loads(rep.read_text())
+    assert math.copysign(1.0, r["metrics"]["threshold"]) == math.copysign(1.0, r["params"]["persistence"]) == 1.0
