@@ -39,7 +39,10 @@ def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     (the boundary convention of geometry-central) still gives its corners and
     a jagged cut through a sphere values from -392 to 835. A boundary vertex
     takes the Voronoi-area-weighted mean of its interior neighbours' values
-    instead (0 when it has none).
+    instead; one with none (a corner of a grid patch, a vertex between two
+    boundary edges of one face) then takes that of its neighbours that have a
+    value, repeatedly; 0 where no interior vertex is reachable (a strip one
+    face wide).
     """
     import igl
     import scipy.sparse as sp
@@ -57,14 +60,22 @@ def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     K = np.divide(K, area, out=np.zeros_like(K), where=area > 0)
     b = boundary_vertices(F)
     if len(b):
-        inside = np.ones(len(V), dtype=bool)
-        inside[b] = False
+        known = np.ones(len(V), dtype=bool)
+        known[b] = False
         E = unique_edges(F)[0]
         E = E[E[:, 0] != E[:, 1]]
         A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
                           shape=(len(V), len(V))).tocsr()[b]
-        w = A @ (area * inside)
-        K[b] = np.divide(A @ (area * inside * K), w, out=np.zeros(len(b)), where=w > 0)
+        K[b] = 0.0
+        todo = np.ones(len(b), dtype=bool)
+        while todo.any():  # from the interior outwards, one ring of boundary vertices at a time
+            w = A @ (area * known)
+            reach = todo & (w > 0)
+            if not reach.any():
+                break
+            K[b[reach]] = (A[reach] @ (area * known * K)) / w[reach]
+            known[b[reach]] = True
+            todo &= ~reach
     return K
 
 

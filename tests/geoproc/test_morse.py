@@ -238,6 +238,12 @@ def test_gaussian_curvature_on_a_boundary_follows_the_surface(make_fixtures):
     K = gaussian_curvature(V, F)
     b = boundary_vertices(F)
     assert len(b) > 50 and np.abs(K[b] - 1).max() < 0.002
+    # a grid patch of the unit sphere: two corners have no interior neighbour (they had read 0,
+    # the field's lowest values); they take their boundary neighbours' values
+    V, F = make_fixtures.grid(21)
+    V = V - [0.5, 0.5, -1.0]
+    V /= np.linalg.norm(V, axis=1, keepdims=True)
+    assert np.abs(gaussian_curvature(V, F) - 1).max() < 0.003
 
 
 def test_gaussian_curvature_with_an_unused_vertex_stored_last():
