@@ -560,6 +560,16 @@ def test_light_schedule_meets_the_strong_one(coarseness, tail):
     assert work[0] == 0 and all(x <= y for x, y in zip(work, work[1:], strict=False))
 
 
+def test_narrow_passes_fade_out_with_coarseness():
+    # the strong schedule's last narrow passes and second fit had switched off at once where
+    # the coarseness weight reached 0.5 (bunny upsampled once: 0.6 degrees better for more noise)
+    from geoproc.denoise.mesh_denoise import default_schedule
+
+    weight = [default_schedule(0.3, c, tail_ratio=20.0)["narrow_weight"] for c in np.linspace(3.5, 4.5, 41)]
+    assert weight[0] == 1.0 and weight[-1] == 0.0
+    assert all(b <= a and a - b < 0.11 for a, b in zip(weight, weight[1:], strict=False))
+
+
 def test_face_aspect_by_hand():
     V = np.array([[0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0], [0, 1, 0], [0.005, 0, 0.3]])
     F = np.array([[0, 1, 2], [0, 1, 3], [0, 1, 4]])
