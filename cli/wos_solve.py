@@ -168,6 +168,16 @@ def wos_solve(
         if dom.traced:
             run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
                      f"area {dom.area:.6g} px^2")
+        if g is not None:  # data beyond what the EXR holds, refused before the walks (npass had
+            # overflowed on it and blamed the data for being past 1e307)
+            from geoproc.wos.expression import evaluate
+
+            with np.errstate(all="ignore"):
+                gv = np.abs(evaluate(g, dom.A[:, 0], dom.A[:, 1]))
+            top = float(np.finfo(np.float32).max)
+            if (gv[np.isfinite(gv)] > top).any():
+                raise UsageError(f"{domain}: --boundary reaches {float(gv[np.isfinite(gv)].max()):.3g} on the "
+                                 f"boundary, beyond the float32 range of EXR ({top:.3g}); rescale the boundary data")
         lo, hi = dom.bbox
         diag = float(np.linalg.norm(hi - lo))
         if epsilon > EPSILON_NOTE * diag:
@@ -182,6 +192,11 @@ def wos_solve(
                                 progress=update)
         run.metrics.update(res.metrics)
         used = res.metrics.get("kernels_used")
+        if used is not None and used > kernels:  # cv-angle: one or more on every loop
+            run.note(f"{used} kernels used, not {kernels}: cv-angle puts at least one on each of the "
+                     f"{len(dom.loops)} boundary loops")
+        if fitted and fit_points is None:  # the default the run used (8 x kernels, at most the grid's)
+            run.params["fit_points"] = res.metrics.get("fit_points")
         if used is not None and used < kernels:
             capped = method == Method.cv_angle and used == dom.n_segments
             why = "cv-angle puts at most one on each boundary segment" if capped else "the kernel placement gave fewer"
@@ -211,9 +226,10 @@ def wos_solve(
             steps = float32_steps(lo, hi)
             if 0 < steps < 1000:
                 levels = "less than one step" if steps < 1 else f"only {steps:.0f} steps"
+                fix = ("multiply --boundary by a constant" if max(abs(lo), abs(hi)) < np.finfo(np.float32).tiny
+                       else "subtract a constant from --boundary (a value it takes on the domain)")
                 run.note(f"the solution varies by {hi - lo:.3g} around {max(abs(lo), abs(hi)):.3g}, which the "
-                         f"float32 EXR resolves in {levels}; subtract a constant from --boundary (a value it "
-                         "takes on the domain) to keep its digits")
+                         f"float32 EXR resolves in {levels}; {fix} to keep its digits")
             name = os.path.basename(domain)
             if image:
                 run.write_bytes(image, png_bytes(res.U, extent, f"{name}: {method.value}, "

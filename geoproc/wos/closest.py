@@ -153,7 +153,8 @@ def build_segment_grid(A: np.ndarray, B: np.ndarray, seg_ids: np.ndarray | None 
     rel = coords.copy()
     rel[:, 0] -= lo[0]
     rel[:, 1] -= lo[1]
-    coords32 = np.ascontiguousarray(rel.astype(np.float32))
+    with np.errstate(over="ignore"):  # 1 / |E|^2 of a segment shorter than 1e-19 is inf in float32
+        coords32 = np.ascontiguousarray(rel.astype(np.float32))
     # float32 rounding within the grid, plus the float64 rounding of p - origin far from 0 (eps|lo|)
     margin = 1e-6 * span + 1e-12 * float(np.abs(lo).max())
     return (float(lo[0]), float(lo[1]), 1.0 / cs, nx, ny, start, items, coords, coords32, margin,

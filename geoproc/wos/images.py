@@ -31,6 +31,9 @@ def exr_bytes(U: np.ndarray) -> bytes:
     if big > top:
         raise UsageError(f"the solution reaches {big:.3g}, beyond the float32 range of EXR "
                          f"({top:.3g}); rescale the boundary data")
+    if big > 0 and np.float32(big) == 0:  # every pixel would read 0
+        raise UsageError(f"the solution is at most {big:.3g} in magnitude, below the float32 range of EXR "
+                         "(which writes it as 0); rescale the boundary data")
     U = np.ascontiguousarray(U, dtype=np.float32)
     H, W = U.shape
     spec = oiio.ImageSpec(W, H, 1, oiio.FLOAT)

@@ -16,7 +16,8 @@ def load_domain(path: str, data: bytes | None = None) -> Domain:
     if data is None:
         data = read_input_bytes(path, "domain file")
     # (a byte-order mark some editors write may come first: json.loads reads it)
-    if data[:64].removeprefix(b"\xef\xbb\xbf").lstrip().startswith(b"{") or path.lower().endswith(".json"):
+    # (all the leading white space: JSON with more than 64 bytes of it had been refused)
+    if data.removeprefix(b"\xef\xbb\xbf").lstrip()[:1] == b"{" or path.lower().endswith(".json"):
         return load_domain_json(path, data)
     if path == "-":
         raise InputError(path, "not a JSON domain (a mask image must be given as a file)")

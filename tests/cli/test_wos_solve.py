@@ -326,3 +326,37 @@ def test_error_image_shows_only_the_scored_pixels(cli, inputs, tmp_path):
     kw = {"cmap": "magma", "contours": 0, "label": "|u - exact|"}
     assert err_png.read_bytes() == png_bytes(np.where(res.scored, err, np.nan), extent, title, **kw)
     assert err_png.read_bytes() != png_bytes(err, extent, title, **kw)
+
+
+def test_data_the_exr_cannot_hold_and_other_input_edges(cli, tmp_path):
+    square = tmp_path / "sq.json"
+    square.write_text('{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}')
+    out, rep = tmp_path / "u.exr", tmp_path / "r.json"
+    # a solution below float32's range had been written as an EXR of zeros, exit 0
+    p = cli("wos-solve", square, "--boundary", "1e-50*x", "--grid", "8", "--walks", "8", "-o", out)
+    assert p.returncode == 2 and "below the float32 range of EXR" in p.stderr and not out.exists(), p.stderr
+    # data beyond it is refused before the walks, in one line (npass had printed six lines of
+    # overflow warnings and blamed data past 1e307)
+    for method in ("npass", "cv-green"):
+        p = cli("wos-solve", square, "--boundary", "1e200*x", "--method", method, "--grid", "8", "--walks", "8",
+                "-o", out)
+        assert p.returncode == 2 and p.stderr.count("\n") == 1 and "reaches 1e+200" in p.stderr, p.stderr
+    # a segment of 1e-30: no overflow warning from its float32 copy under --quiet
+    tiny = tmp_path / "tiny.json"
+    tiny.write_text('{"loops": [[[0, 0], [1, 0], [1, 1], [1e-30, 1], [0, 1]]]}')
+    p = cli("wos-solve", tiny, "--boundary", "x", "--grid", "8", "--walks", "8", "-q", "-o", out)
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    # JSON on standard input after more than 64 bytes of white space (had been "not a JSON domain")
+    p = cli("wos-solve", "-", "--boundary", "x", "--grid", "8", "--walks", "8", "-q", "-o", out,
+            stdin=b" " * 70 + square.read_bytes())
+    assert p.returncode == 0, p.stderr
+    # cv-angle puts a kernel on every loop: more than --kernels asks, with a note; the report's
+    # params name the fit points the run used by default (they had been null)
+    three = tmp_path / "three.json"
+    three.write_text(json.dumps({"loops": [[[3 * k, 0], [3 * k + 1, 0], [3 * k + 1, 1], [3 * k, 1]]
+                                           for k in range(3)]}))
+    p = cli("wos-solve", three, "--boundary", "x", "--method", "cv-angle", "--kernels", "2", "--grid", "24",
+            "--walks", "8", "-o", out, "--report", rep)
+    assert p.returncode == 0 and "3 kernels used, not 2: cv-angle puts at least one on each" in p.stderr, p.stderr
+    r = json.loads(rep.read_text())
+    assert r["params"]["fit_points"] == r["metrics"]["fit_points"] > 0
