@@ -168,16 +168,15 @@ def wos_solve(
         if dom.traced:
             run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
                      f"area {dom.area:.6g} px^2")
-        if g is not None:  # data beyond what the EXR holds, refused before the walks (npass had
-            # overflowed on it and blamed the data for being past 1e307)
-            from geoproc.wos.expression import evaluate
+        # Dirichlet data beyond what the EXR holds, which the solution reaches near there, is
+        # refused before the walks (npass had overflowed on it and blamed data past 1e307)
+        from geoproc.wos.problem import dirichlet_data_bound
 
-            with np.errstate(all="ignore"):
-                gv = np.abs(evaluate(g, dom.A[:, 0], dom.A[:, 1]))
-            top = float(np.finfo(np.float32).max)
-            if (gv[np.isfinite(gv)] > top).any():
-                raise UsageError(f"{domain}: --boundary reaches {float(gv[np.isfinite(gv)].max()):.3g} on the "
-                                 f"boundary, beyond the float32 range of EXR ({top:.3g}); rescale the boundary data")
+        data = "--boundary reaches" if g is not None else "the domain's values reach"
+        big, top = dirichlet_data_bound(dom, g), float(np.finfo(np.float32).max)
+        if big > top:
+            raise UsageError(f"{domain}: {data} {big:.3g} on the Dirichlet boundary, beyond the float32 "
+                             f"range of the EXR output ({top:.3g}); rescale the boundary data")
         lo, hi = dom.bbox
         diag = float(np.linalg.norm(hi - lo))
         if epsilon > EPSILON_NOTE * diag:
@@ -193,8 +192,8 @@ def wos_solve(
         run.metrics.update(res.metrics)
         used = res.metrics.get("kernels_used")
         if used is not None and used > kernels:  # cv-angle: one or more on every loop
-            run.note(f"{used} kernels used, not {kernels}: cv-angle puts at least one on each of the "
-                     f"{len(dom.loops)} boundary loops")
+            run.note(f"{used} kernels used, not {kernels}: cv-angle shares them among the "
+                     f"{len(dom.loops)} boundary loops by length, each loop's share rounded and at least one")
         if fitted and fit_points is None:  # the default the run used (8 x kernels, at most the grid's)
             run.params["fit_points"] = res.metrics.get("fit_points")
         if used is not None and used < kernels:
@@ -226,8 +225,8 @@ def wos_solve(
             steps = float32_steps(lo, hi)
             if 0 < steps < 1000:
                 levels = "less than one step" if steps < 1 else f"only {steps:.0f} steps"
-                fix = ("multiply --boundary by a constant" if max(abs(lo), abs(hi)) < np.finfo(np.float32).tiny
-                       else "subtract a constant from --boundary (a value it takes on the domain)")
+                fix = ("multiply the boundary data by a constant" if max(abs(lo), abs(hi)) < np.finfo(np.float32).tiny
+                       else "subtract a constant from the boundary data (a value it takes on the domain)")
                 run.note(f"the solution varies by {hi - lo:.3g} around {max(abs(lo), abs(hi)):.3g}, which the "
                          f"float32 EXR resolves in {levels}; {fix} to keep its digits")
             name = os.path.basename(domain)

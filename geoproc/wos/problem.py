@@ -56,6 +56,29 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
                              f"(first at x = {x:.6g}, y = {y:.6g})")
 
 
+def dirichlet_data_bound(domain: Domain, boundary: Expression | None, samples: int = 9) -> float:
+    """The largest magnitude of the Dirichlet data: ``boundary`` at ``samples``
+    evenly spaced points of every Dirichlet segment (as
+    :func:`require_finite_boundary_data` reads it), or the domain's per-vertex
+    values on those segments when there is no expression; 0 without either.
+    Non-finite samples are left out (that function refuses them)."""
+    mask = ~domain.neumann
+    if not mask.any():
+        return 0.0
+    if boundary is not None:
+        t = np.linspace(0.0, 1.0, samples)
+        A, B = domain.A[mask], domain.B[mask]
+        P = (A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]).reshape(-1, 2)
+        with np.errstate(all="ignore"):
+            v = np.abs(evaluate(boundary, P[:, 0], P[:, 1]))
+    elif domain.values is not None:
+        v = np.abs(domain.values[mask]).ravel()
+    else:
+        return 0.0
+    v = v[np.isfinite(v)]
+    return float(v.max()) if v.size else 0.0
+
+
 def require_dirichlet_in_every_part(domain: Domain) -> None:
     """InputError naming a connected part of the domain whose whole boundary is
     Neumann: u is not unique there, and its walks would never stop (they ran to

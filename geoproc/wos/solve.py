@@ -270,10 +270,13 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         err = U[scored] - ue[scored]
         if len(err) == 0:
             raise UsageError("--exact: no grid point lies farther than 2*epsilon from the boundary")
-        with np.errstate(over="ignore"):  # errors past 1e154 square to inf (the EXR refuses such data)
-            metrics.update({"rmse": float(np.sqrt(np.mean(err**2))),
-                            "max_abs_error": float(np.max(np.abs(err))),
-                            "bias": float(np.mean(err)), "error_points": int(len(err))})
+        top = float(np.max(np.abs(err)))
+        with np.errstate(over="ignore"):
+            rmse = float(np.sqrt(np.mean(err**2)))
+        if not np.isfinite(rmse) and np.isfinite(top):  # errors past 1e154 square to inf: scaled first
+            rmse = top * float(np.sqrt(np.mean((err / top) ** 2)))
+        metrics.update({"rmse": rmse, "max_abs_error": top,
+                        "bias": float(np.mean(err)), "error_points": int(len(err))})
         exact_img = ue.reshape(shape)
     return WosResult(U.reshape(shape), SE.reshape(shape), exact_img, scored.reshape(shape), gs,
                      metrics, sigma)
