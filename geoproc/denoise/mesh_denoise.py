@@ -108,7 +108,13 @@ def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low:
     Weak noise needs no guidance: the filter is the plain bilateral one
     (``guidance_mix`` 1). On finely meshed smooth surfaces the guidance comes
     in from u = 0.75 to 0.95, and coarse smooth ones move to 2 centroid
-    spacings, so that the schedule meets the strong branch at ``low``.
+    spacings, so that the schedule meets the strong branch at ``low``. On
+    coarse meshes with creases the guidance comes in over the same range, in
+    proportion to the coarseness weight (the teapot at 0.2: 11.59 degrees
+    with 40 new flips without it, 9.99 with 10; finely meshed ones keep the
+    plain filter up to ``low``, which suits them better: with the guidance
+    coming in, fandisk and the cube at 0.15 went from 1.55 and 1.25 degrees to
+    1.66 and 1.37).
     """
     w, ws = coarse_weight, sharp_weight
     r0 = 0.03 + 0.015 * w
@@ -130,7 +136,7 @@ def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low:
     ramp = float(np.clip((u - 0.75) / 0.2, 0.0, 1.0))
     return {"outer_iterations": int(round(rounds)), "normal_iterations": int(round(passes)),
             "sigma_r": max(sigma_r * fade, 0.1), "spatial_scale": 1.0 + organic * ramp,
-            "guidance_mix": 1.0 - (1.0 - organic) * (1.0 - ws) * ramp, "coarse_weight": w,
+            "guidance_mix": 1.0 - ((1.0 - organic) * (1.0 - ws) + ws * w) * ramp, "coarse_weight": w,
             "narrow_weight": 1.0}
 
 

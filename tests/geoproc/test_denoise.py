@@ -552,7 +552,9 @@ def test_light_schedule_meets_the_strong_one(coarseness, tail):
     for key in ("outer_iterations", "normal_iterations", "spatial_scale"):
         assert a[key] == b[key]
     assert a["sigma_r"] == pytest.approx(b["sigma_r"], abs=1e-6)
-    if tail < 9.5:  # smooth: the guidance comes in before low; with creases it starts at low
+    if tail < 9.5 or coarseness >= 5.0:  # smooth or coarse: the guidance comes in before low;
+        # on finely meshed surfaces with creases it starts at low (the teapot, coarseness weight
+        # 0.35, had gone from the plain filter to the guided one at once: 11.59 to 9.58 degrees)
         assert a["guidance_mix"] == pytest.approx(b["guidance_mix"])
     # and the light schedule grows with the noise
     steps = [default_schedule(r, coarseness, tail) for r in np.linspace(0.0, low - 1e-9, 12)]
