@@ -239,13 +239,11 @@ class FilterPlan:
         ``guided`` only: guidance blended with the normals (1: the plain bilateral filter).
     strong : bool
         End with the crease repair of the automatic schedule at strong noise.
-    fine : bool
-        With ``strong``, on a finely meshed surface: first the narrow guided
-        passes and a second fit.
     narrow_weight : float
-        With ``fine``: the narrow passes' normals are blended into the
-        round's, and the second fit's positions into the first's, by this
-        weight (1: taken as they are).
+        With ``strong``, on a finely meshed surface: the last round first
+        runs the narrow guided passes and a second fit, their normals blended
+        into the round's and the second fit's positions into the first's by
+        this weight (1: taken as they are; 0: neither is run).
     """
 
     outer_iterations: int
@@ -254,8 +252,7 @@ class FilterPlan:
     spatial_scale: float
     guidance_mix: float = 0.0
     strong: bool = False
-    fine: bool = False
-    narrow_weight: float = 1.0
+    narrow_weight: float = 0.0
 
 
 # faces whose height is below this fraction of their longest edge, in the surface
@@ -455,7 +452,7 @@ def denoise_mesh(
         sigma_r=sched["sigma_r"] if p.sigma_r is None else p.sigma_r,
         spatial_scale=sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale,
         guidance_mix=sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0,
-        strong=strong, fine=strong and sched["narrow_weight"] > 0.0, narrow_weight=sched["narrow_weight"])
+        strong=strong, narrow_weight=sched["narrow_weight"])
     res = filter_and_fit(Vw, conn, method, p, plan, progress,
                          None if initial_normals is None else np.asarray(initial_normals)[fo],
                          sliver=None if shape is None else shape.sliver)
@@ -512,7 +509,8 @@ def filter_and_fit(
     """
     n = len(V)
     outer, inner, sigma_r = plan.outer_iterations, plan.normal_iterations, plan.sigma_r
-    mix, strong, fine = plan.guidance_mix, plan.strong, plan.fine
+    mix, strong = plan.guidance_mix, plan.strong
+    fine = strong and plan.narrow_weight > 0.0
     F, edge_nb, ring = conn.F, conn.edge_nb, conn.ring
     fixed = None
     if p.pin_boundary:
@@ -576,7 +574,7 @@ def filter_and_fit(
             if progress is not None:
                 progress(done / total)
         last = o == outer - 1
-        if last and fine and plan.narrow_weight > 0.0:
+        if last and fine:
             Nf = N
             for _ in range(FINE_FINAL_PASSES):
                 G = guidance_normals(Nf, A, ring, edge_nb, inside)
