@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from geoproc.denoise.face_geometry import face_edge_neighbors, face_normals_and_areas, vertex_normals
-from geoproc.mesh.topology import unique_edges
+from geoproc.mesh.topology import edge_adjacency_matrix, unique_edges
 
 # chord between unit face normals below which two edge-adjacent faces count as
 # one plane (0.006 degrees): far below what noise of 0.01 mean edge lengths
@@ -58,8 +57,7 @@ def roughness(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -
     le = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean())
     if le <= 0:
         return 0.0
-    A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
-                      shape=(n, n)).tocsr()
+    A = edge_adjacency_matrix(E, n)
     deg = np.asarray(A.sum(axis=1)).ravel()
     used = deg > 0
     deg[~used] = 1.0

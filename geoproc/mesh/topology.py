@@ -239,6 +239,13 @@ def orientation_status(F: np.ndarray, edges: tuple | None = None) -> tuple[bool,
     return bool(orientable), False
 
 
+def edge_adjacency_matrix(E: np.ndarray, n: int) -> sp.csr_matrix:
+    """(n, n) symmetric vertex adjacency: 1 at (i, j) and (j, i) for each edge
+    (i, j) of E (k, 2), edges from a vertex to itself left out by the caller."""
+    return sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
+                         shape=(n, n)).tocsr()
+
+
 def repeated_corner_faces(F: np.ndarray) -> np.ndarray:
     """(m,) bool: the triangles of F (m, 3) that list a vertex twice (an STL
     facet whose corners merged): they bound no surface."""

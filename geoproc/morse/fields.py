@@ -45,9 +45,8 @@ def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     face wide).
     """
     import igl
-    import scipy.sparse as sp
 
-    from geoproc.mesh.topology import boundary_vertices, unique_edges
+    from geoproc.mesh.topology import boundary_vertices, edge_adjacency_matrix, unique_edges
 
     V = np.ascontiguousarray(V)
     F = np.ascontiguousarray(F)
@@ -64,8 +63,7 @@ def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         known[b] = False
         E = unique_edges(F)[0]
         E = E[E[:, 0] != E[:, 1]]
-        A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
-                          shape=(len(V), len(V))).tocsr()[b]
+        A = edge_adjacency_matrix(E, len(V))[b]
         K[b] = 0.0
         todo = np.ones(len(b), dtype=bool)
         while todo.any():  # from the interior outwards, one ring of boundary vertices at a time
