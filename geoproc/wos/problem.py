@@ -43,17 +43,23 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
     """UsageError naming the first point where the Dirichlet expression (on the
     Dirichlet segments) or the flux (on the Neumann ones) is not finite, over
     ``samples`` evenly spaced points of every segment, ends included."""
-    t = np.linspace(0.0, 1.0, samples)
     for expr, mask, option in ((boundary, ~domain.neumann, "--boundary"), (flux, domain.neumann, "--neumann")):
         if expr is None or not mask.any():
             continue
-        A, B = domain.A[mask], domain.B[mask]
-        P = (A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]).reshape(-1, 2)
+        P = segment_samples(domain, mask, samples)
         bad = ~np.isfinite(evaluate(expr, P[:, 0], P[:, 1]))
         if bad.any():
             x, y = P[np.flatnonzero(bad)[0]]
             raise UsageError(f"{option} is not finite on the boundary of {domain.source} "
                              f"(first at x = {x:.6g}, y = {y:.6g})")
+
+
+def segment_samples(domain: Domain, mask: np.ndarray, samples: int) -> np.ndarray:
+    """(k samples, 2) ``samples`` evenly spaced points, ends included, of each
+    segment of ``domain`` that ``mask`` (S,) selects."""
+    t = np.linspace(0.0, 1.0, samples)
+    A, B = domain.A[mask], domain.B[mask]
+    return (A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]).reshape(-1, 2)
 
 
 def dirichlet_data_bound(domain: Domain, boundary: Expression | None, samples: int = 9) -> float:
@@ -66,9 +72,7 @@ def dirichlet_data_bound(domain: Domain, boundary: Expression | None, samples: i
     if not mask.any():
         return 0.0
     if boundary is not None:
-        t = np.linspace(0.0, 1.0, samples)
-        A, B = domain.A[mask], domain.B[mask]
-        P = (A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]).reshape(-1, 2)
+        P = segment_samples(domain, mask, samples)
         with np.errstate(all="ignore"):
             v = np.abs(evaluate(boundary, P[:, 0], P[:, 1]))
     elif domain.values is not None:
