@@ -71,7 +71,7 @@ def mesh_info(mesh: Mesh) -> dict:
     # the topology of the faces with three distinct corners: a face that repeats one (an STL
     # facet whose corners merged) bounds no surface, and its "edge" from a vertex to itself
     # had counted as a non-manifold or boundary edge of length 0 (a closed tetrahedron with
-    # such a facet read as open, not edge-manifold, mean edge length 1.035 for 1.138);
+    # such a facet read as open, not edge-manifold, mean edge length 1.035 for 1.207);
     # degenerate_faces counts it
     Ft = F[~repeated_corner_faces(F)]
     edges = unique_edges(Ft)
