@@ -16,11 +16,14 @@ COPLANAR_CHORD = 1e-4
 def exactly_planar_vertices(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> np.ndarray:
     """(n,) bool: vertices where the surface is made of exact planes.
 
-    A vertex qualifies when at least one of its edges joins two coplanar faces
-    (normals within ``COPLANAR_CHORD``) and at most three of its edges are
-    creases (a flat region, a crease line or a corner of planar pieces).
-    Noise moves every vertex off every plane, so a noisy mesh has next to no
-    such vertices; clean CAD meshes are made of them. F is edge-manifold (the
+    A vertex qualifies when at most three of its edges are creases and either
+    one of its edges joins two coplanar faces (normals within
+    ``COPLANAR_CHORD``) or each of its faces has a coplanar edge neighbour (a
+    flat region, a crease line or a corner of planar pieces; the second rule
+    takes the corners that no diagonal of their faces reaches, such as a
+    cube's corner of three edges, all creases). Noise moves every vertex off
+    every plane, so a noisy mesh has next to no such vertices; clean CAD
+    meshes are made of them. F is edge-manifold (the
     edge pairs are :func:`~geoproc.denoise.face_geometry.face_edge_neighbors`,
     computed here unless given as ``edge_nb``).
     """
@@ -31,7 +34,12 @@ def exactly_planar_vertices(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | 
     ends = np.stack([F[f, k], F[f, (k + 1) % 3]], axis=1)  # corner k's outgoing edge
     flat_at = np.bincount(ends[flat].ravel(), minlength=len(V))
     crease_at = np.bincount(ends[~flat].ravel(), minlength=len(V))
-    return (flat_at > 0) & (crease_at <= 3)
+    in_plane = np.zeros(len(F), dtype=bool)  # faces with a coplanar edge neighbour
+    in_plane[f[flat]] = True
+    in_plane[enb[f[flat], k[flat]]] = True
+    pieces_only = np.bincount(F[~in_plane].ravel(), minlength=len(V)) == 0
+    pieces_only &= np.bincount(F.ravel(), minlength=len(V)) > 0
+    return ((flat_at > 0) | pieces_only) & (crease_at <= 3)
 
 
 def roughness(V: np.ndarray, F: np.ndarray, edge_nb: np.ndarray | None = None) -> float:
