@@ -104,7 +104,8 @@ def main(argv: list[str]) -> int:
         return 2
     folder = Path(args[0]) if args else Path("out/demo")
     if not folder.is_dir():
-        print(f"report_table: error: {folder}: not a folder", file=sys.stderr)
+        what = "not a folder" if folder.exists() else "no such folder"
+        print(f"report_table: error: {folder}: {what}", file=sys.stderr)
         return 2
     table, rows, notes = summary_table(folder)
     for note in notes:

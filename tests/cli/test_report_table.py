@@ -55,3 +55,12 @@ def test_bad_folder_arguments_exit_2_with_one_line(tmp_path, capsys):
         assert err.startswith("report_table: error:") and len(err.strip().splitlines()) == 1
     assert main(["report_table", "--help"]) == 0
     assert "usage:" in capsys.readouterr().out
+
+
+def test_missing_and_non_folder_arguments_are_told_apart(tmp_path, capsys):
+    # a folder that does not exist had been called "not a folder"
+    (tmp_path / "f.json").write_text("{}")
+    assert main(["report_table", str(tmp_path / "nope")]) == 2
+    assert capsys.readouterr().err.strip().endswith("nope: no such folder")
+    assert main(["report_table", str(tmp_path / "f.json")]) == 2
+    assert capsys.readouterr().err.strip().endswith("f.json: not a folder")
