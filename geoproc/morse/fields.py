@@ -21,10 +21,20 @@ CURVATURES = ("mean-curvature", "gaussian-curvature")
 def mean_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n,) mean curvature (k1 + k2) / 2 per vertex, in 1/length, from libigl's
     quadric-fitting principal curvatures (``igl.principal_curvature``, its
-    sign convention)."""
+    sign convention: positive on a sphere whose faces wind outwards).
+
+    The faces are first turned to agree with their neighbours, each connected
+    part keeping the winding of most of its faces
+    (:func:`geoproc.mesh.orientation.consistent_orientation`): the fit reads
+    the sign from each face's winding, and an icosphere with 30 % of its
+    faces stored the other way round read from -7.3 to 4.5 for 1.10 to 1.12.
+    """
     import igl
 
-    _, _, k1, k2, _ = igl.principal_curvature(np.ascontiguousarray(V), np.ascontiguousarray(F))
+    from geoproc.mesh.orientation import consistent_orientation
+
+    Fo = consistent_orientation(F)[0]
+    _, _, k1, k2, _ = igl.principal_curvature(np.ascontiguousarray(V), np.ascontiguousarray(Fo))
     return 0.5 * (np.asarray(k1) + np.asarray(k2))
 
 
