@@ -334,16 +334,20 @@ def _robust_trajectory_fit(X: np.ndarray, B: np.ndarray, w: np.ndarray, c: float
     X : (n, T, 3) trajectories; B : (T, 3, r) orthonormal basis of trajectories
     (a row of the animation matrix is ``C_p B``); w : (n, T) initial weights.
     Returns the fitted (n, T, 3) trajectories and the (n, T) residual norms.
+
+    The products are einsum's own loops, not BLAS: OpenBLAS's ``w @ outer``
+    gave other last bits with two threads than with one (12 elephant frames,
+    6,034 points: 499 refined coordinates moved by up to 9e-14).
     """
     r = B.shape[2]
     outer = np.einsum("tcr,tcs->trs", B, B).reshape(len(B), r * r)  # (T, r*r)
     fit = X
     res = np.zeros(X.shape[:2])
     for _ in range(iterations):
-        G = (w @ outer).reshape(-1, r, r) + 1e-12 * np.eye(r)
-        rhs = np.tensordot(w[:, :, None] * X, B, axes=([1, 2], [0, 1]))  # (n, r)
+        G = np.einsum("nt,tk->nk", w, outer).reshape(-1, r, r) + 1e-12 * np.eye(r)
+        rhs = np.einsum("ntc,tcr->nr", w[:, :, None] * X, B)  # (n, r)
         C = np.linalg.solve(G, rhs[:, :, None])[:, :, 0]
-        fit = np.tensordot(C, B, axes=([1], [2]))  # (n, T, 3)
+        fit = np.einsum("nr,tcr->ntc", C, B)  # (n, T, 3)
         res = np.linalg.norm(X - fit, axis=2)
         w = 1.0 / (1.0 + (res / c) ** 2)
     return fit, res
