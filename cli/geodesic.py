@@ -12,7 +12,15 @@ import typer
 
 from geoproc.errors import InputError, UsageError
 from geoproc.fileio import read_input_bytes
-from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, LAPLACIANS, METHODS, OPERATORS, SOLVERS
+from geoproc.geodesic.names import (
+    DEFAULT_LAPLACIAN,
+    DEFAULT_OPERATORS,
+    HEAT_UNDERFLOW,
+    LAPLACIANS,
+    METHODS,
+    OPERATORS,
+    SOLVERS,
+)
 from geoproc_cli.common import (
     LOAD_METRICS,
     CheckOpt,
@@ -39,7 +47,8 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "method", "vertices", "faces", "sources", "mean_edge_length", "t", "t_over_h2", "steps",
     "reachable_vertices", "unreachable_vertices", "nonfinite_distance_vertices", "max_distance", "mean_distance",
     "negative_distance_vertices", "operators", "zero_heat_vertices", "negative_heat_vertices",
-    "solver_inaccurate_steps", "iterations", "min_log_heat", "log_heat_below_double", "nonfinite_log_heat",
+    "heat_step_in_log_domain", "solver_inaccurate_steps", "iterations", "min_log_heat", "log_heat_below_double",
+    "nonfinite_log_heat",
 )
 """Every metric ``geodesic`` can report (which ones a run reports depends on its method and options)."""
 TEXT_METRICS = ("method", "operators")
@@ -51,6 +60,7 @@ UNSTEPPED = ("exact", "heat")
 Laplacian = StrEnum("Laplacian", {name.replace("-", "_"): name for name in LAPLACIANS})
 Operators = StrEnum("Operators", {name: name for name in OPERATORS})
 Solver = StrEnum("Solver", {name: name for name in SOLVERS})
+HeatUnderflow = StrEnum("HeatUnderflow", {name.replace("-", "_"): name for name in HEAT_UNDERFLOW})
 
 
 class Reference(StrEnum):
@@ -120,6 +130,12 @@ def geodesic(
                          show_default=False)] = None,
     solver: Annotated[Solver, typer.Option("--solver", help="log-ode solver: lu (log-space LU, fast), "
                       "newton, or cvxpy (Clarabel; reference, slow).")] = Solver.lu,
+    heat_underflow: Annotated[HeatUnderflow, typer.Option("--heat-underflow", help="-m heat: where the heat "
+                              "step's u underflows to 0 at a vertex connected to a source (a fine mesh, a short "
+                              "time), log-domain solves that step again in the log domain (log-heat's solver, "
+                              "one step; the same distances to rounding where u is representable) and keep "
+                              "keeps the plain step's result (no direction where u is 0).")]
+    = HeatUnderflow.log_domain,
     reference: Annotated[Reference | None, typer.Option("--reference", help="Compare with exact "
                          "geodesics: pearson_r, rmse, mae, mean/max_relative_error in the report.",
                          show_default=False)] = None,
@@ -149,6 +165,7 @@ def geodesic(
         "laplacian": laplacian.value if laplacian else DEFAULT_LAPLACIAN.get(m_name),
         "operators": operators.value if operators else DEFAULT_OPERATORS.get(m_name),
         "solver": solver.value if m_name == "log-ode" else None,  # the only method that solves with it
+        "heat_underflow": heat_underflow.value if m_name == "heat" else None,
         "reference": reference.value if reference else None,
         "field_name": field_name, "render": render, "clean": not no_clean,
     }
@@ -183,7 +200,8 @@ def geodesic(
             res = geodesic_distance(m.V, m.F, srcs, m_name, time_factor=time_factor, time=time,
                                     steps=steps, laplacian=laplacian.value if laplacian else None,
                                     solver=solver.value, operators=operators.value if operators else None,
-                                    path=m.log.path, progress=update, also_exact=reference is not None)
+                                    path=m.log.path, progress=update, also_exact=reference is not None,
+                                    heat_underflow=heat_underflow.value)
         run.timings["setup"] = res.timings.get("setup", 0.0)
         run.timings["solve"] = res.timings.get("solve", 0.0)
         d = res.distance
@@ -210,6 +228,12 @@ def geodesic(
         for key in ("zero_heat_vertices", "log_heat_below_double"):
             if res.stats.get(key):
                 what = "heat u underflowed to 0" if key == "zero_heat_vertices" else "exp(log u) < 5e-324"
+                if res.stats.get("heat_step_in_log_domain"):
+                    what += ": the heat step was solved again in the log domain (--heat-underflow keep: the plain step)"
+                elif m_name == "heat" and heat_underflow.value == "log-domain":
+                    what += " (the log domain needs non-negative weights: their directions are lost)"
+                elif m_name == "heat":
+                    what += " (their directions are lost; --heat-underflow log-domain keeps them)"
                 run.note(f"{res.stats[key]} vertices where {what}")
         if res.stats.get("solver_inaccurate_steps"):
             run.note(f"Clarabel ended {res.stats['solver_inaccurate_steps']} of the {steps} steps short of its "
@@ -247,6 +271,7 @@ METHOD_METRICS = (
      tuple(m for m in METHODS if m not in UNSTEPPED), ("steps",)),
     ("-m heat or log-heat", ("heat", "log-heat"), ("negative_distance_vertices", "operators")),
     ("-m heat or varadhan", ("heat", "varadhan"), ("zero_heat_vertices", "negative_heat_vertices")),
+    ("-m heat", ("heat",), ("heat_step_in_log_domain",)),
     ("-m log-splitting, log-ode or log-heat", ("log-splitting", "log-ode", "log-heat"),
      ("min_log_heat", "log_heat_below_double", "nonfinite_log_heat")),
     ("-m log-ode --solver lu or newton", ("log-ode lu", "log-ode newton"), ("iterations",)),
@@ -278,6 +303,8 @@ def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | Non
         refuse_options(ctx, ("steps",), f"not used by -m {method} (no time stepping)")
     if method != "log-ode":
         refuse_options(ctx, ("solver",), "only with -m log-ode")
+    if method != "heat":
+        refuse_options(ctx, ("heat_underflow",), "only with -m heat")
     if method not in ("heat", "log-heat"):
         refuse_options(ctx, ("operators",), "only with -m heat or -m log-heat")
     if operators == "intrinsic":

@@ -10,7 +10,15 @@ import numpy as np
 
 from geoproc.errors import InputError, UsageError, shown_number
 from geoproc.geodesic.intrinsic import POISSON_NEEDLE_ANGLE
-from geoproc.geodesic.names import DEFAULT_LAPLACIAN, DEFAULT_OPERATORS, LAPLACIANS, METHODS, OPERATORS, SOLVERS
+from geoproc.geodesic.names import (
+    DEFAULT_LAPLACIAN,
+    DEFAULT_OPERATORS,
+    HEAT_UNDERFLOW,
+    LAPLACIANS,
+    METHODS,
+    OPERATORS,
+    SOLVERS,
+)
 from geoproc.geodesic.operators import laplacian_and_mass
 from geoproc.mesh.topology import face_areas, mean_edge_length, referenced_vertices, vertex_components
 from geoproc.mesh.validate import mesh_arrays, require_edge_manifold, require_manifold
@@ -141,7 +149,8 @@ def source_submesh(V: np.ndarray, F: np.ndarray, sources: np.ndarray):
 def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat", *,
                       time_factor: float | None = 1.0, time: float | None = None, steps: int = 1,
                       laplacian: str | None = None, solver: str = "lu", operators: str | None = None,
-                      path: str | None = None, progress=None, also_exact: bool = False) -> GeodesicResult:
+                      path: str | None = None, progress=None, also_exact: bool = False,
+                      heat_underflow: str = "log-domain") -> GeodesicResult:
     """Geodesic distance from ``sources`` by ``method`` (see :data:`METHODS`).
 
     Parameters
@@ -177,6 +186,16 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         Also check, before solving, that the mesh suits ``exact`` (the command
         line's ``--reference exact``, named so in the error), so that the exact
         reference computed afterwards cannot fail on it after this solve.
+    heat_underflow : {"log-domain", "keep"}
+        ``heat`` only: where the heat step's u underflows to 0 at a vertex
+        connected to a source (a mesh many edges across for ``sqrt(t)``: the
+        heat of one step decays by about e per edge at t = h^2), solve that
+        step again in the log domain (:class:`~geoproc.geodesic.log_heat.LogHeatSolver`
+        with one step, on the same operators: the same distances to rounding
+        where u is representable, and a direction where it is not;
+        ``stats["heat_step_in_log_domain"]``), or keep the plain step's result,
+        whose direction is 0/0 there (a 1,200 × 3 strip from one end: largest
+        distance 430 for 1,200).
 
     For the Poisson-based methods (:data:`POISSON_METHODS`) the distances are
     set to 0 at the sources and clipped at 0 from below
@@ -188,6 +207,8 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         raise UsageError(f"--steps must be at least 1, got {steps}")
     if solver not in SOLVERS:
         raise UsageError(f"unknown solver '{solver}'; choose one of {', '.join(SOLVERS)}")
+    if heat_underflow not in HEAT_UNDERFLOW:
+        raise UsageError(f"unknown heat underflow rule '{heat_underflow}'; choose one of {', '.join(HEAT_UNDERFLOW)}")
     if operators is not None and operators not in OPERATORS:
         raise UsageError(f"unknown operators '{operators}'; choose one of {', '.join(OPERATORS)}")
     if laplacian is not None and laplacian not in LAPLACIANS:
@@ -213,7 +234,8 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     timings: dict = {}
     t0 = _now()
     try:
-        d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops)
+        d2 = _run_method(method, V2, F2, s2, t, steps, lap, solver, stats, timings, progress, path, ops,
+                         heat_underflow)
     except InputError as exc:  # raised by a solver, which does not know the file
         if getattr(exc, "vertex", None) is not None:
             # log_ode.UnweightedVertexError names a vertex of the part connected to a
@@ -327,7 +349,8 @@ def _now() -> float:
     return time.perf_counter()
 
 
-def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progress, path=None, ops=None):
+def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progress, path=None, ops=None,
+                heat_underflow="log-domain"):
     if method == "exact":
         from geoproc.geodesic.exact import exact_geodesic_distance
 
@@ -343,9 +366,12 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         _refuse_needles_if_extrinsic(V, F, method, lap, ops, hs.operators, path)
         a = _now()
         d, u = hs.solve(src)
-        timings["solve"] = _now() - a
         stats["zero_heat_vertices"] = int((u == 0).sum())
         stats["negative_heat_vertices"] = int((u < 0).sum())
+        stats["heat_step_in_log_domain"] = False
+        if stats["zero_heat_vertices"] and heat_underflow == "log-domain":
+            d = _heat_step_in_log_domain(V, F, src, t, lap, hs, d, stats)
+        timings["solve"] = _now() - a
         return d
     if method == "log-heat":
         from geoproc.geodesic.log_heat import LogHeatSolver
@@ -399,6 +425,22 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         _log_stats(w, stats)
         return d
     raise AssertionError(method)
+
+
+def _heat_step_in_log_domain(V, F, src, t, lap, hs, d, stats):
+    """The heat method's distance with its heat step solved in the log domain
+    (one step of :class:`~geoproc.geodesic.log_heat.LogHeatSolver` on the
+    operators of ``hs``, a :class:`~geoproc.geodesic.heat.HeatMethodSolver`);
+    ``d``, the plain step's, where the log ODE does not apply (negative cotan
+    weights)."""
+    from geoproc.geodesic.log_heat import LogHeatSolver
+
+    try:
+        ls = LogHeatSolver(V, F, t, 1, lap, ops=hs.ops)
+    except InputError:
+        return d
+    stats["heat_step_in_log_domain"] = True
+    return ls.solve(src)[0]
 
 
 def _log_stats(w: np.ndarray, stats: dict) -> None:

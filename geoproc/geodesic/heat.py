@@ -49,6 +49,7 @@ class HeatMethodSolver:
                  operators: str = "auto"):
         self.n = len(V)
         ops = heat_operators(V, F, laplacian, operators)
+        self.ops = ops
         self.operators, self.axes = ops.kind, len(ops.coef)
         self.G, self.D, self.poisson, self.F = ops.G, ops.D, ops.poisson, ops.F
         self.M = ops.M

@@ -32,7 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoproc.errors import InputError
-from geoproc.geodesic.heat_operators import heat_operators
+from geoproc.geodesic.heat_operators import HeatOperators, heat_operators
 from geoproc.geodesic.log_ode import LogODESolver, negative_weight_problem, off_diagonal_weights
 from geoproc.mesh.topology import boundary_vertices
 
@@ -109,12 +109,19 @@ class LogHeatSolver:
         or at least :data:`~geoproc.geodesic.intrinsic.NEGATIVE_WEIGHT_SHARE`
         of the cotan Laplacian's off-diagonal weight is negative.
         The choice made is in ``self.operators``.
+    ops : HeatOperators, optional
+        :func:`~geoproc.geodesic.heat_operators.heat_operators` of this mesh
+        with these ``laplacian``, ``operators`` and ``poisson``, when the
+        caller has them (the heat method re-solving its step in the log
+        domain); built here otherwise.
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, t: float, steps: int = 1,
                  laplacian: str = "intrinsic-delaunay", direction: str = "heat",
-                 boundary: str = "average", poisson: str = "cotan", operators: str = "auto"):
-        ops = heat_operators(V, F, laplacian, operators, poisson, compiled=True)
+                 boundary: str = "average", poisson: str = "cotan", operators: str = "auto",
+                 ops: HeatOperators | None = None):
+        if ops is None:
+            ops = heat_operators(V, F, laplacian, operators, poisson, compiled=True)
         L, M = ops.L, ops.M  # non-negative weights with intrinsic operators, as the log-ODE needs
         problem = negative_weight_problem(L, cotan=laplacian == "cotan" and ops.kind == "extrinsic")
         if problem:  # an InputError without the path: geodesic_distance names the mesh

@@ -395,18 +395,24 @@ def test_varadhan_infinities_on_a_connected_mesh_are_noted(cli, fixture_dir, tmp
 
 def test_tiny_time_on_armadillo(cli, shared_data, tmp_path):
     """t = 1e-4 h^2: u underflows for heat and varadhan (the report counts it),
-    while log-ode and log-heat stay finite everywhere."""
+    while log-ode and log-heat stay finite everywhere; heat solves its step
+    again in the log domain unless told to keep the plain one."""
     import geoproc.geodesic as gd
 
     mesh = shared_data / "meshes" / "armadillo.obj"
     out, rep = tmp_path / "heat.ply", tmp_path / "heat.json"
-    p = cli("geodesic", mesh, "-s", "0", "-m", "heat", "--time-factor", "1e-4", "-o", out,
-            "--report", rep)
+    p = cli("geodesic", mesh, "-s", "0", "-m", "heat", "--time-factor", "1e-4", "--heat-underflow", "keep",
+            "-o", out, "--report", rep)
     assert p.returncode == 0, p.stderr
     met = _report(rep)["metrics"]
     n = met["vertices"]
-    assert met["zero_heat_vertices"] > n // 2
+    assert met["zero_heat_vertices"] > n // 2 and met["heat_step_in_log_domain"] is False
     assert f"{met['zero_heat_vertices']} vertices where heat u underflowed to 0" in p.stderr
+    fixed = tmp_path / "fixed.ply"
+    p = cli("geodesic", mesh, "-s", "0", "-m", "heat", "--time-factor", "1e-4", "-o", fixed, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    assert _report(rep)["metrics"]["heat_step_in_log_domain"] is True
+    assert "solved again in the log domain" in p.stderr
     m = load_mesh(mesh)
     run = {k: gd.geodesic_distance(m.V, m.F, [0], k, time_factor=1e-4)
            for k in ("varadhan", "log-ode", "log-heat")}
@@ -422,6 +428,8 @@ def test_tiny_time_on_armadillo(cli, shared_data, tmp_path):
     euclid = np.linalg.norm(m.V - m.V[0], axis=1)
     assert np.corrcoef(run["log-heat"].distance, euclid)[0, 1] > 0.9
     assert np.corrcoef(load_mesh(out).vertex_fields["distance"], euclid)[0, 1] < 0.6  # measured 0.51
+    np.testing.assert_allclose(load_mesh(fixed).vertex_fields["distance"], run["log-heat"].distance,
+                               rtol=0, atol=1e-9 * run["log-heat"].distance.max())
 
 
 @pytest.mark.slow

@@ -1492,3 +1492,33 @@ def test_a_moebius_band_with_obtuse_boundary_angles_keeps_the_intrinsic_operator
         res = gd.geodesic_distance(V, F, [3], method=method, operators="intrinsic")
         assert res.stats["operators"] == "intrinsic"
         assert np.isfinite(res.distance).all() and res.stats.get("negative_heat_vertices", 0) == 0
+
+
+def _strip(length: int, width: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """A flat strip of length x width unit squares, two triangles each."""
+    i, j = np.meshgrid(np.arange(length + 1), np.arange(width + 1), indexing="ij")
+    V = np.column_stack([i.ravel(), j.ravel(), np.zeros(i.size)]).astype(float)
+    a, b = np.meshgrid(np.arange(length), np.arange(width), indexing="ij")
+    c = (a * (width + 1) + b).ravel()
+    F = np.concatenate([np.column_stack([c, c + width + 1, c + width + 2]),
+                        np.column_stack([c, c + width + 2, c + 1])])
+    return V, F
+
+
+def test_heat_that_underflows_is_solved_in_the_log_domain():
+    # at t = h^2 one backward-Euler step's heat falls by about e per edge: 1,200 edges
+    # from the source it is 0 in double precision, the direction 0/0 there, and the plain
+    # heat method's largest distance on this strip was 430 for 1,200
+    V, F = _strip(1200)
+    exact = np.linalg.norm(V - V[0], axis=1)  # a flat convex strip: the straight line
+    res = gd.geodesic_distance(V, F, [0], "heat")
+    assert res.stats["zero_heat_vertices"] > 1000 and res.stats["heat_step_in_log_domain"]
+    assert np.abs(res.distance - exact).max() < 1e-3 * exact.max()
+    plain = gd.geodesic_distance(V, F, [0], "heat", heat_underflow="keep")
+    assert not plain.stats["heat_step_in_log_domain"] and plain.distance.max() < 0.5 * exact.max()
+    # where nothing underflows the plain step is kept, bit for bit
+    short = _strip(100)
+    a = gd.geodesic_distance(*short, [0], "heat")
+    assert a.stats["zero_heat_vertices"] == 0 and not a.stats["heat_step_in_log_domain"]
+    kept = gd.geodesic_distance(*short, [0], "heat", heat_underflow="keep")
+    np.testing.assert_array_equal(a.distance, kept.distance)
