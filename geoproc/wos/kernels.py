@@ -91,29 +91,48 @@ def segment_angle_kernel(X: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndar
     return np.arctan2(ax * by - ay * bx, ax * bx + ay * by)
 
 
+ELEMENT_BLOCK = 1 << 21
+"""Point-element pairs evaluated at once by :func:`kernel_matrix` and
+:func:`kernel_normal_matrix` (16 MB per array): an angle kernel has one
+element per boundary segment, and all pairs at once had taken 11 GB for
+640 fit points on a 320,000-segment domain."""
+
+
+def _sum_over_elements(n: int, ks: KernelSet, elements) -> np.ndarray:
+    """(n, M): ``elements(lo, hi)``, the (n, hi - lo) values of elements lo to hi
+    at n points, summed into their kernels' columns, a block of elements at a
+    time (in element order, as one ``np.add.at`` over all of them adds)."""
+    Phi = np.zeros((n, ks.M))
+    count = len(ks.col)
+    block = max(1, ELEMENT_BLOCK // max(n, 1))
+    for lo in range(0, count, block):
+        hi = min(lo + block, count)
+        np.add.at(Phi.T, ks.col[lo:hi], elements(lo, hi).T)
+    return Phi
+
+
 def kernel_matrix(X: np.ndarray, ks: KernelSet) -> np.ndarray:
     """Design matrix (n, M): every kernel of ``ks`` at the points X (n, 2)."""
-    elem = green_kernel(X, ks.P) if ks.kind == GREEN else segment_angle_kernel(X, ks.P, ks.Q)
-    Phi = np.zeros((len(X), ks.M))
-    np.add.at(Phi.T, ks.col, elem.T)
-    return Phi
+    if ks.kind == GREEN:
+        return _sum_over_elements(len(X), ks, lambda lo, hi: green_kernel(X, ks.P[lo:hi]))
+    return _sum_over_elements(len(X), ks, lambda lo, hi: segment_angle_kernel(X, ks.P[lo:hi], ks.Q[lo:hi]))
 
 
 def kernel_normal_matrix(X: np.ndarray, N: np.ndarray, ks: KernelSet) -> np.ndarray:
     """Normal derivatives (n, M): the gradient of every kernel at X (n, 2) dotted with N (n, 2)."""
-    if ks.kind == GREEN:
-        D = X[:, None, :] - ks.P[None, :, :]
+    def green(lo, hi):
+        D = X[:, None, :] - ks.P[None, lo:hi, :]
         r2 = (D**2).sum(axis=-1)
-        elem = -(D * N[:, None, :]).sum(axis=-1) / (2 * np.pi * r2)
-    else:
-        def darg(Q):  # gradient in x of arg(q - x): (v_y, -v_x) / |v|^2, v = q - x
-            v = Q[None, :, :] - X[:, None, :]
-            r2 = (v**2).sum(axis=-1)
-            return (v[..., 1] * N[:, None, 0] - v[..., 0] * N[:, None, 1]) / r2
-        elem = darg(ks.Q) - darg(ks.P)
-    Phi = np.zeros((len(X), ks.M))
-    np.add.at(Phi.T, ks.col, elem.T)
-    return Phi
+        return -(D * N[:, None, :]).sum(axis=-1) / (2 * np.pi * r2)
+
+    def darg(Q):  # gradient in x of arg(q - x): (v_y, -v_x) / |v|^2, v = q - x
+        v = Q[None, :, :] - X[:, None, :]
+        r2 = (v**2).sum(axis=-1)
+        return (v[..., 1] * N[:, None, 0] - v[..., 0] * N[:, None, 1]) / r2
+
+    if ks.kind == GREEN:
+        return _sum_over_elements(len(X), ks, green)
+    return _sum_over_elements(len(X), ks, lambda lo, hi: darg(ks.Q[lo:hi]) - darg(ks.P[lo:hi]))
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
