@@ -3,7 +3,6 @@ topological simplification of a vertex function on a surface mesh."""
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Annotated
 
@@ -14,7 +13,7 @@ from geoproc.errors import UsageError
 from geoproc.fileio import read_input_bytes
 from geoproc.mesh import Mesh
 from geoproc.mesh.validate import require_manifold, require_triangle_mesh
-from geoproc.report import json_safe
+from geoproc.report import json_bytes
 from geoproc_cli.common import (
     LOAD_METRICS,
     CheckOpt,
@@ -204,7 +203,7 @@ def morse_simplify(
             if barycentric:  # which mesh cell each subdivision vertex stands for
                 for row in doc["after"]:
                     row["mesh_cell"] = mesh_cell(res, m.F, row["vertex"])
-            run.write_bytes(critical, json.dumps(json_safe(doc)).encode())
+            run.write_bytes(critical, json_bytes(doc))
         if diagram is not None:
             with run.timer("diagram"):
                 png = persistence_diagram_png(before, after, threshold,

@@ -1,12 +1,13 @@
 """Metric reports (``--report``) and metric gates (``--check``)."""
 
 from geoproc.report.checks import Check, evaluate_checks, parse_check, require_known_metrics
-from geoproc.report.report import build_report, json_safe, report_schema, validate_report
+from geoproc.report.report import build_report, json_bytes, json_safe, report_schema, validate_report
 
 __all__ = [
     "Check",
     "build_report",
     "evaluate_checks",
+    "json_bytes",
     "json_safe",
     "parse_check",
     "report_schema",

@@ -25,8 +25,13 @@ import geoproc
 
 def json_safe(value):
     """Convert numpy scalars/arrays, tuples and non-finite floats for JSON."""
+    kind = type(value)  # the plain types first: a critical-cell table holds millions of them
+    if kind is int or kind is str or kind is bool or value is None:
+        return value
+    if kind is float:
+        return value if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {str(k): json_safe(v) for k, v in value.items()}
+        return {k if type(k) is str else str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [json_safe(v) for v in value]
     if isinstance(value, np.ndarray):
@@ -39,6 +44,26 @@ def json_safe(value):
         v = float(value)
         return v if math.isfinite(v) else None
     return value
+
+
+def json_bytes(value) -> bytes:
+    """``value`` as compact JSON (UTF-8), converted as :func:`json_safe` does.
+
+    A document of plain finite numbers, strings, lists and dicts (a
+    critical-cell table of a large mesh: millions of entries) goes straight to
+    the C encoder, numpy scalars and arrays through its ``default``; only a
+    document with a non-finite float is walked by :func:`json_safe` first.
+    """
+    def plain(v):
+        if isinstance(v, np.ndarray | np.generic | tuple):
+            return json_safe(v)
+        raise TypeError(f"{type(v).__name__} is not JSON serializable")
+
+    try:
+        text = json.dumps(value, allow_nan=False, default=plain)
+    except ValueError:  # a non-finite float: stored as null
+        text = json.dumps(json_safe(value))
+    return text.encode()
 
 
 def build_report(

@@ -155,3 +155,20 @@ def test_a_space_inside_an_operator_is_named(text, op):
     with pytest.raises(UsageError) as err:
         parse_check(text)
     assert str(err.value) == f"--check '{text}': a space splits the operator '{op}'; write it without one"
+
+
+def test_json_bytes_writes_what_json_safe_gives():
+    # the C encoder straight away for plain documents (a critical-cell table of a
+    # 170k-vertex mesh had spent 1.6 s in json_safe's walk), json_safe's walk when a
+    # float is not finite; the same text either way
+    from geoproc.report import json_bytes, json_safe
+
+    docs = [
+        {"a": [1, 2.5, "x", None, True], "b": {"c": (1, 2)}},
+        {"n": np.int64(3), "f": np.float32(0.25), "d": np.float64(1.5), "t": np.bool_(True),
+         "arr": np.arange(3), 7: "key"},
+        {"bad": [float("nan"), 1.0, np.float64(np.inf)], "ok": np.array([1.0, -np.inf])},
+    ]
+    for doc in docs:
+        assert json_bytes(doc) == json.dumps(json_safe(doc)).encode()
+    assert json.loads(json_bytes(docs[2])) == {"bad": [None, 1.0, None], "ok": [1.0, None]}
