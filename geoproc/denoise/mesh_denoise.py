@@ -81,9 +81,9 @@ FEATURE_METHODS = ("l1", "dihedral", "none")
 # the last round of the automatic strong schedule on finely meshed surfaces:
 # extra guided passes with this narrower range kernel (see denoise_mesh)
 FINE_FINAL_PASSES = 2
+FINE_FINAL_SIGMA_R = 0.2
 # the share of denoise_mesh's progress taken by the noise and shape estimates
 ESTIMATE_SHARE = 0.3
-FINE_FINAL_SIGMA_R = 0.2
 
 
 def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low: float) -> dict:
