@@ -47,8 +47,8 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "method", "vertices", "faces", "sources", "mean_edge_length", "t", "t_over_h2", "steps",
     "reachable_vertices", "unreachable_vertices", "nonfinite_distance_vertices", "max_distance", "mean_distance",
     "negative_distance_vertices", "operators", "zero_heat_vertices", "negative_heat_vertices",
-    "heat_step_in_log_domain", "solver_inaccurate_steps", "iterations", "min_log_heat", "log_heat_below_double",
-    "nonfinite_log_heat",
+    "underflow_heat_vertices", "heat_step_in_log_domain", "solver_inaccurate_steps", "iterations", "min_log_heat",
+    "log_heat_below_double", "nonfinite_log_heat",
 )
 """Every metric ``geodesic`` can report (which ones a run reports depends on its method and options)."""
 TEXT_METRICS = ("method", "operators")
@@ -225,15 +225,19 @@ def geodesic(
             run.note(f"--laplacian {laplacian.value} not used: --operators auto chose the intrinsic operators "
                      "on this mesh (slivers or strongly non-Delaunay triangles); give --operators extrinsic "
                      "to use it")
+        if m_name == "heat" and res.stats.get("underflow_heat_vertices"):
+            what = (f"{res.stats['underflow_heat_vertices']} vertices where heat u underflowed below the smallest "
+                    f"normal double ({res.stats['zero_heat_vertices']} to 0)")
+            if res.stats["heat_step_in_log_domain"]:
+                what += ": the heat step was solved again in the log domain (--heat-underflow keep: the plain step)"
+            elif heat_underflow.value == "log-domain":
+                what += "; the log domain needs non-negative weights: their directions may be lost"
+            else:
+                what += "; their directions may be lost (--heat-underflow log-domain keeps them)"
+            run.note(what)
         for key in ("zero_heat_vertices", "log_heat_below_double"):
-            if res.stats.get(key):
+            if res.stats.get(key) and m_name != "heat":
                 what = "heat u underflowed to 0" if key == "zero_heat_vertices" else "exp(log u) < 5e-324"
-                if res.stats.get("heat_step_in_log_domain"):
-                    what += ": the heat step was solved again in the log domain (--heat-underflow keep: the plain step)"
-                elif m_name == "heat" and heat_underflow.value == "log-domain":
-                    what += " (the log domain needs non-negative weights: their directions are lost)"
-                elif m_name == "heat":
-                    what += " (their directions are lost; --heat-underflow log-domain keeps them)"
                 run.note(f"{res.stats[key]} vertices where {what}")
         if res.stats.get("solver_inaccurate_steps"):
             run.note(f"Clarabel ended {res.stats['solver_inaccurate_steps']} of the {steps} steps short of its "
@@ -271,7 +275,7 @@ METHOD_METRICS = (
      tuple(m for m in METHODS if m not in UNSTEPPED), ("steps",)),
     ("-m heat or log-heat", ("heat", "log-heat"), ("negative_distance_vertices", "operators")),
     ("-m heat or varadhan", ("heat", "varadhan"), ("zero_heat_vertices", "negative_heat_vertices")),
-    ("-m heat", ("heat",), ("heat_step_in_log_domain",)),
+    ("-m heat", ("heat",), ("underflow_heat_vertices", "heat_step_in_log_domain")),
     ("-m log-splitting, log-ode or log-heat", ("log-splitting", "log-ode", "log-heat"),
      ("min_log_heat", "log_heat_below_double", "nonfinite_log_heat")),
     ("-m log-ode --solver lu or newton", ("log-ode lu", "log-ode newton"), ("iterations",)),

@@ -187,9 +187,11 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         line's ``--reference exact``, named so in the error), so that the exact
         reference computed afterwards cannot fail on it after this solve.
     heat_underflow : {"log-domain", "keep"}
-        ``heat`` only: where the heat step's u underflows to 0 at a vertex
-        connected to a source (a mesh many edges across for ``sqrt(t)``: the
-        heat of one step decays by about e per edge at t = h^2), solve that
+        ``heat`` only: where the heat step's u falls below the smallest normal
+        double (2.2e-308; ``stats["underflow_heat_vertices"]``, zeros included)
+        at a vertex connected to a source (a mesh many edges across for
+        ``sqrt(t)``: the heat of one step decays by about e per edge at t =
+        h^2), solve that
         step again in the log domain (:class:`~geoproc.geodesic.log_heat.LogHeatSolver`
         with one step, on the same operators: the same distances to rounding
         where u is representable, and a direction where it is not;
@@ -368,8 +370,10 @@ def _run_method(method, V, F, src, t, steps, lap, solver, stats, timings, progre
         d, u = hs.solve(src)
         stats["zero_heat_vertices"] = int((u == 0).sum())
         stats["negative_heat_vertices"] = int((u < 0).sum())
+        # below the smallest normal double u keeps fewer digits, down to none at 0
+        stats["underflow_heat_vertices"] = int((np.abs(u) < np.finfo(np.float64).tiny).sum())
         stats["heat_step_in_log_domain"] = False
-        if stats["zero_heat_vertices"] and heat_underflow == "log-domain":
+        if stats["underflow_heat_vertices"] and heat_underflow == "log-domain":
             d = _heat_step_in_log_domain(V, F, src, t, lap, hs, d, stats)
         timings["solve"] = _now() - a
         return d

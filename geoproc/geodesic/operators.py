@@ -397,12 +397,33 @@ def face_to_vertex_average(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix(sp.diags(1.0 / s) @ A)
 
 
+SQUARE_SAFE_LOW = 1e-140
+"""A row length above this has squares far from underflow (1e-280 against 2.2e-308)."""
+
+
 def normalized_direction(X: np.ndarray) -> np.ndarray:
-    """Rows of ``X`` (m, 3) scaled to unit length; zero (or non-finite) rows become 0."""
+    """Rows of ``X`` (m, k) scaled to unit length; zero (or non-finite) rows become 0.
+
+    Rows whose squared length leaves the double range (entries below about
+    1e-154, or above 1e154) are first divided by their largest entry: the
+    heat method's gradient far from the sources is that small while u is
+    still a normal double, and those faces had lost their direction (a
+    600-edge strip: largest distance 428 for 600).
+    """
     X = np.asarray(X, dtype=np.float64)
-    norm = np.sqrt(np.add.reduce(X * X, axis=1))  # np.linalg.norm's sum, without its checks
+    with np.errstate(over="ignore"):  # such rows are taken again below
+        norm = np.sqrt(np.add.reduce(X * X, axis=1))  # np.linalg.norm's sum, without its checks
     ok = np.isfinite(norm) & (norm > 0)
-    return np.divide(X, norm[:, None], out=np.zeros_like(X), where=ok[:, None])
+    out = np.divide(X, norm[:, None], out=np.zeros_like(X), where=ok[:, None])
+    rescale = ~(norm > SQUARE_SAFE_LOW) | (norm == np.inf)
+    if rescale.any():
+        Y = X[rescale]
+        top = np.max(np.abs(Y), axis=1)
+        fine = np.isfinite(top) & (top > 0)
+        Y = np.divide(Y, top[:, None], out=np.zeros_like(Y), where=fine[:, None])
+        length = np.sqrt(np.add.reduce(Y * Y, axis=1))
+        out[rescale] = np.divide(Y, length[:, None], out=np.zeros_like(Y), where=fine[:, None])
+    return out
 
 
 def factor_sparse(A: sp.spmatrix):

@@ -407,7 +407,8 @@ def test_tiny_time_on_armadillo(cli, shared_data, tmp_path):
     met = _report(rep)["metrics"]
     n = met["vertices"]
     assert met["zero_heat_vertices"] > n // 2 and met["heat_step_in_log_domain"] is False
-    assert f"{met['zero_heat_vertices']} vertices where heat u underflowed to 0" in p.stderr
+    assert (f"{met['underflow_heat_vertices']} vertices where heat u underflowed below the smallest normal double "
+            f"({met['zero_heat_vertices']} to 0)") in p.stderr
     fixed = tmp_path / "fixed.ply"
     p = cli("geodesic", mesh, "-s", "0", "-m", "heat", "--time-factor", "1e-4", "-o", fixed, "--report", rep)
     assert p.returncode == 0, p.stderr
@@ -427,7 +428,7 @@ def test_tiny_time_on_armadillo(cli, shared_data, tmp_path):
     # (the heat method's normalized gradient is 0/0 where u == 0)
     euclid = np.linalg.norm(m.V - m.V[0], axis=1)
     assert np.corrcoef(run["log-heat"].distance, euclid)[0, 1] > 0.9
-    assert np.corrcoef(load_mesh(out).vertex_fields["distance"], euclid)[0, 1] < 0.6  # measured 0.51
+    assert np.corrcoef(load_mesh(out).vertex_fields["distance"], euclid)[0, 1] < 0.75  # measured 0.67
     np.testing.assert_allclose(load_mesh(fixed).vertex_fields["distance"], run["log-heat"].distance,
                                rtol=0, atol=1e-9 * run["log-heat"].distance.max())
 
