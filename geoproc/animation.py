@@ -15,6 +15,7 @@ import hashlib
 import io
 import os
 import re
+import stat
 import zipfile
 from dataclasses import dataclass, field
 
@@ -121,7 +122,10 @@ def _npz_arrays(raw: bytes, name: str) -> tuple[dict[str, np.ndarray], list[str]
 
     ``vertices`` and ``faces`` must be numeric ``.npy`` members (InputError
     otherwise); any other member that is not one (a text file, an object array,
-    which would need unpickling) is left out, named with the reason.
+    which would need unpickling) is left out, named with the reason. A damaged
+    ``.npy`` member (fewer bytes than its header declares) is an InputError
+    whatever its name: a truncated ``outlier`` member had been left out as an
+    object array, and the outlier scores lost their precision and recall.
     """
     try:
         z = np.load(io.BytesIO(raw), allow_pickle=False)
@@ -138,12 +142,13 @@ def _npz_arrays(raw: bytes, name: str) -> tuple[dict[str, np.ndarray], list[str]
         for key in z.files:
             try:
                 arr = z[key]
-            except ValueError:  # an object array: numpy would have to unpickle it
-                arr = None
+            except ValueError as exc:
+                if "pickle" not in str(exc):  # fewer bytes than its header's shape: damaged, not left out
+                    raise InputError(name, f"member '{key}' is damaged ({_first_line(exc)})") from None
+                arr = None  # an object array: numpy would have to unpickle it
                 why = "an object array (pickled Python objects)"
-            except Exception as exc:  # a damaged member
-                arr = None
-                why = f"not readable ({type(exc).__name__})"
+            except Exception as exc:  # a damaged member: its data would be lost without a word
+                raise InputError(name, f"member '{key}' is damaged ({type(exc).__name__})") from None
             else:
                 why = "not a .npy array"
             if isinstance(arr, np.ndarray):
@@ -153,6 +158,12 @@ def _npz_arrays(raw: bytes, name: str) -> tuple[dict[str, np.ndarray], list[str]
             else:
                 skipped.append(f"{key} ({why})")
     return data, skipped
+
+
+def _first_line(exc: Exception) -> str:
+    """The first line of an exception's message, at most 200 characters."""
+    text = str(exc).strip().splitlines()
+    return (text[0] if text else type(exc).__name__)[:200]
 
 
 def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
@@ -177,6 +188,10 @@ def _load_frame_folder(name: str) -> Animation:
                     and not os.path.isdir(os.path.join(name, f))), key=natural_key)
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
+    for f in files:  # a pipe named like a frame had blocked the read, a link to /dev/zero filled the memory
+        if not stat.S_ISREG(os.stat(os.path.join(name, f)).st_mode):
+            raise InputError(os.path.join(name, f), "is not a regular file (a pipe or a device): a frame "
+                                                    "folder holds mesh files")
     frames, per_frame_fields, digests = [], [], []
     dropped: dict[str, None] = {}  # what a frame holds that the animation does not carry, in order seen
     F0 = None

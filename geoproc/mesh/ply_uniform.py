@@ -68,7 +68,8 @@ def parse_ply_header(data: bytes) -> tuple[str, list[PlyElementHeader], int] | N
     """The format (``ascii``, ``binary_little_endian``, ``binary_big_endian``),
     the elements and the offset of the body, or None when the header is not
     one this module reads (a list property outside the face element, two
-    lists in one element, duplicate names, an unknown type, CR line ends).
+    lists in one element, a list count of a float type, duplicate names, an
+    unknown type, CR line ends).
     """
     end = data.find(b"end_header\n")
     if not data.startswith(b"ply\n") or end < 0 or (end and data[end - 1:end] != b"\n"):
@@ -91,7 +92,8 @@ def parse_ply_header(data: bytes) -> tuple[str, list[PlyElementHeader], int] | N
         elif words[0] == "property" and elements and len(words) == 3 and words[1] in PLY_TYPES:
             elements[-1][2].append((words[2], PLY_TYPES[words[1]]))
         elif (words[0] == "property" and elements and len(words) == 5 and words[1] == "list"
-              and words[2] in PLY_TYPES and words[3] in PLY_TYPES and elements[-1][3] is None
+              and words[2] in PLY_TYPES and PLY_TYPES[words[2]][0] in "iu"
+              and words[3] in PLY_TYPES and elements[-1][3] is None
               and elements[-1][0] == "face" and words[4] in FACE_LISTS):
             elements[-1][3] = (PLY_TYPES[words[2]], PLY_TYPES[words[3]])
             elements[-1][4] = words[4]

@@ -433,6 +433,14 @@ def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
     cannot parse the file."""
     from plyfile import PlyData
 
+    # a list's count is its length: plyfile read an ASCII count of 3.99 under a float
+    # count type as 3 (the vectorized reader leaves such headers to this one)
+    head = data[:data.find(b"end_header")] if b"end_header" in data else b""
+    counted = re.search(rb"^property\s+list\s+(float|double|float32|float64)\s+\S+\s+(\S+)", head, re.M)
+    if counted:
+        raise InputError(path, f"PLY list property '{counted.group(2).decode('ascii', 'replace')}' has a count "
+                               f"of type {counted.group(1).decode()}: a list's count is its length, of an "
+                               "integer type (uchar, ushort, uint, int)")
     stream = _NonNegativeReads(data)
     try:
         with warnings.catch_warnings():  # plyfile warns (multi-line) about empty list rows
@@ -634,7 +642,10 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
     level = log.level
     log.setLevel(logging.CRITICAL + 1)
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh")
+        # trimesh computes face normals as it loads: an infinite corner makes numpy warn,
+        # and the finite check after loading names the vertex in one line
+        with np.errstate(invalid="ignore", over="ignore"):
+            loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh")
     except IndexError as exc:
         raise InputError(path, f"face index out of range ({_one_line(exc)})") from exc
     except Exception as exc:  # trimesh raises many types for malformed files
@@ -799,7 +810,8 @@ def _off_free_form(lines: list, nv: int, nf: int, per_vertex: int,
     if homogeneous:
         if (X[:, 3] == 0).any():
             return None
-        X = X[:, :3] / X[:, 3:4]
+        with np.errstate(over="ignore", invalid="ignore"):  # a w of 1e-320 overflows: the finite check names it
+            X = X[:, :3] / X[:, 3:4]
     cur, pos, nxt = rest, 0, row  # the values of the line being read, the next one to read, the next line
 
     def take(k: int) -> list | None:
@@ -847,7 +859,8 @@ def _off_vertices(lines: list, path: str, homogeneous: bool = False) -> np.ndarr
     zero = np.flatnonzero(X[:, 3] == 0)
     if len(zero):
         raise InputError(path, f"4OFF vertex {int(zero[0])} has w = 0 (a point at infinity)")
-    return X[:, :3] / X[:, 3:]
+    with np.errstate(over="ignore", invalid="ignore"):  # a w of 1e-320 overflows: the finite check names it
+        return X[:, :3] / X[:, 3:]
 
 
 def _off_triangles(lines: list) -> np.ndarray | None:

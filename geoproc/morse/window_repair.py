@@ -356,6 +356,9 @@ def repair_windows(g, f, P, want, cx, vf_ptr, vf_tri, max_windows: int = -1, rad
     (solved, rewritten) : tuple of int
         Windows solved and windows written back.
     """
+    with np.errstate(over="ignore"):
+        if not np.isfinite(float(np.ptp(f)) / P):  # a subnormal P: the field's range overflows in its units
+            return 0, 0
     half = P / 2.0
     tol = np.broadcast_to(half_bound_tolerance(f, half, slack), f.shape)
     kw = (cx.adj_ptr, cx.adj_nbr, vf_ptr, vf_tri, cx.F, cx.boundary)

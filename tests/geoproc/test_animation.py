@@ -122,3 +122,30 @@ def test_npz_face_index_just_out_of_range_is_refused(wave, tmp_path, bad):
                f"but there are {n} vertices (0-based)")
     with pytest.raises(InputError, match=re.escape(message)):
         load_animation(p)
+
+
+@pytest.mark.parametrize("member", ["vertices", "outlier"])
+def test_a_damaged_member_is_refused(wave, tmp_path, member):
+    # a .npy member cut short had been called an object array, and a cut 'outlier' member
+    # was left out: the outlier scores then had no precision, recall or F1, with exit 0
+    V, F = wave
+    arrays = {"vertices": V, "faces": F, "outlier": np.zeros(V.shape[:2])}
+    buf = io.BytesIO()
+    np.save(buf, arrays[member])
+    p = _npz(tmp_path / "a.npz", [(f"{member}.npy", buf.getvalue()[:-40])],
+             **{k: v for k, v in arrays.items() if k != member})
+    with pytest.raises(InputError, match=f"member '{member}' is damaged"):
+        load_animation(p)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "mkfifo"), reason="needs named pipes")
+def test_a_frame_that_is_not_a_regular_file_is_refused(wave, tmp_path):
+    # a pipe named like a frame had blocked the read until killed
+    import os
+
+    V, F = wave
+    for t in range(2):
+        save_mesh(tmp_path / f"f{t}.ply", Mesh(V[t], F))
+    os.mkfifo(tmp_path / "f9.ply")
+    with pytest.raises(InputError, match="f9.ply: is not a regular file"):
+        load_animation(tmp_path)

@@ -768,3 +768,25 @@ def test_binary_ply_bodies_are_never_read_as_text(tmp_path):
     for tail in (b"", b"\x00", b"\n\x00\x00"):
         m = read_mesh_bytes(head + V + F + tail, "ply", clean=False)
         assert m.V[0, 0] == np.float32(x) and m.F.tolist() == [[0, 1, 2]]
+
+
+@pytest.mark.parametrize("fmt, data, fragment", [
+    # x / w overflows: numpy's warning had come before the error line (three lines in all)
+    ("off", b"4OFF\n3 1 0\n0 0 0 1\n1 0 0 1e-320\n0 1 0 1\n3 0 1 2\n", "non-finite coordinates"),
+    ("off", b"4OFF 3 1 0 0 0 0 1 1 0 0 1e-320 0 1 0 1 3 0 1 2\n", "non-finite coordinates"),
+    # trimesh's face normals of an infinite corner: six lines of numpy warnings
+    ("stl", b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 1e400 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+            b"endloop\nendfacet\nendsolid t\n", "non-finite coordinates"),
+    # a list count of a float type: plyfile read a count of 3.99 as 3
+    ("ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            b"element face 1\nproperty list float int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n"
+            b"3.99 0 2 1\n", "has a count of type float"),
+])
+def test_malformed_numbers_are_one_error_without_warnings(fmt, data, fragment):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError) as err:
+            read_mesh_bytes(data, fmt, f"m.{fmt}")
+    assert fragment in err.value.problem
