@@ -9,7 +9,7 @@ per-vertex boundary values.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba
 import numpy as np
@@ -83,6 +83,13 @@ class Domain:
     @property
     def has_neumann(self) -> bool:
         return bool(self.neumann.any())
+
+    def translated(self, shift: np.ndarray) -> Domain:
+        """The same domain with every point moved by ``-shift`` (2,) (its segment
+        bands built again on first use)."""
+        shift = np.asarray(shift, dtype=np.float64)
+        return replace(self, loops=[L - shift for L in self.loops], A=self.A - shift, B=self.B - shift,
+                       _bands=None)
 
     def contains(self, P: np.ndarray) -> np.ndarray:
         """(n,) bool: points ``P`` (n, 2) inside (even-odd rule over all the

@@ -150,6 +150,22 @@ def _stack_depth(code: np.ndarray) -> int:
     return best
 
 
+def translated(expr: Expression, dx: float, dy: float) -> Expression | None:
+    """``expr`` as a function of coordinates relative to ``(dx, dy)``: every ``x``
+    becomes ``(x + dx)`` and every ``y`` ``(y + dy)``. None when that program
+    would need more than :data:`MAX_STACK` stack slots."""
+    code: list[int] = []
+    consts: list[float] = []
+    for op, c in zip(expr.code.tolist(), expr.consts.tolist(), strict=True):
+        code.append(op)
+        consts.append(c)
+        if op in (OP_X, OP_Y):
+            code += [OP_CONST, OP_ADD]
+            consts += [dx if op == OP_X else dy, 0.0]
+    out = Expression(expr.text, np.array(code, dtype=np.int64), np.array(consts, dtype=np.float64))
+    return out if _stack_depth(out.code) <= MAX_STACK else None
+
+
 def evaluate(expr: Expression, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Evaluate ``expr`` elementwise on arrays ``x``, ``y`` (same shape); float64 result."""
     x = np.asarray(x, dtype=np.float64)
