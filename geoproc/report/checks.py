@@ -137,7 +137,8 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
         elif not c.passes(measured):
             # every digit: 0.0376518 could hide a miss of <=0.037651843221598626; a count as the count
             raw = metrics[c.metric]
-            shown = raw if isinstance(raw, int) and not isinstance(raw, bool) else measured
+            # a count as the count, a flag as the flag (false had read 0.0)
+            shown = raw if isinstance(raw, int) else measured
             failures.append(f"check failed: {c.text} (measured: {shown!r})")
     return failures
 

@@ -146,6 +146,9 @@ def test_check_failures_show_every_digit_and_name_nulls():
                    "check failed: genus==0 (not measured in this run: null in the report)"]
     # a count is shown as the count (it read 'measured: 4.0')
     assert evaluate_checks([parse_check("genus==3")], {"genus": 4}) == ["check failed: genus==3 (measured: 4)"]
+    # and a flag as the flag (it read 'measured: 0.0')
+    assert evaluate_checks([parse_check("point_cloud==1")], {"point_cloud": False}) == [
+        "check failed: point_cloud==1 (measured: False)"]
 
 
 @pytest.mark.parametrize("text,op", [("vertices< =3485", "<="), ("x > =2", ">="), ("x < = 1", "<="),
