@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import unicodedata
 from typing import Annotated
 
 import typer
@@ -72,8 +73,11 @@ def info(
 
 
 def _table(name: str, s: dict) -> Table:
-    # names come from the file (its name, property names): shown as given, never read as markup
-    t = Table(title=Text(name), show_header=False, title_justify="left")
+    # names come from the file (its name, property names): shown as given, never read as markup;
+    # control characters escaped (a newline or an escape sequence in a file name reached the terminal)
+    shown = "".join(c.encode("unicode_escape").decode("ascii") if unicodedata.category(c) == "Cc" else c
+                    for c in name)
+    t = Table(title=Text(shown), show_header=False, title_justify="left")
     t.add_column("key", style="bold")
     t.add_column("value", justify="right")
     for k, v in s.items():
