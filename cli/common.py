@@ -88,6 +88,13 @@ NoCleanOpt = Annotated[
 ]
 
 
+def escaped(text: str) -> str:
+    """``text`` with every character that is not printable (control characters,
+    line separators, undecodable bytes held as surrogates) written as its
+    Python escape: ``\\n``, ``\\x1b``, ``\\udcff``."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
 def say(line: str) -> None:
     """Print one line on stderr, control characters and undecodable bytes (e.g.
     in file names) escaped as \\n, \\udcff: each error, note or check line is
@@ -95,7 +102,7 @@ def say(line: str) -> None:
     stderr that cannot be written (a closed pipe, a full disk) loses the line
     but not the exit code: the run's outcome is its outputs and its status, and
     a write error here would turn both into exit 1."""
-    line = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in line)
+    line = escaped(line)
     try:
         stderr.print(line, markup=False)
     except OSError:

@@ -131,10 +131,10 @@ def geodesic(
     solver: Annotated[Solver, typer.Option("--solver", help="log-ode solver: lu (log-space LU, fast), "
                       "newton, or cvxpy (Clarabel; reference, slow).")] = Solver.lu,
     heat_underflow: Annotated[HeatUnderflow, typer.Option("--heat-underflow", help="-m heat: where the heat "
-                              "step's u underflows to 0 at a vertex connected to a source (a fine mesh, a short "
-                              "time), log-domain solves that step again in the log domain (log-heat's solver, "
-                              "one step; the same distances to rounding where u is representable) and keep "
-                              "keeps the plain step's result (no direction where u is 0).")]
+                              "step's u falls below the smallest normal double (2.2e-308) at a vertex connected "
+                              "to a source (a fine mesh, a short time), log-domain solves that step again in the "
+                              "log domain (log-heat's solver, one step; the same distances to rounding where u is "
+                              "representable) and keep keeps the plain step's result (no direction where u is 0).")]
     = HeatUnderflow.log_domain,
     reference: Annotated[Reference | None, typer.Option("--reference", help="Compare with exact "
                          "geodesics: pearson_r, rmse, mae, mean/max_relative_error in the report.",

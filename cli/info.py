@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import unicodedata
 from typing import Annotated
 
 import typer
@@ -19,6 +18,7 @@ from geoproc_cli.common import (
     QuietOpt,
     ReportOpt,
     command_run,
+    escaped,
     flag,
     load_summary,
     metrics_epilog,
@@ -73,11 +73,10 @@ def info(
 
 
 def _table(name: str, s: dict) -> Table:
-    # names come from the file (its name, property names): shown as given, never read as markup;
-    # control characters escaped (a newline or an escape sequence in a file name reached the terminal)
-    shown = "".join(c.encode("unicode_escape").decode("ascii") if unicodedata.category(c) == "Cc" else c
-                    for c in name)
-    t = Table(title=Text(shown), show_header=False, title_justify="left")
+    # names come from the file (its name, property names): never read as markup, and what is not
+    # printable escaped as errors and notes escape it (a newline or an escape sequence in a file or
+    # property name reached the terminal)
+    t = Table(title=Text(escaped(name)), show_header=False, title_justify="left")
     t.add_column("key", style="bold")
     t.add_column("value", justify="right")
     for k, v in s.items():
@@ -89,7 +88,7 @@ def _table(name: str, s: dict) -> Table:
             v = ", ".join(v) if v else "-"
         elif v is None:
             v = "-"
-        t.add_row(Text(k), Text(str(v)))
+        t.add_row(Text(k), Text(escaped(str(v))))
     return t
 
 

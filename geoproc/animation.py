@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from geoproc.errors import InputError
+from geoproc.errors import InputError, first_line
 from geoproc.fileio import file_extension, read_input_bytes, sha256_bytes
 from geoproc.mesh.read import require_coordinates_in_range
 from geoproc.mesh.validate import require_indices_below
@@ -144,7 +144,7 @@ def _npz_arrays(raw: bytes, name: str) -> tuple[dict[str, np.ndarray], list[str]
                 arr = z[key]
             except ValueError as exc:
                 if "pickle" not in str(exc):  # fewer bytes than its header's shape: damaged, not left out
-                    raise InputError(name, f"member '{key}' is damaged ({_first_line(exc)})") from None
+                    raise InputError(name, f"member '{key}' is damaged ({first_line(exc)})") from None
                 arr = None  # an object array: numpy would have to unpickle it
                 why = "an object array (pickled Python objects)"
             except Exception as exc:  # a damaged member: its data would be lost without a word
@@ -158,12 +158,6 @@ def _npz_arrays(raw: bytes, name: str) -> tuple[dict[str, np.ndarray], list[str]
             else:
                 skipped.append(f"{key} ({why})")
     return data, skipped
-
-
-def _first_line(exc: Exception) -> str:
-    """The first line of an exception's message, at most 200 characters."""
-    text = str(exc).strip().splitlines()
-    return (text[0] if text else type(exc).__name__)[:200]
 
 
 def _validate(V: np.ndarray, F: np.ndarray, name: str) -> None:
@@ -189,7 +183,11 @@ def _load_frame_folder(name: str) -> Animation:
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
     for f in files:  # a pipe named like a frame had blocked the read, a link to /dev/zero filled the memory
-        if not stat.S_ISREG(os.stat(os.path.join(name, f)).st_mode):
+        try:
+            mode = os.stat(os.path.join(name, f)).st_mode
+        except OSError:  # a dangling link: the read below names it
+            continue
+        if not stat.S_ISREG(mode):
             raise InputError(os.path.join(name, f), "is not a regular file (a pipe or a device): a frame "
                                                     "folder holds mesh files")
     frames, per_frame_fields, digests = [], [], []

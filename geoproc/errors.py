@@ -53,3 +53,10 @@ def shown_number(x: float) -> str:
     (``--feature-angle 180: must be within [0, 180]``)."""
     text = repr(float(x))
     return text[:-2] if text.endswith(".0") else text
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message, or its type's name when the
+    message is empty (for one-line errors that quote a library's message)."""
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__

@@ -26,7 +26,7 @@ DEFAULT_LAPLACIAN = {
 #: unless told otherwise: on the mesh itself, or on its intrinsic Delaunay
 #: triangulation where the mesh has slivers (geoproc.geodesic.intrinsic).
 DEFAULT_OPERATORS = {"heat": "auto", "log-heat": "auto"}
-#: What -m heat does where its heat step underflows to 0 (see
+#: What -m heat does where its heat step falls below the smallest normal double (see
 #: geoproc.geodesic.distance.geodesic_distance): solve the step again in the
 #: log domain (the default, first), or keep the plain result.
 HEAT_UNDERFLOW = ("log-domain", "keep")

@@ -22,7 +22,7 @@ import warnings
 
 import numpy as np
 
-from geoproc.errors import InputError
+from geoproc.errors import InputError, first_line
 from geoproc.fileio import file_extension, read_input_bytes, require_input_file, sha256_bytes
 from geoproc.mesh.clean import clean_mesh
 from geoproc.mesh.mesh import LoadLog, Mesh
@@ -451,7 +451,7 @@ def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
     except Exception as exc:  # plyfile raises several types for malformed data
         if stream.negative_read:
             raise InputError(path, "unparseable PLY: a binary list row has a negative count") from None
-        raise InputError(path, f"unparseable PLY: {_one_line(exc)}") from exc
+        raise InputError(path, f"unparseable PLY: {first_line(exc)}") from exc
     if not ply.text:  # plyfile stops at the last declared row: more rows would be dropped without a word
         rest = data[stream.tell():]
         if rest.strip(b" \t\r\n\x0b\x0c\x00"):  # white space or zero padding is no row
@@ -647,9 +647,9 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         with np.errstate(invalid="ignore", over="ignore"):
             loaded = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, force="mesh")
     except IndexError as exc:
-        raise InputError(path, f"face index out of range ({_one_line(exc)})") from exc
+        raise InputError(path, f"face index out of range ({first_line(exc)})") from exc
     except Exception as exc:  # trimesh raises many types for malformed files
-        msg = _one_line(exc)
+        msg = first_line(exc)
         if "index" in msg.lower() and "range" in msg.lower():
             raise InputError(path, f"face index out of range ({msg})") from exc
         raise InputError(path, f"unparseable {fmt.upper()}: {_stl_problem(data) or msg}") from exc
@@ -870,11 +870,6 @@ def _off_triangles(lines: list) -> np.ndarray | None:
     if T is None or T.shape[1] < 4 or not (T[:, 0] == 3).all():
         return None
     return T[:, 1:4].copy()
-
-
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
 
 
 def _binary_stl_triangles(data: bytes) -> int | None:

@@ -47,12 +47,15 @@ def json_safe(value):
 
 
 def json_bytes(value) -> bytes:
-    """``value`` as compact JSON (UTF-8), converted as :func:`json_safe` does.
+    """``value`` as JSON text (UTF-8, ``json.dumps``'s separators), the text
+    ``json.dumps(json_safe(value))`` gives for documents whose keys are strings
+    (every document geoproc writes).
 
     A document of plain finite numbers, strings, lists and dicts (a
     critical-cell table of a large mesh: millions of entries) goes straight to
-    the C encoder, numpy scalars and arrays through its ``default``; only a
-    document with a non-finite float is walked by :func:`json_safe` first.
+    the C encoder, numpy scalars and arrays through its ``default``; a
+    document with a non-finite float, or a key the encoder refuses, is walked
+    by :func:`json_safe` first.
     """
     def plain(v):
         if isinstance(v, np.ndarray | np.generic | tuple):
@@ -61,7 +64,7 @@ def json_bytes(value) -> bytes:
 
     try:
         text = json.dumps(value, allow_nan=False, default=plain)
-    except ValueError:  # a non-finite float: stored as null
+    except (ValueError, TypeError):  # a non-finite float (stored as null), a numpy key
         text = json.dumps(json_safe(value))
     return text.encode()
 

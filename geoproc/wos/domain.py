@@ -44,6 +44,9 @@ class Domain:
         Connected part of the domain each loop bounds, named by the index of
         its outer loop (an outer loop is its own; a hole belongs to the loop
         right around it; an island in a hole starts a part of its own).
+    offset : (2,) float64
+        What :meth:`translated` subtracted from the input's coordinates (0 as
+        read): added back to a point a message names.
     """
 
     loops: list[np.ndarray]
@@ -55,6 +58,7 @@ class Domain:
     source: str = "<domain>"
     traced: bool = False
     part_of: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
     _bands: SegmentBands | None = field(default=None, repr=False)
 
     @property
@@ -89,7 +93,7 @@ class Domain:
         bands built again on first use)."""
         shift = np.asarray(shift, dtype=np.float64)
         return replace(self, loops=[L - shift for L in self.loops], A=self.A - shift, B=self.B - shift,
-                       _bands=None)
+                       offset=self.offset + shift, _bands=None)
 
     def contains(self, P: np.ndarray) -> np.ndarray:
         """(n,) bool: points ``P`` (n, 2) inside (even-odd rule over all the

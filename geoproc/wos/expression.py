@@ -150,10 +150,10 @@ def _stack_depth(code: np.ndarray) -> int:
     return best
 
 
-def translated(expr: Expression, dx: float, dy: float) -> Expression | None:
+def translated(expr: Expression, dx: float, dy: float) -> Expression:
     """``expr`` as a function of coordinates relative to ``(dx, dy)``: every ``x``
-    becomes ``(x + dx)`` and every ``y`` ``(y + dy)``. None when that program
-    would need more than :data:`MAX_STACK` stack slots."""
+    becomes ``(x + dx)`` and every ``y`` ``(y + dy)``, one stack slot deeper
+    than ``expr`` (the compiled evaluator keeps one past :data:`MAX_STACK`)."""
     code: list[int] = []
     consts: list[float] = []
     for op, c in zip(expr.code.tolist(), expr.consts.tolist(), strict=True):
@@ -162,8 +162,7 @@ def translated(expr: Expression, dx: float, dy: float) -> Expression | None:
         if op in (OP_X, OP_Y):
             code += [OP_CONST, OP_ADD]
             consts += [dx if op == OP_X else dy, 0.0]
-    out = Expression(expr.text, np.array(code, dtype=np.int64), np.array(consts, dtype=np.float64))
-    return out if _stack_depth(out.code) <= MAX_STACK else None
+    return Expression(expr.text, np.array(code, dtype=np.int64), np.array(consts, dtype=np.float64))
 
 
 def evaluate(expr: Expression, x: np.ndarray, y: np.ndarray) -> np.ndarray:

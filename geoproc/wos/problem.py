@@ -49,7 +49,7 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
         P = segment_samples(domain, mask, samples)
         bad = ~np.isfinite(evaluate(expr, P[:, 0], P[:, 1]))
         if bad.any():
-            x, y = P[np.flatnonzero(bad)[0]]
+            x, y = P[np.flatnonzero(bad)[0]] + domain.offset  # where the input has it
             raise UsageError(f"{option} is not finite on the boundary of {domain.source} "
                              f"(first at x = {x:.6g}, y = {y:.6g})")
 

@@ -33,8 +33,11 @@ from geoproc.wos.expression import (
 
 @numba.njit(cache=True, nogil=True)
 def eval_program(code, consts, x, y):
-    """Evaluate a compiled program at one point (numba; used inside walks)."""
-    stack = np.empty(MAX_STACK)
+    """Evaluate a compiled program at one point (numba; used inside walks).
+
+    One slot more than a parsed program may use: a domain far from the origin
+    adds its shift to x and y (:func:`geoproc.wos.expression.translated`)."""
+    stack = np.empty(MAX_STACK + 1)
     sp = 0
     for i in range(code.shape[0]):
         op = code[i]

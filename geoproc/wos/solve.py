@@ -167,12 +167,8 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     report = progress or (lambda f: None)
     shift = far_from_origin_shift(domain)
     if shift is not None:  # walk near 0, where positions keep their digits; the data keeps its coordinates
-        moved = [None if e is None else translated(e, *shift) for e in (boundary, flux)]
-        if all((m is None) == (e is None) for m, e in zip(moved, (boundary, flux), strict=True)):
-            domain, (boundary, flux) = domain.translated(shift), moved
-        else:  # a program already as deep as the evaluator's stack
-            shift = None
-    at = np.zeros(2) if shift is None else shift  # added back to the points named in messages
+        boundary, flux = (None if e is None else translated(e, *shift) for e in (boundary, flux))
+        domain = domain.translated(shift)
     problem = WalkProblem(domain, boundary, flux, eps)
     gs = grid_over(domain, grid)
     P = gs.points()
@@ -186,7 +182,7 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     X = np.ascontiguousarray(P[inside])
     if len(X) == 0:
         raise UsageError(f"--grid {grid}: no grid point falls inside the domain; use a finer grid")
-    ue_inside = _declared_solution(boundary, X, domain.source, at) if exact else None
+    ue_inside = _declared_solution(boundary, X, domain) if exact else None
     # compile (or load cached code) outside the timed passes
     problem.load_kernels(X)
 
@@ -241,7 +237,7 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     residual_seconds = time.perf_counter() - t0
     bad = ~np.isfinite(mean)
     if bad.any():  # the data is singular between the sampled boundary points
-        x, y = X[np.flatnonzero(bad)[0]] + at
+        x, y = X[np.flatnonzero(bad)[0]] + domain.offset
         what = (f"the walk estimates at {int(bad.sum())} grid points are not finite (first at "
                 f"x = {x:.6g}, y = {y:.6g}): the boundary data is not finite between the sampled "
                 "points, or too large to average (beyond about 1e307)")
@@ -304,7 +300,7 @@ def far_from_origin_shift(domain: Domain) -> np.ndarray | None:
     Far from the origin a position keeps fewer digits relative to the domain:
     a unit square 1e12 away rounds positions to 1.2e-4, and cv-angle, whose
     kernels jump by 2 pi across their own segments, ended at an rmse of 0.25
-    for 0.02 at the origin; at 9e14 the Green centres rounded back onto the
+    for 0.015 at the origin; at 9e14 the Green centres rounded back onto the
     boundary, none was left, and cv-green stopped with an internal error.
     The walks then run on the domain moved by this shift, and the boundary
     data is evaluated at the coordinates moved back.
@@ -315,15 +311,15 @@ def far_from_origin_shift(domain: Domain) -> np.ndarray | None:
     return centre if float(np.abs(centre).max()) > FAR_FROM_ORIGIN * diagonal else None
 
 
-def _declared_solution(boundary, X: np.ndarray, source, at: np.ndarray) -> np.ndarray:
+def _declared_solution(boundary, X: np.ndarray, domain: Domain) -> np.ndarray:
     """``--exact``: the declared solution ``boundary`` at the grid points X (k, 2)
-    inside the domain, checked before any walk (``at`` added to a point named in
-    the message). A harmonic function is finite inside its domain; NaN or inf
-    there had given null error metrics without a word."""
+    inside ``domain``, checked before any walk. A harmonic function is finite
+    inside its domain; NaN or inf there had given null error metrics without a word."""
+    source = domain.source
     ue = evaluate(boundary, X[:, 0], X[:, 1])
     bad = ~np.isfinite(ue)
     if bad.any():
-        x, y = X[np.flatnonzero(bad)[0]] + at
+        x, y = X[np.flatnonzero(bad)[0]] + domain.offset
         raise UsageError(f"--exact: --boundary is not finite at {int(bad.sum())} grid points inside {source} "
                          f"(first at x = {x:.6g}, y = {y:.6g}), so it is not the exact solution there")
     return ue

@@ -75,16 +75,18 @@ def test_info_table_shows_names_as_given(cli, tmp_path):
         assert out.splitlines()[0].strip() == name and "[/q]" in out, out
 
 
-def test_info_table_escapes_control_characters_in_the_title(cli, tmp_path):
-    # a newline or an escape sequence in the file name reached the terminal as it was
-    name = "a\nb\x1b[31m.ply"
+def test_info_table_escapes_what_is_not_printable(cli, tmp_path):
+    # a newline or an escape sequence in the file name or a property name reached the terminal
+    name = "a\nb\x1b[31m\u2028.ply"
     (tmp_path / name).write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
-                                 "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+                                 "property float z\nproperty float q\x1b[31mred\nelement face 1\n"
+                                 "property list uchar int vertex_indices\nend_header\n0 0 0 1\n1 0 0 1\n0 1 0 1\n"
+                                 "3 0 1 2\n", encoding="utf-8")
     p = cli("info", name, "--quiet", cwd=tmp_path)
     assert p.returncode == 0, p.stderr
     out = p.stdout.decode()
-    assert out.splitlines()[0].strip() == "a\\nb\\x1b[31m.ply" and "\x1b" not in out, out
+    assert out.splitlines()[0].strip() == "a\\nb\\x1b[31m\\u2028.ply" and "\x1b" not in out, out
+    assert "q\\x1b[31mred" in out
 
 
 def test_a_malformed_stored_stl_normal_is_ignored_quietly(cli, tmp_path):

@@ -149,3 +149,7 @@ def test_a_frame_that_is_not_a_regular_file_is_refused(wave, tmp_path):
     os.mkfifo(tmp_path / "f9.ply")
     with pytest.raises(InputError, match="f9.ply: is not a regular file"):
         load_animation(tmp_path)
+    os.remove(tmp_path / "f9.ply")
+    os.symlink(tmp_path / "gone.ply", tmp_path / "f8.ply")  # a dangling link: named by the read, as before
+    with pytest.raises(InputError, match="f8.ply"):
+        load_animation(tmp_path)

@@ -171,6 +171,7 @@ def test_json_bytes_writes_what_json_safe_gives():
         {"n": np.int64(3), "f": np.float32(0.25), "d": np.float64(1.5), "t": np.bool_(True),
          "arr": np.arange(3), 7: "key"},
         {"bad": [float("nan"), 1.0, np.float64(np.inf)], "ok": np.array([1.0, -np.inf])},
+        {np.int64(3): "a numpy key"},
     ]
     for doc in docs:
         assert json_bytes(doc) == json.dumps(json_safe(doc)).encode()

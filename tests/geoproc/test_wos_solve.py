@@ -4,6 +4,7 @@ import numba
 import numpy as np
 import pytest
 
+from geoproc.errors import UsageError
 from geoproc.wos.closest import build_segment_grid, closest_points
 from geoproc.wos.domain import build_domain
 from geoproc.wos.expression import evaluate, parse_expression
@@ -613,8 +614,21 @@ def test_a_domain_far_from_the_origin_is_solved_as_at_the_origin(method):
     kw = dict(method=method, walks=64, grid=8, exact=True, seed=1)
     home = solve_laplace(build_domain([square]), parse_expression("x+y"), **kw)
     far = solve_laplace(build_domain([square + 1e12]), parse_expression("(x-1e12)+(y-1e12)"), **kw)
-    assert far.grid.x0 == pytest.approx(1e12) and far.grid.y1 == pytest.approx(1e12 + 1)
+    assert far.grid.x0 == pytest.approx(home.grid.x0 + 1e12, abs=1e-3)
+    assert far.grid.y1 == pytest.approx(home.grid.y1 + 1e12, abs=1e-3)
     assert far.metrics["rmse"] == pytest.approx(home.metrics["rmse"], abs=1e-3)  # the same walks
     # at 9e14 the data itself, x - 9e14 in doubles, rounds to 0.125: it runs, and stays near
     far = solve_laplace(build_domain([square + 9e14]), parse_expression("(x-9e14)+(y-9e14)"), **kw)
     assert far.metrics["rmse"] < 0.3
+
+
+def test_a_far_domain_is_named_in_its_own_coordinates_and_takes_the_deepest_expression():
+    # its walks run moved to the origin: a message had named the moved point (-0.5, -0.5),
+    # and an expression at the evaluator's full depth could not take the shift
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float) + 1e6
+    with pytest.raises(UsageError, match=r"first at x = 1e\+06, y = 1e\+06"):
+        solve_laplace(build_domain([square]), parse_expression("log(x-1000000)"), walks=4, grid=8)
+    deep = "0+(" * 31 + "y" + ")" * 31
+    res = solve_laplace(build_domain([square + 9e14]), parse_expression(deep), method="cv-green", walks=16,
+                        grid=8)
+    assert np.isfinite(res.U[res.scored]).all()
