@@ -440,11 +440,11 @@ def _heat_step_in_log_domain(V, F, src, t, lap, hs, d, stats):
     from geoproc.geodesic.log_heat import LogHeatSolver
 
     try:
-        ls = LogHeatSolver(V, F, t, 1, lap, ops=hs.ops)
-    except InputError:
+        d_log = LogHeatSolver(V, F, t, 1, lap, ops=hs.ops).solve(src)[0]
+    except InputError:  # the heat step ran; what the log domain refuses is not this method's error
         return d
     stats["heat_step_in_log_domain"] = True
-    return ls.solve(src)[0]
+    return d_log
 
 
 def _log_stats(w: np.ndarray, stats: dict) -> None:
