@@ -217,20 +217,13 @@ def test_animation_outliers_f1(dfx, sigma):
     assert rms_out < 0.15 * rms_in  # measured 0.02 and 0.07
 
 
-@pytest.mark.skipif((__import__("os").cpu_count() or 1) < 2, reason="needs two cores for two BLAS threads")
-def test_animation_outliers_do_not_depend_on_the_blas_thread_count():
-    # np.linalg.svd of the (points, 3 frames) matrix gave other last bits with two
-    # OpenBLAS threads than with one, and every score and refined position with them
-    # (OpenBLAS uses no more threads than cores: one core cannot show it)
-    import hashlib
+def _hashes_with_one_and_two_blas_threads(code: str) -> list[str]:
+    """What ``python -c code`` prints (a sha256) with one and with two BLAS
+    threads, run from the repository root."""
     import os
     import subprocess
     import sys
 
-    code = ("import hashlib, numpy as np; from tests.conftest import load_fixture_module as f; "
-            "from geoproc.denoise.outliers import rpca_animation_outliers as r; "
-            "V, _, _ = f('denoise_fixtures').animated_cloud_with_outliers(sigma=0.3); "
-            "res = r(V); print(hashlib.sha256(res.score.tobytes() + res.refined.tobytes()).hexdigest())")
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     out = []
     for threads in ("1", "2"):
@@ -239,7 +232,21 @@ def test_animation_outliers_do_not_depend_on_the_blas_thread_count():
                            timeout=300)
         assert p.returncode == 0, p.stderr
         out.append(p.stdout.strip())
-    assert out[0] == out[1] and len(out[0]) == len(hashlib.sha256().hexdigest())
+    assert len(out[0]) == 64, out
+    return out
+
+
+@pytest.mark.skipif((__import__("os").cpu_count() or 1) < 2, reason="needs two cores for two BLAS threads")
+def test_animation_outliers_do_not_depend_on_the_blas_thread_count():
+    # np.linalg.svd of the (points, 3 frames) matrix gave other last bits with two
+    # OpenBLAS threads than with one, and every score and refined position with them
+    # (OpenBLAS uses no more threads than cores: one core cannot show it)
+    one, two = _hashes_with_one_and_two_blas_threads(
+        "import hashlib, numpy as np; from tests.conftest import load_fixture_module as f; "
+        "from geoproc.denoise.outliers import rpca_animation_outliers as r; "
+        "V, _, _ = f('denoise_fixtures').animated_cloud_with_outliers(sigma=0.3); "
+        "res = r(V); print(hashlib.sha256(res.score.tobytes() + res.refined.tobytes()).hexdigest())")
+    assert one == two
 
 
 @pytest.mark.skipif((__import__("os").cpu_count() or 1) < 2, reason="needs two cores for two BLAS threads")
@@ -247,24 +254,13 @@ def test_trajectory_fit_does_not_depend_on_the_blas_thread_count():
     # OpenBLAS's product of the (points, frames) weights with the (frames, r^2) basis
     # products gave other last bits with two threads than with one (12 elephant frames,
     # 6,034 points, r = 14: refined coordinates moved by up to 9e-14)
-    import os
-    import subprocess
-    import sys
-
-    code = ("import hashlib, numpy as np; from geoproc.denoise.outliers import _robust_trajectory_fit as f; "
-            "g = np.random.default_rng(0); n, T, r = 6034, 12, 14; "
-            "B = np.linalg.qr(g.normal(size=(3 * T, r)))[0].reshape(T, 3, r); "
-            "fit, res = f(g.normal(size=(n, T, 3)), B, g.random((n, T)), 0.5); "
-            "print(hashlib.sha256(fit.tobytes() + res.tobytes()).hexdigest())")
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    out = []
-    for threads in ("1", "2"):
-        env = dict(os.environ, OMP_NUM_THREADS=threads, OPENBLAS_NUM_THREADS=threads)
-        p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root,
-                           timeout=300)
-        assert p.returncode == 0, p.stderr
-        out.append(p.stdout.strip())
-    assert out[0] == out[1] and len(out[0]) == 64
+    one, two = _hashes_with_one_and_two_blas_threads(
+        "import hashlib, numpy as np; from geoproc.denoise.outliers import _robust_trajectory_fit as f; "
+        "g = np.random.default_rng(0); n, T, r = 6034, 12, 14; "
+        "B = np.linalg.qr(g.normal(size=(3 * T, r)))[0].reshape(T, 3, r); "
+        "fit, res = f(g.normal(size=(n, T, 3)), B, g.random((n, T)), 0.5); "
+        "print(hashlib.sha256(fit.tobytes() + res.tobytes()).hexdigest())")
+    assert one == two
 
 
 def test_right_singular_pairs_match_the_svd():
