@@ -1544,3 +1544,12 @@ def test_normalized_direction_of_tiny_and_huge_rows():
     X = np.array([[3e-200, 4e-200, 0], [3e200, 4e200, 0], [3, 4, 0], [1e-320, 0, 0], [0, 0, 0], [np.nan, 1, 1]])
     expected = [[0.6, 0.8, 0], [0.6, 0.8, 0], [0.6, 0.8, 0], [1, 0, 0], [0, 0, 0], [0, 0, 0]]
     np.testing.assert_allclose(normalized_direction(X), expected, rtol=1e-15, atol=0)
+
+
+@pytest.mark.parametrize("method", ["heat", "log-heat", "varadhan"])
+def test_progress_is_reported_after_the_setup(method):
+    # the bar stayed at 0 % through the operators and factorizations, most of a run
+    V, F = _strip(20)
+    seen = []
+    gd.geodesic_distance(V, F, [0], method, progress=seen.append)
+    assert seen and seen[0] == pytest.approx(0.8)
