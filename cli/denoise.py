@@ -43,7 +43,7 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "vertices", "faces", "feature_faces", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
     "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "guidance_mix", "outer_iterations", "normal_iterations",
     "vertex_iterations", "fidelity", "sigma_r", "sigma_s", "sigma_s_length", "unfold_rounds", "folded_faces",
-    "crease_bisected_faces", "input_side_faces", "rpca_sparse_faces",
+    "crease_bisected_faces", "input_side_faces", "rpca_sparse_faces", "repeated_corner_faces",
     # feature detection
     "feature_method", "feature_angle_deg", "feature_lambda", "feature_tau", "feature_vertices",
     "feature_admm_iterations",
@@ -231,7 +231,7 @@ MODE_METRICS = (
     ("--dynamic, or --outliers on an animation", lambda c: c.mode in (DYNAMIC, MOVING_CLOUD),
      ("frames", "rpca_iterations")),
     ("a mesh (not --outliers)", lambda c: c.mode in (MESH, DYNAMIC),
-     ("vertices", "faces", "fidelity", "vertex_iterations")),
+     ("vertices", "faces", "fidelity", "vertex_iterations", "repeated_corner_faces")),
     ("a single mesh (not --outliers or --dynamic)", lambda c: c.mode == MESH,
      ("feature_faces", "feature_method", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
       "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "guidance_mix", "outer_iterations",
@@ -498,8 +498,9 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     from geoproc.denoise.dynamic import denoise_animation
     from geoproc.denoise.metrics import reference_metrics
     from geoproc.denoise.validate import reference_in_input_order, require_denoisable
+    from geoproc.mesh.topology import repeated_corner_faces
 
-    require_denoisable(anim.F, anim.path)
+    require_denoisable(anim.F[~repeated_corner_faces(anim.F)], anim.path)  # those are left out, as for a mesh
     if "outlier" in anim.fields:  # carried to the output: refused as perturb and --outliers refuse it
         outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path, anim.frame_files)
     ref_V = None

@@ -252,6 +252,10 @@ def denoise_animation(
     T = len(V)
     p = DenoiseParams() if params is None else params
     per_frame = replace(p, features="none")  # only the positions are used
+    from geoproc.mesh.topology import repeated_corner_faces
+
+    repeated = repeated_corner_faces(np.asarray(F).reshape(-1, 3))
+    F = np.asarray(F).reshape(-1, 3)[~repeated]  # no area, no normal: left out, as by denoise_mesh
     static = np.empty_like(V, dtype=np.float64)
     conn = None  # the faces, checked and prepared once for all frames
     for t in range(T):
@@ -278,5 +282,5 @@ def denoise_animation(
         out, info = coherent_normal_fit(static, F, fixed=fixed)
     if progress is not None:
         progress(1.0)
-    info.update({"frames": T, "coherence": coherence})
+    info.update({"frames": T, "coherence": coherence, "repeated_corner_faces": int(repeated.sum())})
     return out, info

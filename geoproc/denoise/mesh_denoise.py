@@ -52,7 +52,7 @@ from geoproc.denoise.rpca import rpca
 from geoproc.denoise.vertex_update import unfold_faces, update_vertices
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh.locality import inverse_permutation
-from geoproc.mesh.topology import boundary_vertices
+from geoproc.mesh.topology import boundary_vertices, repeated_corner_faces
 from geoproc.mesh.validate import mesh_arrays
 
 
@@ -427,6 +427,9 @@ def denoise_mesh(
     if p.features not in FEATURE_METHODS:
         raise ValueError(f"unknown feature method {p.features!r}")
     V, F = mesh_arrays(V, F)
+    repeated = repeated_corner_faces(F)
+    if repeated.any():  # no area and no normal: left out of the filter and the fit
+        return _without_repeated_corner_faces(V, F, repeated, method, params, progress, initial_normals)
     if connectivity is None:
         connectivity = face_connectivity(F, len(V))
     elif not connectivity.matches(F, len(V)):
@@ -472,10 +475,27 @@ def denoise_mesh(
     res.info = {"noise_median_dihedral_deg": noise_deg, "noise_roughness": rough,
                 "coarseness_deg": None if shape is None else coarse,  # (not measured on a clean mesh)
                 "dihedral_tail_ratio": tail if np.isfinite(tail) else None, "reoriented_faces": int(flip.sum()),
-                "sliver_faces": 0 if shape is None else int(shape.sliver.sum()),
+                "sliver_faces": 0 if shape is None else int(shape.sliver.sum()), "repeated_corner_faces": 0,
                 **res.info}
     if flip.any():  # the normals back in the input's face orientation
         res.normals = np.where(flip[:, None], -res.normals, res.normals)
+    return res
+
+
+def _without_repeated_corner_faces(V, F, repeated, method, params, progress, initial_normals) -> DenoiseResult:
+    """:func:`denoise_mesh` of the faces that do not repeat a corner; the others
+    (a collapsed edge's faces, once coincident vertices are merged) get a zero
+    normal and feature 0. They had made the whole mesh refused as not
+    edge-manifold."""
+    keep = ~repeated
+    res = denoise_mesh(V, F[keep], method, params, progress,
+                       None if initial_normals is None else np.asarray(initial_normals)[keep])
+    normals = np.zeros((len(F), 3))
+    normals[keep] = res.normals
+    feature = np.zeros(len(F), dtype=np.asarray(res.feature).dtype)
+    feature[keep] = res.feature
+    res.normals, res.feature = normals, feature
+    res.info["repeated_corner_faces"] = int(repeated.sum())
     return res
 
 

@@ -250,14 +250,20 @@ def test_nonmanifold_edge_is_refused(cli, fixture_dir, tmp_path):
     assert _one_line_error(p) and "non-manifold" in p.stderr and not out.exists()
 
 
-def test_face_repeating_a_vertex_is_named_as_such(cli, tmp_path):
-    # f 1 1 2 puts edge 1-2 in three faces; the error names the face, not the edge
+def test_face_repeating_a_vertex_is_left_out(cli, tmp_path):
+    # f 1 1 2 puts edge 1-2 in three faces: denoise had refused the mesh (a collapsed
+    # edge's faces, once coincident vertices merge); it now leaves that face out, and a
+    # method that needs a manifold names the face, not the edge
     src = tmp_path / "rep.obj"
     src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nf 1 1 2\n")
-    out = tmp_path / "o.ply"
-    p = cli("denoise", src, "-o", out)
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = cli("denoise", src, "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    assert _metrics(rep)["repeated_corner_faces"] == 1
+    m = load_mesh(out, clean=False)
+    assert len(m.F) == 3 and m.face_fields["feature"].tolist()[2] == 0 and np.isfinite(m.V).all()
+    p = cli("geodesic", src, "-s", "0", "-o", tmp_path / "g.ply")
     assert _one_line_error(p) and "rep.obj: 1 face repeats a vertex (first: face 2, vertices 0 0 1)" in p.stderr
-    assert not out.exists()
 
 
 def test_zero_area_faces_are_handled(cli, fixture_dir, tmp_path):

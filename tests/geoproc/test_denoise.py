@@ -690,3 +690,18 @@ def test_progress_covers_the_estimates_passes_and_fits(make_fixtures):
     assert np.all(np.diff(seen) > 0) and len(seen) == 1 + 2 * (3 + 1)
     np.testing.assert_array_equal(res.V, denoise_mesh(Vn, F, params=DenoiseParams(outer_iterations=2,
                                                                                     normal_iterations=3)).V)
+
+
+def test_faces_that_repeat_a_corner_are_left_out(make_fixtures):
+    # a collapsed edge's faces (merged coincident vertices) had made the whole mesh
+    # refused as not edge-manifold; without area or normal they take no part
+    from tests.conftest import load_fixture_module
+
+    Vn, F, _ = load_fixture_module("denoise_fixtures").noisy_cube(n=8, sigma=0.3, seed=0)[:3]
+    a, b = F[0, 0], F[0, 1]
+    Fr = np.vstack([F[:5], [[a, a, b], [b, b, b]], F[5:]])
+    plain, res = denoise_mesh(Vn, F), denoise_mesh(Vn, Fr)
+    np.testing.assert_array_equal(res.V, plain.V)
+    assert res.info["repeated_corner_faces"] == 2 and plain.info["repeated_corner_faces"] == 0
+    assert (res.normals[5:7] == 0).all() and (res.feature[5:7] == 0).all()
+    np.testing.assert_array_equal(res.normals[np.r_[0:5, 7:len(Fr)]], plain.normals)

@@ -242,3 +242,15 @@ def test_faces_stored_the_other_way_round_change_nothing(dfx, coherence):
     a, _ = denoise_animation(Vn, F, coherence=coherence)
     b, _ = denoise_animation(Vn, Ft, coherence=coherence)
     assert np.abs(a - b).max() < 1e-12
+
+
+def test_animation_faces_that_repeat_a_corner_are_left_out():
+    # as for a single mesh: a collapsed edge's faces had made --dynamic refuse the animation
+    V, F = load_fixture_module("denoise_fixtures").wave_animation(4)
+    Vn = V + 0.01 * np.random.default_rng(0).standard_normal(V.shape)
+    a, b = F[0, 0], F[0, 1]
+    Fr = np.vstack([F, [[a, a, b]]])
+    plain, _ = denoise_animation(Vn, F)
+    out, info = denoise_animation(Vn, Fr)
+    np.testing.assert_array_equal(out, plain)
+    assert info["repeated_corner_faces"] == 1
