@@ -157,7 +157,7 @@ def wos_solve(
         if domain != "-":  # a missing domain is refused before numba and matplotlib load
             require_input_file(domain, "domain file")
         from geoproc.wos import load_domain, solve_laplace
-        from geoproc.wos.images import exr_bytes, float32_steps, png_bytes
+        from geoproc.wos.images import EXR_MAX, exr_bytes, float32_steps, png_bytes
         from geoproc.wos.solve import default_ridge
 
         if fitted and ridge is None:  # the report names the weight used
@@ -173,10 +173,10 @@ def wos_solve(
         from geoproc.wos.problem import dirichlet_data_bound
 
         data = "--boundary reaches" if g is not None else "the domain's values reach"
-        big, top = dirichlet_data_bound(dom, g), float(np.finfo(np.float32).max)
-        if big > top:
+        big = dirichlet_data_bound(dom, g)
+        if big > EXR_MAX:
             raise UsageError(f"{domain}: {data} {big:.3g} on the Dirichlet boundary, beyond the float32 "
-                             f"range of the EXR output ({top:.3g}); rescale the boundary data")
+                             f"range of the EXR output ({EXR_MAX:.3g}); rescale the boundary data")
         lo, hi = dom.bbox
         diag = float(np.linalg.norm(hi - lo))
         if epsilon > EPSILON_NOTE * diag:

@@ -135,9 +135,9 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
         if measured is None:
             failures.append(f"check failed: {c.text} (not measured in this run: null in the report)")
         elif not c.passes(measured):
-            # every digit: 0.0376518 could hide a miss of <=0.037651843221598626; a count as the count
+            # every digit: 0.0376518 could hide a miss of <=0.037651843221598626; a count as the
+            # count, a flag as the flag (false had read 0.0)
             raw = metrics[c.metric]
-            # a count as the count, a flag as the flag (false had read 0.0)
             shown = raw if isinstance(raw, int) else measured
             failures.append(f"check failed: {c.text} (measured: {shown!r})")
     return failures

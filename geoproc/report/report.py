@@ -58,7 +58,7 @@ def json_bytes(value) -> bytes:
     by :func:`json_safe` first.
     """
     def plain(v):
-        if isinstance(v, np.ndarray | np.generic | tuple):
+        if isinstance(v, np.ndarray | np.generic):
             return json_safe(v)
         raise TypeError(f"{type(v).__name__} is not JSON serializable")
 

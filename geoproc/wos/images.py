@@ -10,6 +10,9 @@ import numpy as np
 
 from geoproc.errors import UsageError
 
+EXR_MAX = float(np.finfo(np.float32).max)
+"""The largest magnitude a float32 EXR pixel holds (3.4e38)."""
+
 
 def float32_steps(lo: float, hi: float) -> float:
     """How many float32 steps (units in the last place at the larger of |lo|
@@ -27,10 +30,9 @@ def exr_bytes(U: np.ndarray) -> bytes:
     import OpenImageIO as oiio
 
     big = float(np.abs(U[np.isfinite(U)]).max(initial=0.0))
-    top = float(np.finfo(np.float32).max)
-    if big > top:
+    if big > EXR_MAX:
         raise UsageError(f"the solution reaches {big:.3g}, beyond the float32 range of EXR "
-                         f"({top:.3g}); rescale the boundary data")
+                         f"({EXR_MAX:.3g}); rescale the boundary data")
     if big > 0 and np.float32(big) == 0:  # every pixel would read 0
         raise UsageError(f"the solution is at most {big:.3g} in magnitude, below the float32 range of EXR "
                          "(which writes it as 0); rescale the boundary data")
