@@ -347,6 +347,37 @@ def test_mask_covers_the_display_window_as_displayed(tmp_path):
     assert np.array_equal(read_mask(str(tmp_path / "o.tif")), corner[::-1, ::-1, 0] > 0.5)
 
 
+
+def test_mask_reads_only_the_data_window_of_a_huge_display_window(tmp_path):
+    # a 4 kB OpenEXR may declare a display window of 2.5e9 pixels: reading all of
+    # it (float32, then traced) took gigabytes; only the data window holds pixels
+    import subprocess
+    import sys
+
+    H = W = 50_000
+
+    def window(spec):
+        spec.x, spec.y, spec.full_x, spec.full_y, spec.full_width, spec.full_height = 20, 4, 0, 0, W, H
+
+    square = np.zeros((8, 8, 1))
+    square[2:6, 2:6] = 1  # rows 6-9, columns 22-25 of the display window
+    path = tmp_path / "huge.exr"
+    _write_image(path, square, ("Y",), fmt="float", spec_edit=window)
+    script = (
+        "import resource, sys\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))\n"
+        "from geoproc.wos.mask import load_domain_mask\n"
+        "d = load_domain_mask(sys.argv[1])\n"
+        "lo, hi = d.bbox\n"
+        "print(*lo, *hi, d.area)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script, str(path)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    x0, y0, x1, y1, area = map(float, done.stdout.split())
+    assert (x0, x1) == (22.0, 26.0)
+    assert (y0, y1) == pytest.approx((H - 10.0, H - 6.0), abs=0.5)
+    assert area == pytest.approx(16.0, rel=0.1)
+
 def test_mask_without_foreground(tmp_path):
     path = tmp_path / "empty.png"
     wf.write_mask(path, np.zeros((16, 16), bool))
