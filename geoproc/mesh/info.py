@@ -44,7 +44,8 @@ def mesh_info(mesh: Mesh) -> dict:
         point for a point cloud), ``vertex_properties, face_properties``
         (names), ``unread_properties`` (PLY properties not read, as
         :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`), ``point_cloud``.
-        Topology entries are None for a point cloud.
+        Topology entries are None for a point cloud, and ``genus`` to
+        ``consistently_oriented`` when no face has three distinct corners.
     """
     V, F = mesh.V, mesh.F
     n = len(V)
@@ -107,4 +108,7 @@ def mesh_info(mesh: Mesh) -> dict:
         unreferenced_vertices=n - int(referenced_vertices(F, n).sum()),
         mean_edge_length=float(lengths.mean()) if len(lengths) else 0.0,
     )
+    if not len(Ft):  # every face collapsed: no surface to be closed, manifold or of a genus
+        info.update(dict.fromkeys(["genus", "closed", "edge_manifold", "vertex_manifold", "orientable",
+                                   "consistently_oriented"]))
     return info

@@ -345,3 +345,14 @@ def test_mean_edge_length_skips_faces_that_repeat_a_corner():
     assert mean_edge_length(V, F) == pytest.approx(expected, rel=1e-15)
     assert noise_scale(V, F) == pytest.approx(expected, rel=1e-15)
     assert mean_edge_length(V, F[4:]) == 0.0  # no edge at all
+
+
+def test_a_mesh_whose_faces_all_repeat_a_corner_has_no_surface_topology():
+    # every face collapsed to a point once coincident vertices merge: the empty surface had
+    # read closed, manifold, orientable, of genus 0
+    V = np.zeros((1, 3))
+    F = np.array([[0, 0, 0], [0, 0, 0]])
+    info = mesh_info(Mesh(V, F))
+    assert info["faces"] == 2 and info["edges"] == 0 and info["components"] == 0
+    for key in ("genus", "closed", "edge_manifold", "vertex_manifold", "orientable", "consistently_oriented"):
+        assert info[key] is None, key
