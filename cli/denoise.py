@@ -425,7 +425,7 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
         out.vertex_fields["outlier_score"] = res.score
         out.vertex_fields["outlier_detected"] = res.outlier.astype(np.float64)
     else:
-        out = _inliers(run, _without_earlier_scores(run, cloud), P, ~res.outlier)
+        out = _inliers(run, _without_earlier_scores(run, cloud), P, ~res.outlier, path or input)
     if refined:  # moved vertices: a mesh's stored normals follow them (a cloud's stay)
         run.refresh_normals(out.V, out.F, out.vertex_fields)
     run.write_mesh(output, out)
@@ -444,14 +444,14 @@ def _without_earlier_scores(run, cloud: Mesh) -> Mesh:
     return Mesh(cloud.V, cloud.F, fields, cloud.face_fields)
 
 
-def _inliers(run, cloud: Mesh, P: np.ndarray, keep: np.ndarray) -> Mesh:
+def _inliers(run, cloud: Mesh, P: np.ndarray, keep: np.ndarray, name: str) -> Mesh:
     """The inlier points (positions P, vertex properties) and the input's faces
     whose three corners are inliers, renumbered (with their properties); a note
-    counts the faces left out."""
+    on the input ``name`` counts the faces left out."""
     new = np.cumsum(keep) - 1
     whole = keep[cloud.F].all(axis=1)  # (0,) for a point cloud's (0, 3) faces
     if not whole.all():
-        run.note(f"{int((~whole).sum())} of {len(cloud.F)} faces use a removed point and are left out")
+        run.note(f"{name}: {int((~whole).sum())} of {len(cloud.F)} faces use a removed point and are left out")
     return Mesh(P[keep], new[cloud.F[whole]].reshape(-1, 3),
                 {name: v[keep] for name, v in cloud.vertex_fields.items()},
                 {name: v[whole] for name, v in cloud.face_fields.items()})

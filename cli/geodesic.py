@@ -190,8 +190,9 @@ def geodesic(
                     raise InputError(sources_file, f"line {lineno}: source vertex {i} is out of range "
                                                    f"(the mesh {m.log.path or mesh} has {len(m.V)} vertices)")
             srcs += [i for i, _ in listed]
+        where = m.log.path or mesh  # notes on the mesh name it, as errors do
         if m.log.merged_vertices or m.log.removed_unreferenced:
-            run.note("source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
+            run.note(f"{where}: source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
         # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read
         from geoproc.geodesic.compare import compare_to_reference
         from geoproc.geodesic.distance import geodesic_distance
@@ -234,21 +235,21 @@ def geodesic(
                 what += "; the log domain needs non-negative weights: their directions may be lost"
             else:
                 what += "; their directions may be lost (--heat-underflow log-domain keeps them)"
-            run.note(what)
+            run.note(f"{where}: {what}")
         for key in ("zero_heat_vertices", "log_heat_below_double"):
             if res.stats.get(key) and m_name != "heat":
                 what = "heat u underflowed to 0" if key == "zero_heat_vertices" else "exp(log u) < 5e-324"
-                run.note(f"{res.stats[key]} vertices where {what}")
+                run.note(f"{where}: {res.stats[key]} vertices where {what}")
         if res.stats.get("solver_inaccurate_steps"):
             run.note(f"Clarabel ended {res.stats['solver_inaccurate_steps']} of the {steps} steps short of its "
                      "tolerances (status optimal_inaccurate); --solver lu solves the same steps")
         if res.stats["unreachable_vertices"]:
-            run.note(f"{res.stats['unreachable_vertices']} vertices are not connected to a source "
+            run.note(f"{where}: {res.stats['unreachable_vertices']} vertices are not connected to a source "
                      "(distance +inf)")
         if run.metrics["nonfinite_distance_vertices"]:
             why = (" (the heat there is 0 or negative, and Varadhan's formula takes its log; a larger "
                    "--time-factor or -m log-heat gives them one)" if m_name == "varadhan" else "")
-            run.note(f"{run.metrics['nonfinite_distance_vertices']} vertices connected to a source have no "
+            run.note(f"{where}: {run.metrics['nonfinite_distance_vertices']} vertices connected to a source have no "
                      f"finite distance{why}: nonfinite_distance_vertices counts them")
         if reference is not None:
             with run.timer("reference"):

@@ -171,7 +171,7 @@ def _merged_flags(run, new: np.ndarray, fields: dict, shape: tuple, path: str, a
         flags |= outlier_flags(fields["outlier"], shape, path, frame_files)
         other = int(np.count_nonzero((fields["outlier"] != 0) & (fields["outlier"] != 1)))
         if other:
-            run.note(f"the input's 'outlier' property has {other} values other than 0 and 1: read as outlier "
+            run.note(f"{path}: the 'outlier' property has {other} values other than 0 and 1: read as outlier "
                      "flags where above 0.5" + (", and written as 0 and 1" if added else ""))
     if added:
         fields["outlier"] = flags.astype(np.float64)

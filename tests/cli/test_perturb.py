@@ -74,7 +74,7 @@ def test_outlier_values_other_than_0_and_1_are_noted(cli, fixture_dir, tmp_path)
     save_mesh(src, Mesh(m.V, m.F, {"outlier": flags}))
     p = cli("perturb", src, "--noise", "0", "--outliers", "0.01", "--seed", "1", "-o", out)
     assert p.returncode == 0, p.stderr
-    assert ("note: the input's 'outlier' property has 3 values other than 0 and 1: read as outlier flags "
+    assert (f"note: {src}: the 'outlier' property has 3 values other than 0 and 1: read as outlier flags "
             "where above 0.5, and written as 0 and 1") in " ".join(p.stderr.split())
     got = load_mesh(out).vertex_fields["outlier"]
     assert set(np.unique(got).tolist()) <= {0.0, 1.0} and got[1] == 1.0 and got[0] == 0.0 and got[3] == 0.0
