@@ -134,7 +134,8 @@ def geodesic(
                               "step's u falls below the smallest normal double (2.2e-308) at a vertex connected "
                               "to a source (a fine mesh, a short time), log-domain solves that step again in the "
                               "log domain (log-heat's solver, one step; the same distances to rounding where u is "
-                              "representable) and keep keeps the plain step's result (no direction where u is 0).")]
+                              "representable; a time so short that t times a Laplacian weight underflows is then refused) and keep keeps "
+                              "the plain step's result (no direction where u is 0).")]
     = HeatUnderflow.log_domain,
     reference: Annotated[Reference | None, typer.Option("--reference", help="Compare with exact "
                          "geodesics: pearson_r, rmse, mae, mean/max_relative_error in the report.",

@@ -33,7 +33,7 @@ import scipy.sparse as sp
 
 from geoproc.errors import InputError
 from geoproc.geodesic.heat_operators import HeatOperators, heat_operators
-from geoproc.geodesic.log_ode import LogODESolver, negative_weight_problem, off_diagonal_weights
+from geoproc.geodesic.log_ode import LogODESolver, NegativeWeightsError, negative_weight_problem, off_diagonal_weights
 from geoproc.mesh.topology import boundary_vertices
 
 
@@ -125,7 +125,7 @@ class LogHeatSolver:
         L, M = ops.L, ops.M  # non-negative weights with intrinsic operators, as the log-ODE needs
         problem = negative_weight_problem(L, cotan=laplacian == "cotan" and ops.kind == "extrinsic")
         if problem:  # an InputError without the path: geodesic_distance names the mesh
-            raise InputError(None, problem)
+            raise NegativeWeightsError(None, problem)
         self.M = M
         self.n, self.steps, self.direction = len(V), steps, direction
         self.operators, self.F, self.coef = ops.kind, ops.F, ops.coef

@@ -57,6 +57,11 @@ def off_diagonal_weights(L: sp.spmatrix) -> sp.csr_matrix:
     return off
 
 
+class NegativeWeightsError(InputError):
+    """The Laplacian has edges with negative weights (:func:`negative_weight_problem`
+    says why), which the log-ODE cannot take."""
+
+
 class UnweightedVertexError(InputError):
     """A vertex none of whose edges has a nonzero Laplacian weight: the log-ODE
     step cannot reach it. ``vertex`` is its index in the Laplacian's numbering."""

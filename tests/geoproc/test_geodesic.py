@@ -1526,6 +1526,21 @@ def test_heat_that_underflows_is_solved_in_the_log_domain():
     np.testing.assert_array_equal(a.distance, kept.distance)
 
 
+def test_heat_time_too_small_for_the_log_domain_is_refused(fixture_dir):
+    # at t = 1e-310 h^2 on the torus the plain step's heat is 0 beyond the source's ring and
+    # the log domain's t L_ij underflows: that refusal had been taken for negative weights
+    # and the plain step kept (largest distance 0.2 for 3.44, exit status 0); with
+    # --heat-underflow keep the plain step is still what is asked for
+    m = load_mesh(fixture_dir / "torus.ply")
+    with pytest.raises(InputError, match="too small"):
+        gd.geodesic_distance(m.V, m.F, [0], "heat", time_factor=1e-310, path="torus.ply")
+    kept = gd.geodesic_distance(m.V, m.F, [0], "heat", time_factor=1e-310, heat_underflow="keep")
+    assert not kept.stats["heat_step_in_log_domain"] and kept.stats["underflow_heat_vertices"] > 0
+    # where the log domain takes the time step, it is still used
+    res = gd.geodesic_distance(m.V, m.F, [0], "heat", time_factor=1e-300)
+    assert res.stats["heat_step_in_log_domain"]
+
+
 @pytest.mark.parametrize("length", [500, 600, 750])
 def test_heat_gradients_below_the_square_range_keep_their_direction(length):
     # 430 to 750 edges from the source u is still a normal double but its gradient is
