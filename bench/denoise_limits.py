@@ -232,7 +232,9 @@ def bunny02_schedule_oracle() -> str:
     target = 0.8 * best_peer_theta(noisy.V, F, clean.V)
     errs = [normal_angles_deg(face_normals_and_areas(denoise_mesh(noisy.V, F).V, F)[0], Nc)]
     for o, i, sr, ss in BUNNY_SCHEDULES:
-        p = DenoiseParams(outer_iterations=o, normal_iterations=i, sigma_r=sr, sigma_s_scale=ss)
+        # the guided filter as Zhang et al. give it: the patch guidance alone, no crease repair
+        p = DenoiseParams(outer_iterations=o, normal_iterations=i, sigma_r=sr, sigma_s_scale=ss,
+                          guidance_mix=0.0, crease_repair=False)
         errs.append(normal_angles_deg(face_normals_and_areas(denoise_mesh(noisy.V, F, "guided", p).V, F)[0], Nc))
         names.append(f"{o} × {i}, σr {sr}, σs {ss}")
     E = np.array(errs)

@@ -96,6 +96,12 @@ def denoise(
                                                   "distances between adjacent face centroids (default: from "
                                                   "the mesh, 1, up to 2 on coarse meshes without creases).",
                                                   show_default=False)] = None,
+    guidance_mix: Annotated[float | None, typer.Option("--guidance-mix", help="--method guided: each "
+                                                       "pass's guidance is the patch guidance blended with the "
+                                                       "normals themselves by this weight, 0 to 1 (0: the patch "
+                                                       "guidance alone, as Zhang et al.; 1: the plain bilateral "
+                                                       "filter; default: from the noise level and the mesh).",
+                                                       show_default=False)] = None,
     pin_boundary: Annotated[bool, flag("--pin-boundary", help="Keep boundary vertices fixed.")]
     = False,
     features: Annotated[str, typer.Option("--features", help="How the per-face 'feature' output is found: "
@@ -158,13 +164,14 @@ def denoise(
     params = {"input": input, "output": output, "method": method, "reference": reference, "rounds": rounds,
               "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
               "fidelity": fidelity,
-              "sigma_r": sigma_r, "sigma_s": sigma_s, "pin_boundary": pin_boundary, "features": features,
+              "sigma_r": sigma_r, "sigma_s": sigma_s, "guidance_mix": guidance_mix, "pin_boundary": pin_boundary,
+              "features": features,
               "feature_tau": feature_tau, "feature_angle": feature_angle, "outliers": outliers,
               "k": k, "threshold": threshold, "keep_all": keep_all, "refined": refined, "dynamic": dynamic,
               "coherence": coherence_used,
               "clean": not no_clean}
     mode = denoise_mode(input, outliers, dynamic)
-    params.update(_options_not_used(mode, features, threshold))
+    params.update(_options_not_used(mode, features, threshold, method))
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output], inputs=[input, reference], metrics=METRICS, text_metrics=TEXT_METRICS,
                      needs=_metric_needs(Choices(mode, method, features, refined, reference))) as run:
@@ -172,7 +179,7 @@ def denoise(
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
         if outliers and dynamic:
             raise UsageError("--outliers and --dynamic cannot be combined")
-        _refuse_unused_options(ctx, mode, features)
+        _refuse_unused_options(ctx, mode, features, method)
         if mode == CLOUD and keep_all:
             require_ply_output(output, "--keep-all marks the outliers in vertex properties "
                                "(outlier_score, outlier_detected)")
@@ -190,6 +197,8 @@ def denoise(
                              "which must stay above 1e-300")
         if not 0.0 <= fidelity <= 1.0:
             raise UsageError(f"--fidelity {fidelity}: must be within [0, 1]")
+        if guidance_mix is not None and not 0.0 <= guidance_mix <= 1.0:
+            raise UsageError(f"--guidance-mix {shown_number(guidance_mix)}: must be within [0, 1]")
         if features not in FEATURE_RULES:
             raise UsageError(f"--features {features}: use l1 or dihedral")
         if feature_tau < 0:
@@ -198,7 +207,7 @@ def denoise(
             raise UsageError(f"--feature-angle {shown_number(feature_angle)}: must be within [0, 180] degrees")
         dp = DenoiseParams(outer_iterations=rounds, normal_iterations=normal_iterations,
                            vertex_iterations=vertex_iterations, fidelity=fidelity, sigma_r=sigma_r,
-                           sigma_s_scale=sigma_s,
+                           sigma_s_scale=sigma_s, guidance_mix=guidance_mix,
                            pin_boundary=pin_boundary, features=features, feature_tau=feature_tau,
                            feature_angle_deg=feature_angle)
         if mode == DYNAMIC:
@@ -214,7 +223,7 @@ def denoise(
 
 
 _FILTER_OPTIONS = ("method", "rounds", "normal_iterations", "vertex_iterations", "fidelity", "sigma_r",
-                   "sigma_s", "pin_boundary")
+                   "sigma_s", "guidance_mix", "pin_boundary")
 MESH, CLOUD, MOVING_CLOUD, DYNAMIC = "mesh", "cloud", "moving cloud", "dynamic"
 """The four modes of ``denoise``: a single mesh, --outliers on a point cloud or
 on an animation, --dynamic."""
@@ -282,7 +291,7 @@ CLOUD_THRESHOLD = 0.5
 _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 
 
-def _unused_option_groups(mode: str, features: str) -> list[tuple[tuple[str, ...], str]]:
+def _unused_option_groups(mode: str, features: str, method: str) -> list[tuple[tuple[str, ...], str]]:
     """The options (parameter names) the mode does not use, in groups with
     the reason a given one is refused."""
     groups = []
@@ -302,24 +311,26 @@ def _unused_option_groups(mode: str, features: str) -> list[tuple[tuple[str, ...
         groups.append((("coherence",), "only with --dynamic"))
     groups.append((("feature_angle",), "only with --features dihedral") if features == "l1"
                   else (("feature_tau",), "only with --features l1"))
+    if method != "guided" and mode not in (CLOUD, MOVING_CLOUD):
+        groups.append((("guidance_mix",), "only with --method guided"))
     return groups
 
 
-def _options_not_used(mode: str, features: str, threshold: float | None) -> dict:
+def _options_not_used(mode: str, features: str, threshold: float | None, method: str) -> dict:
     """The report's values of the options the mode does not use (None, as
     :func:`_refuse_unused_options` refuses them when given; ``no_clean`` is
     the report's ``clean``) and of the default threshold of --outliers on a
     point cloud (0.5)."""
     values = {("clean" if name == "no_clean" else name): None
-              for names, _ in _unused_option_groups(mode, features) for name in names}
+              for names, _ in _unused_option_groups(mode, features, method) for name in names}
     if mode == CLOUD and threshold is None:
         values["threshold"] = CLOUD_THRESHOLD
     return values
 
 
-def _refuse_unused_options(ctx: typer.Context, mode: str, features: str) -> None:
+def _refuse_unused_options(ctx: typer.Context, mode: str, features: str, method: str) -> None:
     """Options the chosen mode would ignore are refused (exit 2), not dropped."""
-    for names, reason in _unused_option_groups(mode, features):
+    for names, reason in _unused_option_groups(mode, features, method):
         refuse_options(ctx, names, reason)
 
 

@@ -16,12 +16,14 @@ Three ways to filter the normals share one pipeline (:func:`denoise_mesh`):
 Each outer iteration filters the normals ``normal_iterations`` times, then moves
 the vertices to fit them (Sun et al. 2007) and recomputes the normals.
 
-With the automatic schedule at strong noise, ``guided`` ends differently: on
+At strong noise (roughness from ``STRONG_ROUGHNESS``), ``guided`` ends differently: on
 finely meshed surfaces the last round adds ``FINE_FINAL_PASSES`` guided passes
 with the narrower range kernel ``FINE_FINAL_SIGMA_R`` and fits twice; then the
 targets of faces the fit squashed against a crease become bisectors
 (:func:`geoproc.denoise.crease_targets.bisect_collapsed_targets`) and the
-vertices are fitted once more.
+vertices are fitted once more. This repair and the blend of the guidance with
+the normals (``guidance_mix``) follow the input whatever the schedule; both can
+be set (:class:`~geoproc.denoise.params.DenoiseParams`).
 """
 
 from __future__ import annotations
@@ -84,6 +86,9 @@ FINE_FINAL_PASSES = 2
 FINE_FINAL_SIGMA_R = 0.2
 # the share of denoise_mesh's progress taken by the noise and shape estimates
 ESTIMATE_SHARE = 0.3
+STRONG_ROUGHNESS = 0.18
+"""Roughness from which the guided method ends with the crease repair
+(:class:`~geoproc.denoise.params.DenoiseParams` ``crease_repair``)."""
 
 
 def light_schedule(rough: float, coarse_weight: float, sharp_weight: float, low: float) -> dict:
@@ -443,22 +448,25 @@ def denoise_mesh(
     Vw = V[vo]
     noise_deg = median_dihedral_deg(Vw, conn.F, conn.edge_nb)
     rough = roughness(Vw, conn.F, conn.edge_nb)
-    needs_schedule = p.outer_iterations is None or p.normal_iterations is None or p.sigma_r is None
     shape = smoothed_shape(Vw, conn.F, conn) if rough >= 0.03 else None
     # measured whenever the shape is (for the slivers): with --rounds, --normal-iterations and
     # --sigma-r all given they had read 0 and none, and the default --sigma-s ignored them
     coarse, tail = (0.0, np.inf) if shape is None else (shape.coarseness_deg, shape.tail_ratio)
     sched = default_schedule(rough, coarse, tail)
-    # automatic schedule at strong noise: the last round repairs faces the fit
-    # squashed against a crease; on finely meshed surfaces (the narrow-kernel
-    # branch) it first adds narrow guided passes and a second fit
-    strong = needs_schedule and method == "guided" and rough >= 0.18
+    # guided at strong noise: the last round repairs faces the fit squashed against a
+    # crease; on finely meshed surfaces (the narrow-kernel branch) it first adds narrow
+    # guided passes and a second fit. The guidance mix and this repair follow the input
+    # whatever schedule is given: with --rounds, --normal-iterations and --sigma-r all
+    # given they had been off, so the values a report records did not give its run back
+    guided = method == "guided"
+    strong = guided and rough >= STRONG_ROUGHNESS if p.crease_repair is None else p.crease_repair
+    mix = (sched["guidance_mix"] if guided else 0.0) if p.guidance_mix is None else p.guidance_mix
     plan = FilterPlan(
         outer_iterations=sched["outer_iterations"] if p.outer_iterations is None else p.outer_iterations,
         normal_iterations=sched["normal_iterations"] if p.normal_iterations is None else p.normal_iterations,
         sigma_r=sched["sigma_r"] if p.sigma_r is None else p.sigma_r,
         spatial_scale=sched["spatial_scale"] if p.sigma_s_scale is None else p.sigma_s_scale,
-        guidance_mix=sched["guidance_mix"] if needs_schedule and method == "guided" else 0.0,
+        guidance_mix=mix,
         strong=strong, narrow_weight=sched["narrow_weight"])
     rounds_progress = None
     if progress is not None:

@@ -61,6 +61,17 @@ class DenoiseParams:
         (:func:`geoproc.denoise.crease_targets.input_side_targets`): the
         filter had put it on the far side of a crease sharper than a right
         angle.
+    guidance_mix : float
+        ``guided`` only: each pass's guidance is the patch guidance blended with
+        the normals themselves by this weight (0: the patch guidance alone, as
+        Zhang et al.; 1: the normals, the plain bilateral filter). None: from
+        the noise level and the mesh's shape (:func:`default_schedule`).
+    crease_repair : bool
+        Before the last fit, repair the faces the fit squashed against a
+        crease (:func:`geoproc.denoise.crease_targets.bisect_collapsed_targets`,
+        after a first fit; on finely meshed surfaces also narrow guided passes
+        and a second fit). None: with the ``guided`` method at strong noise
+        (roughness at least 0.18).
     """
 
     outer_iterations: int | None = None
@@ -76,3 +87,5 @@ class DenoiseParams:
     unfold_rounds: int = 5
     fidelity: float = 0.005
     input_side: bool = True
+    guidance_mix: float | None = None
+    crease_repair: bool | None = None
