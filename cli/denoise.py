@@ -217,8 +217,8 @@ def denoise(
         elif mode == CLOUD:
             _outliers(run, input, output, k, threshold, keep_all, refined, no_clean)
         else:
-            given = options_given(ctx, "sigma_r", "sigma_s", "normal_iterations", "vertex_iterations",
-                                  "fidelity")
+            given = options_given(ctx, "method", "sigma_r", "sigma_s", "guidance_mix", "normal_iterations",
+                                  "vertex_iterations", "fidelity")
             _mesh(run, input, output, reference, method, dp, no_clean, given)
 
 
@@ -388,13 +388,16 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
     """A note when options were given (``given``: their flags) for work that
     did not run: the filter's when no filter pass ran (the mesh read as clean,
     or --rounds / --normal-iterations 0), the vertex update's when no round
-    ran, --fidelity when no vertex sweep ran."""
+    ran, --fidelity when no vertex sweep ran; --method guided when its guidance
+    was blended away (``guidance_mix`` 1 chosen from the input: the plain
+    bilateral filter)."""
     rounds = info.get("outer_iterations", 1)
     filtered = rounds and info.get("normal_iterations", 1)
     counts = (("--rounds", "outer_iterations", dp.outer_iterations),
               ("--normal-iterations", "normal_iterations", dp.normal_iterations))
     zero = [opt for opt, _, value in counts if value == 0]  # the cause, not an unused option
-    unused = [o for o in given if o in ("--sigma-r", "--sigma-s", "--normal-iterations") and not filtered]
+    filter_options = ("--method", "--sigma-r", "--sigma-s", "--guidance-mix", "--normal-iterations")
+    unused = [o for o in given if o in filter_options and not filtered]
     unused += [o for o in given if o in ("--vertex-iterations", "--fidelity") and not rounds]
     unused = [o for o in unused if o not in zero]
     if unused:
@@ -405,6 +408,10 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
             why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so "
                    f"nothing was filtered; give {' and '.join(auto)} to filter anyway")
         run.note(f"{', '.join(unused)} not used: {why}")
+    if (filtered and "--method" in given and "--guidance-mix" not in given and dp.guidance_mix is None
+            and info.get("guidance_mix") == 1.0 and info.get("crease_bisected_faces", 0) == 0):
+        run.note("--method guided: at this noise level on this mesh the guidance is blended away "
+                 "(guidance_mix 1: the plain bilateral filter); --guidance-mix sets it")
     if rounds and "--fidelity" in given and not info.get("vertex_iterations", 1):
         run.note("--fidelity not used: no vertex sweep ran (--vertex-iterations 0)")
 

@@ -601,6 +601,25 @@ def test_filter_options_unused_on_a_clean_mesh_are_noted(cli, fixture_dir, tmp_p
     assert p.returncode == 0 and "note: --sigma-r not used: the mesh reads as clean" in p.stderr
     p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "0", "--sigma-s", "2", "-o", out)
     assert p.returncode == 0 and "note: --sigma-s not used: no filter pass ran (--rounds 0)" in p.stderr
+    # --method too: it had been dropped without a word
+    p = cli("denoise", fixture_dir / "torus.ply", "--method", "rpca", "--rounds", "0", "-o", out)
+    assert p.returncode == 0 and "note: --method not used: no filter pass ran (--rounds 0)" in p.stderr
+    p = cli("denoise", fixture_dir / "torus.ply", "--method", "rpca", "-o", out)
+    assert p.returncode == 0 and "note: --method not used: the mesh reads as clean" in p.stderr
+
+
+def test_guided_blended_away_by_the_schedule_is_noted(cli, dfx, tmp_path):
+    # weak noise on a creased mesh gets the plain bilateral filter (guidance_mix 1): an
+    # explicit --method guided gave bilateral's bytes without a word
+    Vn, F, _ = dfx.noisy_cube(n=12, sigma=0.1, seed=2)
+    src, rep = tmp_path / "weak.ply", tmp_path / "r.json"
+    save_mesh(src, Mesh(Vn, F))
+    p = cli("denoise", src, "--method", "guided", "-o", tmp_path / "g.ply", "--report", rep)
+    assert p.returncode == 0 and _metrics(rep)["guidance_mix"] == 1.0
+    assert "note: --method guided: at this noise level on this mesh the guidance is blended away" in p.stderr
+    p = cli("denoise", src, "--method", "guided", "--guidance-mix", "0", "-o", tmp_path / "z.ply")
+    assert p.returncode == 0 and "blended away" not in p.stderr
+    assert (tmp_path / "z.ply").read_bytes() != (tmp_path / "g.ply").read_bytes()
 
 
 @pytest.mark.parametrize(("args", "message"), [
