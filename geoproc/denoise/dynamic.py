@@ -245,7 +245,9 @@ def denoise_animation(
 
     Returns
     -------
-    V_out : (T, n, 3) float64 denoised positions; info : dict of scalars.
+    V_out : (T, n, 3) float64 denoised positions; info : dict of scalars,
+        with the static step's schedule over the frames (each frame's is chosen
+        from its own noise, :func:`frame_schedule_summary`).
     """
     if coherence not in COHERENCE:
         raise ValueError(f"coherence {coherence!r}: use one of {', '.join(COHERENCE)}")
@@ -257,13 +259,16 @@ def denoise_animation(
     repeated = repeated_corner_faces(np.asarray(F).reshape(-1, 3))
     F = np.asarray(F).reshape(-1, 3)[~repeated]  # no area, no normal: left out, as by denoise_mesh
     static = np.empty_like(V, dtype=np.float64)
+    frame_info = []
     conn = None  # the faces, checked and prepared once for all frames
     for t in range(T):
         try:
             if conn is None:
                 Vt, Ft = mesh_arrays(V[t], F)
                 conn = face_connectivity(Ft, len(Vt))
-            static[t] = denoise_mesh(V[t], F, method, per_frame, connectivity=conn).V
+            res = denoise_mesh(V[t], F, method, per_frame, connectivity=conn)
+            static[t] = res.V
+            frame_info.append(res.info)
         except InputError as exc:  # say which frame
             raise InputError(exc.path, f"frame {t}: {exc.problem}") from None
         except UsageError as exc:
@@ -282,5 +287,24 @@ def denoise_animation(
         out, info = coherent_normal_fit(static, F, fixed=fixed)
     if progress is not None:
         progress(1.0)
-    info.update({"frames": T, "coherence": coherence, "repeated_corner_faces": int(repeated.sum())})
+    info.update({"frames": T, "coherence": coherence, "repeated_corner_faces": int(repeated.sum()),
+                 **frame_schedule_summary(frame_info)})
     return out, info
+
+
+SCHEDULE_MEANS = ("noise_roughness", "sigma_r", "sigma_s", "guidance_mix")
+SCHEDULE_LARGEST = ("outer_iterations", "normal_iterations")
+
+
+def frame_schedule_summary(frame_info: list[dict]) -> dict:
+    """The static step's noise estimate and schedule over the frames, from each
+    frame's :func:`denoise_mesh` info: the mean of ``SCHEDULE_MEANS`` (the
+    roughness, the kernel widths, the guidance mix) and the largest of
+    ``SCHEDULE_LARGEST`` (rounds, passes per round); entries no frame has are
+    left out."""
+    out: dict = {}
+    for key in SCHEDULE_MEANS + SCHEDULE_LARGEST:
+        values = [i[key] for i in frame_info if i.get(key) is not None]
+        if values:
+            out[key] = float(np.mean(values)) if key in SCHEDULE_MEANS else int(max(values))
+    return out

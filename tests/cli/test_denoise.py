@@ -203,6 +203,16 @@ def test_dynamic_npz(cli, dfx, tmp_path, coherence):
     worst = [denoise_errors(a.V[t], F, V[t])["max_normal_angle_deg"] for t in range(3)]
     assert met["max_normal_angle_deg"] == pytest.approx(max(worst), rel=1e-9) and max(worst) > np.mean(worst)
     assert theta < 0.5 * np.mean([denoise_errors(Vn[t], F, V[t])["mean_normal_angle_deg"] for t in range(3)])
+    # the schedule chosen from each frame's noise, over the frames (params had null and the
+    # metrics nothing: the README's contract for options chosen from the input)
+    from geoproc.denoise import denoise_mesh
+
+    infos = [denoise_mesh(Vn[t], F).info for t in range(3)]
+    assert report["params"]["rounds"] is None and report["params"]["sigma_r"] is None
+    for key in ("noise_roughness", "sigma_r", "sigma_s", "guidance_mix"):
+        assert met[key] == pytest.approx(np.mean([i[key] for i in infos]), rel=1e-12), key
+    for key in ("outer_iterations", "normal_iterations"):
+        assert met[key] == max(i[key] for i in infos) > 0, key
     # face counts are summed over the frames
     before = [flipped_faces(Vn[t], F, V[t]) for t in range(3)]
     assert met["input_flipped_faces"] == sum(len(b) for b in before)
