@@ -165,6 +165,14 @@ def translated(expr: Expression, dx: float, dy: float) -> Expression:
     return Expression(expr.text, np.array(code, dtype=np.int64), np.array(consts, dtype=np.float64))
 
 
+def is_zero(expr: Expression) -> bool:
+    """Whether ``expr`` is the constant 0 (no x or y in it, and it evaluates to
+    +0 or -0): ``--neumann 0`` is then the zero flux the option's absence means."""
+    if np.isin(expr.code, (OP_X, OP_Y)).any():
+        return False
+    return bool(evaluate(expr, np.zeros(1), np.zeros(1))[0] == 0.0)
+
+
 def evaluate(expr: Expression, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Evaluate ``expr`` elementwise on arrays ``x``, ``y`` (same shape); float64 result."""
     x = np.asarray(x, dtype=np.float64)

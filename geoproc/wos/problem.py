@@ -13,7 +13,7 @@ import numpy as np
 from geoproc.errors import InputError, UsageError
 from geoproc.wos.closest import build_segment_grid, closest_points
 from geoproc.wos.domain import Domain
-from geoproc.wos.expression import Expression, evaluate
+from geoproc.wos.expression import Expression, evaluate, is_zero
 from geoproc.wos.kernels import KernelSet
 from geoproc.wos.rng import stream_state
 from geoproc.wos.walk import wos_dirichlet, wos_dirichlet_serial
@@ -115,7 +115,8 @@ class WalkProblem:
     boundary : Expression or None
         Dirichlet data; None uses the domain's per-vertex values.
     flux : Expression or None
-        Neumann data ``du/dn`` (outward normal) on the Neumann segments; None is zero flux.
+        Neumann data ``du/dn`` (outward normal) on the Neumann segments; None is zero
+        flux, and so is a constant 0 (the walks then draw the same random numbers).
     eps : float
         Stopping distance (length units).
     """
@@ -152,7 +153,7 @@ class WalkProblem:
             self.U, self.Vs, self.Wn = silhouette_candidates(self.A, self.B, domain.neumann,
                                                              domain.loop_of)
             self.neumann_index = neumann_index(self.A, self.B, self.nseg, self.Vs)
-            if flux is not None:
+            if flux is not None and not is_zero(flux):  # a zero flux needs no flux samples
                 self.hkind, self.hcode, self.hconsts = 0, flux.code, flux.consts
             else:
                 self.hkind, self.hcode, self.hconsts = 1, _NO_CODE, _EMPTY1

@@ -454,6 +454,21 @@ def test_wost_is_scale_free():
     assert small[2].sum() == pytest.approx(unit[2].sum(), rel=0.01)
 
 
+def test_a_zero_flux_expression_is_no_flux():
+    # --neumann 0, the stated meaning of leaving it out, drew flux samples: other bytes, more
+    # steps, twice the time
+    from geoproc.wos.expression import is_zero
+
+    assert is_zero(parse_expression("0")) and is_zero(parse_expression("-0.0*1"))
+    assert not is_zero(parse_expression("0*x")) and not is_zero(parse_expression("1e-300"))
+    g = parse_expression("y")
+    kw = dict(walks=16, grid=12, seed=3)
+    plain = solve_laplace(RECT, g, **kw)
+    zero = solve_laplace(RECT, g, flux=parse_expression("0"), **kw)
+    np.testing.assert_array_equal(plain.U, zero.U)
+    assert plain.metrics["total_steps"] == zero.metrics["total_steps"]
+
+
 def test_control_variate_on_mixed_problem():
     g = parse_expression("x*y - 0.5*x")
     h = parse_expression("x*(2*y - 1)")
