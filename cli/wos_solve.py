@@ -209,8 +209,10 @@ def wos_solve(
                      f"reaches {MAX_STEPS} steps stops and scores the closest boundary point, which biases "
                      "the estimate. Long Neumann corridors take that many steps, and so does an --epsilon "
                      f"finer than the coordinates' rounding ({epsilon:g} here), where walks stall at the boundary")
-        if fit_points is not None and res.metrics.get("fit_points", fit_points) < fit_points:
-            run.note(f"{res.metrics['fit_points']} fit points used, not {fit_points}: every grid point farther "
+        wanted = fit_points if fit_points is not None else 8 * (used or 0)  # the default: 8 x kernels used
+        if fitted and res.metrics.get("fit_points", wanted) < wanted:
+            run.note(f"{res.metrics['fit_points']} fit points used, not {wanted}"
+                     f"{'' if fit_points is not None else ' (8 x the kernels used)'}: every grid point farther "
                      "than 2 x epsilon from the boundary (raise --grid for more)")
         gs = res.grid
         extent = (gs.x0, gs.x0 + gs.nx * gs.h, gs.y1 - gs.ny * gs.h, gs.y1)

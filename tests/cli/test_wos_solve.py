@@ -270,6 +270,13 @@ def test_capped_kernels_and_fit_points_are_noted(cli, inputs, tmp_path):
     assert m["kernels_used"] == 128 and m["fit_points"] < 5000
     assert "note: 128 kernels used, not 500: cv-angle puts at most one on each boundary segment" in p.stderr
     assert f"note: {m['fit_points']} fit points used, not 5000" in p.stderr
+    # the default, 8 x the kernels used, is capped with the same note (it had been silent)
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "2", "--grid", "8", "--fit-walks", "2",
+            "--method", "cv-green", "-o", tmp_path / "u.exr", "--report", rep)
+    m = json.loads(rep.read_text())["metrics"]
+    assert p.returncode == 0 and m["fit_points"] < 8 * m["kernels_used"]
+    assert (f"note: {m['fit_points']} fit points used, not {8 * m['kernels_used']} (8 x the kernels used)"
+            in " ".join(p.stderr.split()))
 
 
 def test_walks_stalled_at_the_step_cap_are_noted(cli, inputs, tmp_path):
