@@ -72,7 +72,8 @@ def denoise(
                                         metavar=choices_metavar(METHODS))]
     = DEFAULT_METHOD,
     reference: Annotated[str | None, typer.Option("--reference", help="Clean version with the same "
-                                                  "faces in the same order (mesh, or .npz with --dynamic; "
+                                                  "faces in the same order (mesh, or .npz or folder of frames "
+                                                  "with --dynamic; "
                                                   "its vertices may be numbered otherwise, as in an STL "
                                                   "copy): report the error metrics; - reads a mesh from "
                                                   "stdin.", metavar="CLEAN")] = None,
@@ -119,7 +120,7 @@ def denoise(
                                            "of frames), RPCA on the animation matrix (one row per point: "
                                            "its x, y, z in every frame) flags the outlying points of every "
                                            "frame.")] = False,
-    k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers, in points "
+    k: Annotated[int, typer.Option("--k", help="Neighbourhood size for --outliers on a point cloud, in points "
                                      "(at least 4, at most the number of distinct points; near copies count "
                                      "once).")] = 16,
     threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, >= 0, in "
@@ -127,8 +128,9 @@ def denoise(
                                                     "max(0.5, 3 x the median score)).",
                                                     show_default=False)] = None,
     keep_all: Annotated[bool, flag("--keep-all", help="--outliers: write every point with "
-                                           "'outlier_score' and 'outlier_detected' properties (always so "
-                                           "for an animation).")] = False,
+                                           "'outlier_score' and 'outlier_detected' properties (a point "
+                                           "cloud; an animation's output always has every point, so it is "
+                                           "refused there).")] = False,
     refined: Annotated[bool, flag("--refined", help="--outliers: write the refined (denoised) "
                                           "positions instead of the input ones: the merged projections "
                                           "onto the neighbourhoods' robust planes; for an animation, the "

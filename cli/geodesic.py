@@ -104,7 +104,8 @@ def geodesic(
                                         "(input scalar vertex and face properties kept); - for stdout.",
                                         metavar="OUT.ply")],
     source: Annotated[list[int] | None, typer.Option("--source", "-s", help="Source vertex index "
-                      "(0-based, in the mesh as loaded); repeatable: distance to the nearest.",
+                      "(0-based, in the mesh as loaded); repeatable: distance to the nearest. At least one "
+                      "source is needed, here or in --sources-file.",
                       metavar="I", show_default=False)] = None,
     sources_file: Annotated[str | None, typer.Option("--sources-file", help="Text file of source indices "
                             "(integers separated by spaces, commas or newlines; # comments); - reads stdin.",
@@ -134,8 +135,8 @@ def geodesic(
                               "step's u falls below the smallest normal double (2.2e-308) at a vertex connected "
                               "to a source (a fine mesh, a short time), log-domain solves that step again in the "
                               "log domain (log-heat's solver, one step; the same distances to rounding where u is "
-                              "representable; a time so short that t times a Laplacian weight underflows is then refused) and keep keeps "
-                              "the plain step's result (no direction where u is 0).")]
+                              "representable; a time so short that t times a Laplacian weight underflows is "
+                              "then refused) and keep keeps the plain step's result (no direction where u is 0).")]
     = HeatUnderflow.log_domain,
     reference: Annotated[Reference | None, typer.Option("--reference", help="Compare with exact "
                          "geodesics: pearson_r, rmse, mae, mean/max_relative_error in the report.",

@@ -83,7 +83,7 @@ def morse_simplify(
         "counted in vertices_beyond_half_threshold): f there "
         "is the lower-star extension (each cell's largest vertex value), and the per-vertex property "
         "cell_dim (0, 1, 2) tells input vertices, edge midpoints and triangle centres apart. "
-        "--exact-windows is not used.")] = False,
+        "--exact-windows is refused with it.")] = False,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,

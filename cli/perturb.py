@@ -60,7 +60,8 @@ def perturb(
                                             metavar="FRACTION")] = 0.0,
     outlier_range: Annotated[float, typer.Option("--outlier-range", help="Outliers move uniformly within "
                                                  "a ball of this many (> 0) bounding-box diagonals (of the vertices "
-                                                 "the faces use) around their noisy position.",
+                                                 "the faces use; of every point of a point cloud) around their "
+                                                 "noisy position.",
                                                  metavar="R")] = 0.02,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,

@@ -31,7 +31,6 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.errors import InputError
 from geoproc.geodesic.heat_operators import HeatOperators, heat_operators
 from geoproc.geodesic.log_ode import LogODESolver, NegativeWeightsError, negative_weight_problem, off_diagonal_weights
 from geoproc.mesh.topology import boundary_vertices
