@@ -11,6 +11,7 @@ files are removed. This module imports nothing heavy.
 
 from __future__ import annotations
 
+import importlib.abc
 import signal
 import sys
 
@@ -58,8 +59,11 @@ def unreported_interruption() -> KeyboardInterrupt | None:
 
 
 def _raise_interruption(signum, frame) -> None:
-    global _pending
+    global _pending, _deferred
     _pending = KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
+    if _deferring:  # an extension is loading: raised once it is (_SignalsDeferredLoader)
+        _deferred = _deferred or _pending
+        return
     raise _pending
 
 
@@ -73,9 +77,77 @@ def install_signal_handlers() -> None:
             signal.signal(sig, _raise_interruption)
 
 
+DEFERRED_IMPORTS = ("igl",)
+"""Packages whose extension a signal must not interrupt while it loads: libigl's
+nanobind module turns the exception a handler raises while it creates its
+enumerations into a C++ exception that aborts the process (exit 134 and a
+31-line traceback instead of the error line)."""
+
+_deferring = 0
+"""How many deferred imports are running: the handler then records the signal
+(:data:`_deferred`) instead of raising."""
+_deferred: KeyboardInterrupt | None = None
+
+
+class _SignalsDeferredLoader(importlib.abc.Loader):
+    """A module loader during which the terminating signals' handler only
+    records what arrived; the interruption is raised once the module is loaded,
+    in the code that imported it."""
+
+    def __init__(self, loader):
+        self.loader = loader
+
+    def create_module(self, spec):
+        with _interruptions_deferred():
+            return self.loader.create_module(spec)
+
+    def exec_module(self, module) -> None:
+        with _interruptions_deferred():
+            self.loader.exec_module(module)
+
+
+class _interruptions_deferred:
+    def __enter__(self) -> None:
+        global _deferring
+        _deferring += 1
+
+    def __exit__(self, *exc) -> None:
+        global _deferring, _deferred
+        _deferring -= 1
+        if not _deferring and _deferred is not None:
+            pending, _deferred = _deferred, None
+            raise pending
+
+
+class _DeferSignalsFinder(importlib.abc.MetaPathFinder):
+    """Finds the modules of :data:`DEFERRED_IMPORTS` through the other finders
+    and gives them a :class:`_SignalsDeferredLoader`."""
+
+    def find_spec(self, name, path, target=None):
+        if name.partition(".")[0] not in DEFERRED_IMPORTS:
+            return None
+        for finder in sys.meta_path:
+            if finder is self or not hasattr(finder, "find_spec"):
+                continue
+            spec = finder.find_spec(name, path, target)
+            if spec is not None:
+                if spec.loader is not None:
+                    spec.loader = _SignalsDeferredLoader(spec.loader)
+                return spec
+        return None
+
+
+def defer_signals_in_extension_imports() -> None:
+    """Have the packages of :data:`DEFERRED_IMPORTS`, whenever first imported,
+    load before a terminating signal is raised as an exception."""
+    if not any(isinstance(f, _DeferSignalsFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _DeferSignalsFinder())
+
+
 def main() -> None:
     """Run ``geoproc``: install the handlers, then load and run the command line."""
     install_signal_handlers()
+    defer_signals_in_extension_imports()
     try:
         from geoproc_cli.main import main as run
 

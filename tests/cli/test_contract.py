@@ -747,6 +747,34 @@ def test_termination_while_writing_leaves_nothing_staged(fixture_dir, tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
 
 
+@pytest.mark.parametrize("sig, status, line", [("SIGTERM", 143, "error: terminated (SIGTERM)"),
+                                               ("SIGINT", 130, "error: interrupted")])
+def test_a_signal_while_libigl_loads_is_an_interruption(fixture_dir, tmp_path, sig, status, line):
+    # libigl's nanobind extension turned the exception the handler raised while it created its
+    # enumerations into a C++ exception: abort, exit 134, a 31-line traceback. The signal is
+    # sent here at that moment (the first enumeration made while igl loads)
+    import subprocess
+    import sys
+
+    script = (
+        "import enum, os, signal, sys\n"
+        "call = enum.EnumType.__call__\n"
+        "armed = [True]\n"
+        "def inject(cls, *a, **k):\n"
+        "    if armed[0] and 'igl' in sys.modules and 'igl.pyigl_core' not in sys.modules:\n"
+        f"        armed[0] = False; os.kill(os.getpid(), signal.{sig})\n"
+        "    return call(cls, *a, **k)\n"
+        "enum.EnumType.__call__ = inject\n"
+        "from geoproc_cli.entry import main\n"
+        "main()\n"
+    )
+    out = tmp_path / "o.ply"
+    p = subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
+                        "-o", str(out)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == status and p.stderr.strip() == line, p.stderr[-3000:]
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_interruption_typer_swallows_is_reported(monkeypatch, capsys):
     # typer turns a Ctrl-C outside a command's body (while it parses the options) into a
     # silent exit status 130; the handlers remember the signal and main() reports it
