@@ -28,6 +28,48 @@ def _temp_beside(path: str) -> tuple[int, str]:
     return fd, os.fsdecode(name)
 
 
+def _keep_old(path: str) -> str | None:
+    """A second name (a hard link beside it) for the regular file at ``path``,
+    so that it can be put back if a later rename fails; None when there is no
+    such file or the file system cannot link it."""
+    if not os.path.isfile(path):
+        return None
+    fd, name = _temp_beside(path)
+    os.close(fd)
+    try:
+        os.unlink(name)
+        os.link(path, name)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(name)
+        return None
+    return name
+
+
+def _rename_all(staged: list[tuple[str, str]]) -> None:
+    """Rename every (temporary, destination) pair; if one fails (or a signal
+    arrives) the destinations get their old files back, or are removed when
+    there were none, so the outputs stay all old or all new (a file system that
+    cannot hard-link keeps the new file where an old one was)."""
+    done: list[tuple[str, bool, str | None]] = []  # (destination, existed, its old file's second name)
+    try:
+        for tmp, path in staged:
+            existed = os.path.lexists(path)
+            done.append((path, existed, _keep_old(path) if existed else None))
+            os.replace(tmp, path)
+    except BaseException:
+        for path, existed, old in reversed(done):  # the last may have failed: restoring it changes nothing
+            with contextlib.suppress(OSError):
+                if old is not None:
+                    os.replace(old, path)
+                elif not existed:
+                    os.unlink(path)
+        # a restore that failed, or a rename onto a link of the same file (which does nothing)
+        _discard([old for _, _, old in done if old is not None])
+        raise
+    _discard([old for _, _, old in done if old is not None])
+
+
 def _discard(temps: list[str]) -> None:
     for tmp in temps:
         with contextlib.suppress(FileNotFoundError):
@@ -48,7 +90,9 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
 
     A destination that is a folder, or a write that fails (permissions, disk
     full), raises OSError naming that destination before any destination
-    changes; the temporary files are removed. New files get the usual mode
+    changes; the temporary files are removed. A rename that fails (a
+    destination bind-mounted or immutable) puts back the files the renames
+    before it replaced (:func:`_rename_all`). New files get the usual mode
     (0o666 less the umask). A symbolic link is written through (its target is
     replaced, the link kept); a destination that exists and is not a regular
     file (a device such as /dev/null, a FIFO) is written to directly, once the
@@ -88,8 +132,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         path = "-"
         if before_rename is not None:
             before_rename()
-        for tmp, path in staged:
-            os.replace(tmp, path)
+        _rename_all(staged)
     except BaseException as exc:
         _discard([tmp for tmp, _ in staged])
         if isinstance(exc, OSError):  # name the destination, not the temporary file

@@ -339,6 +339,37 @@ def test_atomic_write_leaves_nothing_on_failure(tmp_path):
     assert target.read_bytes() == b"old" and len(list(tmp_path.iterdir())) == 1
 
 
+@pytest.mark.parametrize("existing", [True, False])
+def test_atomic_write_puts_back_what_a_failed_later_rename_replaced(tmp_path, monkeypatch, existing):
+    # a report bind-mounted or immutable cannot be renamed onto (EBUSY, EPERM): the mesh
+    # renamed before it had already replaced the old one, with no report to match it
+    import errno
+    import os
+
+    import geoproc.fileio as fileio
+
+    mesh, report = tmp_path / "o.ply", tmp_path / "r.json"
+    if existing:
+        mesh.write_bytes(b"old mesh")
+    report.write_bytes(b"old report")
+    real_replace = os.replace
+
+    def busy(src, dst):
+        if os.fspath(dst) == str(report) and str(src).endswith(".tmp"):
+            raise OSError(errno.EBUSY, "Device or resource busy")
+        real_replace(src, dst)
+
+    monkeypatch.setattr(fileio.os, "replace", busy)
+    with pytest.raises(OSError, match="busy"):
+        write_files_atomic([(mesh, b"new mesh"), (report, b"new report")])
+    assert report.read_bytes() == b"old report"
+    assert (mesh.read_bytes() == b"old mesh") if existing else not mesh.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["r.json"] + (["o.ply"] if existing else []))
+    monkeypatch.setattr(fileio.os, "replace", real_replace)
+    write_files_atomic([(mesh, b"new mesh"), (report, b"new report")])  # no second names left behind
+    assert mesh.read_bytes() == b"new mesh" and sorted(p.name for p in tmp_path.iterdir()) == ["o.ply", "r.json"]
+
+
 def test_obj_relative_indices_count_back_from_the_line():
     # -1 is the last vertex defined above the face line, not the file's last vertex
     data = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 1 1 0\nf -3 -1 -2\nf 2 4 3\n"
