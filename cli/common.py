@@ -452,8 +452,9 @@ def _file_id(path: str) -> tuple[int, int] | None:
 
 
 def _require_output_folders(names: list[str]) -> None:
-    """Refuse an output that names a folder, or whose folder does not exist
-    (for a symbolic link, the folder of its target, which is what is written)."""
+    """Refuse an output that names a folder, or whose folder does not exist or
+    cannot take a new file (for a symbolic link, the folder of its target,
+    which is what is written; a device or FIFO, written directly, needs none)."""
     for name in names:
         if name == "-":
             continue
@@ -467,6 +468,18 @@ def _require_output_folders(names: list[str]) -> None:
         folder = os.path.dirname(real) if os.path.islink(name) else os.path.dirname(os.path.abspath(name))
         if not os.path.isdir(folder):
             raise UsageError(f"{name}: output folder '{folder}' does not exist")
+        if _is_special_file(real):
+            continue
+        if not os.access(folder, os.W_OK | os.X_OK):  # read-only file system, no permission
+            raise UsageError(f"{name}: cannot write: output folder '{folder}' is not writable")
+
+
+def _is_special_file(path: str) -> bool:
+    """Whether ``path`` exists and is not a regular file (a device, a FIFO)."""
+    try:
+        return not stat.S_ISREG(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
 
 
 def _require_finite_options(params: dict) -> None:
@@ -501,6 +514,15 @@ def require_extension(path: str | os.PathLike, ext: str, option: str, stdout_ok:
     if (stdout_ok and name == "-") or name.lower().endswith(ext):
         return
     raise UsageError(f"{option} {name}: must end in {ext}" + (" (or be -)" if stdout_ok else ""))
+
+
+def require_mesh_output(output: str) -> None:
+    """UsageError unless the mesh output ``output`` is ``-`` or has an extension
+    a mesh is written in (checked before the work, not after it)."""
+    from geoproc.mesh.write import write_format
+
+    if output != "-":
+        write_format(output)
 
 
 def require_ply_output(output: str, what: str, also: tuple[str, ...] = ()) -> None:

@@ -564,6 +564,12 @@ def test_output_paths_are_refused_before_any_input_is_read(cli, fixture_dir, tmp
         assert p.returncode == 2 and message in p.stderr and "missing" not in p.stderr, (output, p.stderr)
     (tmp_path / "folder.ply").rmdir()
     (tmp_path / "dangling.ply").unlink()
+    # an extension no mesh is written in: denoise and perturb had refused it after the work
+    for args in (["denoise", garbage, "-o", tmp_path / "o.pyl"], ["denoise", garbage, "--outliers", "-o",
+                                                                 tmp_path / "o.pyl"],
+                 ["perturb", garbage, "--seed", "1", "-o", tmp_path / "o.pyl"]):
+        p = cli(*args)
+        assert p.returncode == 2 and "cannot write '.pyl'" in p.stderr and "not a mesh" not in p.stderr, p.stderr
     for args in (["denoise", garbage, "-o", garbage], ["perturb", garbage, "--seed", "1", "-o", garbage],
                  ["geodesic", garbage, "-s", "0", "-o", garbage],
                  ["denoise", fixture_dir / "torus.ply", "--reference", garbage, "-o", garbage],
@@ -773,6 +779,28 @@ def test_a_signal_while_libigl_loads_is_an_interruption(fixture_dir, tmp_path, s
                         "-o", str(out)], capture_output=True, text=True, timeout=120)
     assert p.returncode == status and p.stderr.strip() == line, p.stderr[-3000:]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_output_folder_that_cannot_take_a_file_is_refused_before_the_work(fixture_dir, tmp_path, monkeypatch,
+                                                                            capsys):
+    # a read-only file system (or a folder without write permission) was found only when the
+    # output was staged, after the work: 17 s of exact geodesics on the armadillo, then exit 2
+    import geoproc.geodesic
+    from geoproc_cli import main as cli_main
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if os.fspath(p) == str(ro) else real_access(
+        p, mode, **kw))
+    monkeypatch.setattr(geoproc.geodesic, "geodesic_distance", lambda *a, **k: pytest.fail("the work ran"))
+    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", str(fixture_dir / "torus.ply"), "-s", "0", "-o",
+                                     str(ro / "d.ply")])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    err = capsys.readouterr().err.strip()
+    assert stop.value.code == 2 and err == f"error: {ro / 'd.ply'}: cannot write: output folder '{ro}' is not writable"
+    assert list(ro.iterdir()) == []
 
 
 def test_interruption_typer_swallows_is_reported(monkeypatch, capsys):
