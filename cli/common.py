@@ -43,7 +43,7 @@ from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
 from geoproc.report import build_report, evaluate_checks, parse_check, require_known_metrics
 from geoproc.report.report import report_json
-from geoproc_cli.entry import interruption_line
+from geoproc_cli.entry import interruption_line, outputs_committed
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 T = TypeVar("T")
@@ -601,6 +601,7 @@ def command_run(
             yield run
         failures = evaluate_checks(parsed, run.metrics)  # raises on unknown metric names
         run._commit(report)
+        outputs_committed()  # the run is done: a signal from here would only misreport it
         run._flush_notes()
     except typer.Exit:
         raise

@@ -67,6 +67,16 @@ def _raise_interruption(signum, frame) -> None:
     raise _pending
 
 
+def outputs_committed() -> None:
+    """The run's outputs are in place: from here a terminating signal is
+    ignored (it had made a finished run exit 143, most often with no error
+    line, with its outputs complete). Only the handlers of
+    :func:`install_signal_handlers` are changed."""
+    for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if sig is not None and signal.getsignal(sig) is _raise_interruption:
+            signal.signal(sig, signal.SIG_IGN)
+
+
 def install_signal_handlers() -> None:
     """SIGINT raises KeyboardInterrupt, SIGTERM and SIGHUP :class:`Terminated`;
     each is remembered for :func:`unreported_interruption`. A signal the

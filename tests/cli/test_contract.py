@@ -803,6 +803,30 @@ def test_an_output_folder_that_cannot_take_a_file_is_refused_before_the_work(fix
     assert list(ro.iterdir()) == []
 
 
+def test_a_signal_once_the_outputs_are_in_place_is_ignored(fixture_dir, tmp_path):
+    # a SIGTERM in the last tens of milliseconds (notes, exit) made a finished run exit 143,
+    # most often without an error line, its outputs complete
+    import subprocess
+    import sys
+
+    script = (
+        "import os, signal\n"
+        "from geoproc_cli import common\n"
+        "flush = common.Run._flush_notes\n"
+        "def late(self):\n"
+        "    os.kill(os.getpid(), signal.SIGTERM)\n"
+        "    flush(self)\n"
+        "common.Run._flush_notes = late\n"
+        "from geoproc_cli.entry import main\n"
+        "main()\n"
+    )
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
+                        "-o", str(out), "--report", str(rep)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0 and p.stderr == "", (p.returncode, p.stderr[-2000:])
+    assert out.stat().st_size > 0 and json.loads(rep.read_text())["command"] == "perturb"
+
+
 def test_interruption_typer_swallows_is_reported(monkeypatch, capsys):
     # typer turns a Ctrl-C outside a command's body (while it parses the options) into a
     # silent exit status 130; the handlers remember the signal and main() reports it
