@@ -5,7 +5,9 @@ Used by ``make demo``; reads every ``*.json`` in DIR that is a geoproc report.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -117,9 +119,30 @@ def main(argv: list[str]) -> int:
     console = Console()
     if not console.is_terminal:
         console = Console(width=160)
-    console.print(table)
+    try:
+        console.print(table)
+        sys.stdout.flush()
+    except OSError as exc:  # a full disk, a closed pipe: one line, as geoproc's commands say it
+        with contextlib.suppress(OSError):
+            sys.stdout = open(os.devnull, "w")  # nothing more to flush at exit  # noqa: SIM115
+        print(f"report_table: error: cannot write standard output: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     return 0
 
 
+def run(argv: list[str]) -> int:
+    """:func:`main`, with Ctrl-C or a termination signal one error line and
+    status 130 or 128 + the signal's number, as for geoproc's commands."""
+    from geoproc_cli.entry import install_signal_handlers, interruption_line
+
+    install_signal_handlers()
+    try:
+        return main(argv)
+    except KeyboardInterrupt as exc:
+        text, code = interruption_line(exc)
+        print(f"report_table: error: {text}", file=sys.stderr)
+        return code
+
+
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    sys.exit(run(sys.argv))

@@ -64,3 +64,25 @@ def test_missing_and_non_folder_arguments_are_told_apart(tmp_path, capsys):
     assert capsys.readouterr().err.strip().endswith("nope: no such folder")
     assert main(["report_table", str(tmp_path / "f.json")]) == 2
     assert capsys.readouterr().err.strip().endswith("f.json: not a folder")
+
+
+def test_a_full_standard_output_and_a_termination_are_one_error_line(tmp_path):
+    # a full disk gave rich's OSError traceback and exit 1; SIGTERM a KeyboardInterrupt traceback
+    import os
+    import subprocess
+    import sys
+
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full on this system")
+    _write(tmp_path, "a.json", {"command": "x", "metrics": {"rmse": 0.5}})
+    with open("/dev/full", "w") as full:
+        p = subprocess.run([sys.executable, "-m", "geoproc_cli.report_table", str(tmp_path)], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=60)
+    assert p.returncode == 2
+    assert p.stderr == "report_table: error: cannot write standard output: No space left on device\n"
+    script = ("import os, signal, sys\n"
+              "from geoproc_cli import report_table\n"
+              "report_table.summary_table = lambda folder: os.kill(os.getpid(), signal.SIGTERM)\n"
+              "sys.exit(report_table.run(['report_table', sys.argv[1]]))\n")
+    p = subprocess.run([sys.executable, "-c", script, str(tmp_path)], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 143 and p.stderr == "report_table: error: terminated (SIGTERM)\n", p.stderr
