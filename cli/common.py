@@ -516,6 +516,28 @@ def require_extension(path: str | os.PathLike, ext: str, option: str, stdout_ok:
     raise UsageError(f"{option} {name}: must end in {ext}" + (" (or be -)" if stdout_ok else ""))
 
 
+def available_memory() -> int | None:
+    """Bytes of memory the system can give without swapping (Linux's
+    MemAvailable), or None where that is not known."""
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def require_memory(needed: float, what: str) -> None:
+    """MemoryError (reported as ``out of memory``, exit 2) when ``needed`` bytes,
+    an estimate of what ``what`` takes, exceed the memory available: the
+    kernel would otherwise kill the process with no error line."""
+    free = available_memory()
+    if free is not None and needed > free:
+        raise MemoryError(f"{what} needs about {needed / 2**30:.3g} GiB, and {free / 2**30:.3g} GiB are available")
+
+
 def require_mesh_output(output: str) -> None:
     """UsageError unless the mesh output ``output`` is ``-`` or has an extension
     a mesh is written in (checked before the work, not after it)."""

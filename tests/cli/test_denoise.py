@@ -366,6 +366,24 @@ def test_k_reaches_the_outlier_scores(cli, dfx, tmp_path):
     assert not np.array_equal(score, rpca_outliers(P, k=16).score)
 
 
+def test_k_beyond_the_memory_is_an_out_of_memory_error(dfx, tmp_path, monkeypatch, capsys):
+    # a --k within its range (at most the points) but past the machine's memory was killed by
+    # the kernel: exit 137, no error line (k = 20,000 on 20,000 points, about 56 GiB)
+    from geoproc_cli import common
+    from geoproc_cli import main as cli_main
+
+    P, _ = dfx.cloud_with_outliers(3000, 0.1, 0.05)
+    src, out = tmp_path / "c.ply", tmp_path / "o.ply"
+    save_mesh(src, Mesh(P, np.zeros((0, 3), int)))
+    monkeypatch.setattr(common, "available_memory", lambda: 2**30)  # 1 GiB
+    monkeypatch.setattr("sys.argv", ["geoproc", "denoise", str(src), "--outliers", "--k", "2990", "-o", str(out)])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and err.startswith("error: out of memory: --k 2990 on 3000 points needs about")
+    assert not out.exists()
+
+
 def test_feature_angle_sets_the_dihedral_threshold(cli, cube_pair, tmp_path):
     # the cube's edges are 90 degrees: a threshold above that finds no feature, below it many
     noisy, _ = cube_pair
