@@ -129,7 +129,10 @@ def main() -> None:
         if not callable(getattr(exc, "format_message", None)):
             raise
         ctx = getattr(exc, "ctx", None)
-        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        # an option missing its value comes without a context: the command is argv's first word
+        words = [w for w in sys.argv[1:2] if not w.startswith("-")]
+        path = ctx.command_path if ctx is not None else " ".join(["geoproc", *words])
+        hint = f" (see '{path} --help')"
         message = " ".join(exc.format_message().split())
         say(f"error: {message}{hint}")
         sys.exit(EXIT_BAD_INPUT)
