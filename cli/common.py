@@ -610,6 +610,9 @@ def command_run(
         if metrics is not None:
             require_known_metrics(parsed, metrics, command, needs, text_metrics)
         _require_finite_options(params)
+        for key, value in run.params.items():  # -0 is 0 (perturb --noise -0 had been reported as -0.0)
+            if isinstance(value, float) and value == 0.0:
+                run.params[key] = 0.0
         if report is not None:
             require_extension(report, ".json", "--report", stdout_ok=True)
         if report is not None and os.fspath(report) != "-" \

@@ -54,7 +54,7 @@ def info(
     (summed over components); otherwise null. Every numeric entry is a metric for
     --check, e.g. --check 'genus==0'.
     """
-    params = {"mesh": mesh, "clean": not no_clean}
+    params = {"mesh": mesh, "json": as_json, "clean": not no_clean}
     with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=["-"], inputs=[mesh], metrics=METRICS) as run:  # the summary goes to stdout
         m = run.load_mesh(mesh, clean=not no_clean)

@@ -114,6 +114,10 @@ def test_report_is_valid_and_hashes_the_input(cli, fixture_dir, tmp_path):
     assert rep["command"] == "info"
     assert rep["inputs"] == [{"path": str(mesh), "sha256": hashlib.sha256(mesh.read_bytes()).hexdigest()}]
     assert rep["metrics"]["genus"] == 1 and rep["timings_s"]["total"] > 0
+    assert rep["params"] == {"mesh": str(mesh), "json": False, "clean": True}  # --json had been left out
+    # -0 is recorded as 0 (perturb --noise -0 had read -0.0)
+    p = cli("perturb", mesh, "--noise", "-0", "--seed", "1", "-o", tmp_path / "z.ply", "--report", report)
+    assert p.returncode == 0 and '"noise": 0.0,' in report.read_text()
 
 
 def test_checks_gate_the_exit_code(cli, fixture_dir, tmp_path):
