@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from typing import Annotated
 
@@ -105,6 +106,28 @@ def _stop(exc: KeyboardInterrupt) -> None:
     sys.exit(status)
 
 
+def _number_with_underscores(argv: list[str]) -> tuple[str, str] | None:
+    """(option, value) of the first option value that reads as a number only
+    through Python's digit separators (``--noise 1_0`` is 10 to ``float``),
+    which ``--check`` refuses; a value naming an existing file is left alone."""
+    previous = ""
+    for word in argv:
+        option, value = (word.split("=", 1) if word.startswith("--") and "=" in word
+                         else (previous, word))
+        previous = word if word.startswith("-") and not _is_number(word) else ""
+        if option.startswith("-") and "_" in value and _is_number(value) and not os.path.exists(value):
+            return option, value
+    return None
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def main() -> None:
     """Console-script entry point.
 
@@ -115,6 +138,12 @@ def main() -> None:
     if len(sys.argv) == 1:  # bare `geoproc`: a usage error like any other
         say("error: missing command: info, geodesic, wos-solve, morse-simplify, denoise or perturb "
             "(see 'geoproc --help')")
+        sys.exit(EXIT_BAD_INPUT)
+    spelled = _number_with_underscores(sys.argv[1:])
+    if spelled is not None:
+        words = [w for w in sys.argv[1:2] if not w.startswith("-")]
+        say(f"error: {spelled[0]} '{spelled[1]}': write the number without '_' "
+            f"(see '{' '.join(['geoproc', *words])} --help')")
         sys.exit(EXIT_BAD_INPUT)
     try:
         code = command()(standalone_mode=False)
