@@ -538,12 +538,15 @@ def require_memory(needed: float, what: str) -> None:
         raise MemoryError(f"{what} needs about {needed / 2**30:.3g} GiB, and {free / 2**30:.3g} GiB are available")
 
 
-def require_mesh_output(output: str) -> None:
+def require_mesh_output(output: str, input: str) -> None:
     """UsageError unless the mesh output ``output`` is ``-`` or has an extension
-    a mesh is written in (checked before the work, not after it)."""
+    a mesh is written in (checked before the work, not after it); with the
+    input on standard input also ``.npz``, whose reading then tells that an
+    animation cannot come from there."""
+    from geoproc.fileio import file_extension
     from geoproc.mesh.write import write_format
 
-    if output != "-":
+    if output != "-" and not (input == "-" and file_extension(output) == "npz"):
         write_format(output)
 
 
