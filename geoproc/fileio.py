@@ -11,37 +11,51 @@ import contextlib
 import errno
 import hashlib
 import os
+import secrets
 import stat
-import tempfile
 from collections.abc import Callable
 
 from geoproc.errors import InputError
 
 
-def _temp_beside(path: str) -> tuple[int, str]:
-    """Open a temporary file in the folder of ``path``: (descriptor, name). The
-    name starts with at most the first 200 bytes of the target's, so that it
-    stays within the 255-byte name limit whatever the target's length."""
+def _temp_name_beside(path: str) -> str:
+    """A fresh name for a temporary file in the folder of ``path`` (not created):
+    a dot, at most the first 200 bytes of the target's name (so that it stays
+    within the 255-byte name limit whatever the target's length), 16 random hex
+    digits and ``.tmp``."""
     base = os.fsencode(os.path.basename(path))[:200]
-    fd, name = tempfile.mkstemp(prefix=b"." + base + b".", suffix=b".tmp",
-                                dir=os.fsencode(os.path.dirname(os.path.abspath(path))))
-    return fd, os.fsdecode(name)
+    folder = os.fsencode(os.path.dirname(os.path.abspath(path)))
+    return os.fsdecode(os.path.join(folder, b"." + base + b"." + secrets.token_hex(8).encode() + b".tmp"))
 
 
-def _keep_old(path: str) -> str | None:
-    """A second name (a hard link beside it) for the regular file at ``path``,
-    so that it can be put back if a later rename fails; None when there is no
-    such file or the file system cannot link it."""
+def _create_beside(path: str, names: list[str]) -> int:
+    """Create a temporary file beside ``path``; its name is appended to
+    ``names`` before the file exists, so that an interruption between the two
+    cannot leave a file no one removes (``tempfile.mkstemp`` had such a gap).
+    Returns its descriptor, open for writing."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    while True:
+        name = _temp_name_beside(path)
+        names.append(name)
+        try:
+            return os.open(name, flags, 0o600)
+        except FileExistsError:  # that name is taken (not ours): another
+            names.pop()
+
+
+def _keep_old(path: str, names: list[str]) -> str | None:
+    """A second name (a hard link beside it, appended to ``names`` before it is
+    made) for the regular file at ``path``, so that it can be put back if a
+    later rename fails; None when there is no such file or the file system
+    cannot link it."""
     if not os.path.isfile(path):
         return None
-    fd, name = _temp_beside(path)
-    os.close(fd)
+    name = _temp_name_beside(path)
+    names.append(name)
     try:
-        os.unlink(name)
         os.link(path, name)
     except OSError:
-        with contextlib.suppress(OSError):
-            os.unlink(name)
+        names.pop()
         return None
     return name
 
@@ -52,10 +66,12 @@ def _rename_all(staged: list[tuple[str, str]]) -> None:
     there were none, so the outputs stay all old or all new (a file system that
     cannot hard-link keeps the new file where an old one was)."""
     done: list[tuple[str, bool, str | None]] = []  # (destination, existed, its old file's second name)
+    olds: list[str] = []
     try:
         for tmp, path in staged:
             existed = os.path.lexists(path)
-            done.append((path, existed, _keep_old(path) if existed else None))
+            old = _keep_old(path, olds) if existed else None
+            done.append((path, existed, old))
             os.replace(tmp, path)
     except BaseException:
         for path, existed, old in reversed(done):  # the last may have failed: restoring it changes nothing
@@ -65,9 +81,9 @@ def _rename_all(staged: list[tuple[str, str]]) -> None:
                 elif not existed:
                     os.unlink(path)
         # a restore that failed, or a rename onto a link of the same file (which does nothing)
-        _discard([old for _, _, old in done if old is not None])
+        _discard(olds)
         raise
-    _discard([old for _, _, old in done if old is not None])
+    _discard(olds)
 
 
 def _discard(temps: list[str]) -> None:
@@ -106,6 +122,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         output); an OSError it raises discards the staged files too.
     """
     staged: list[tuple[str, str]] = []
+    temps: list[str] = []  # every temporary name, recorded before its file is made
     direct: list[tuple[str, bytes]] = []
     mode = _umask_mode()
     path = ""
@@ -119,7 +136,8 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
             if kind == "other":
                 direct.append((path, data))
                 continue
-            fd, tmp = _temp_beside(real)
+            fd = _create_beside(real, temps)
+            tmp = temps[-1]
             staged.append((tmp, real))
             with os.fdopen(fd, "wb") as fh:
                 fh.write(data)
@@ -134,7 +152,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
             before_rename()
         _rename_all(staged)
     except BaseException as exc:
-        _discard([tmp for tmp, _ in staged])
+        _discard(temps)
         if isinstance(exc, OSError):  # name the destination, not the temporary file
             raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
         raise

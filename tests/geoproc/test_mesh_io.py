@@ -370,6 +370,27 @@ def test_atomic_write_puts_back_what_a_failed_later_rename_replaced(tmp_path, mo
     assert mesh.read_bytes() == b"new mesh" and sorted(p.name for p in tmp_path.iterdir()) == ["o.ply", "r.json"]
 
 
+def test_an_interruption_as_a_temporary_file_is_made_leaves_none(tmp_path, monkeypatch):
+    # a signal between tempfile.mkstemp's creating the file and its name being recorded left
+    # a stray .out.ply.*.tmp beside the output
+    import os
+
+    real_open = os.open
+
+    def interrupted(path, flags, mode=0o777, *args, **kw):
+        fd = real_open(path, flags, mode, *args, **kw)
+        if os.fsdecode(path).endswith(".tmp"):
+            os.close(fd)
+            raise KeyboardInterrupt
+        return fd
+
+    monkeypatch.setattr(os, "open", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_files_atomic([(tmp_path / "out.ply", b"data")])
+    monkeypatch.setattr(os, "open", real_open)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_obj_relative_indices_count_back_from_the_line():
     # -1 is the last vertex defined above the face line, not the file's last vertex
     data = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 1 1 0\nf -3 -1 -2\nf 2 4 3\n"
