@@ -60,19 +60,23 @@ def _keep_old(path: str, names: list[str]) -> str | None:
     return name
 
 
-def _rename_all(staged: list[tuple[str, str]]) -> None:
-    """Rename every (temporary, destination) pair; if one fails (or a signal
-    arrives) the destinations get their old files back, or are removed when
-    there were none, so the outputs stay all old or all new (a file system that
-    cannot hard-link keeps the new file where an old one was)."""
+def _rename_all(staged: list[tuple[str, str, str]]) -> None:
+    """Rename every (temporary, destination, name given) triple; if one fails
+    (or a signal arrives) the destinations get their old files back, or are
+    removed when there were none, so the outputs stay all old or all new (a
+    file system that cannot hard-link keeps the new file where an old one
+    was). An OSError names the destination as it was given."""
     done: list[tuple[str, bool, str | None]] = []  # (destination, existed, its old file's second name)
     olds: list[str] = []
     try:
-        for tmp, path in staged:
+        for tmp, path, given in staged:
             existed = os.path.lexists(path)
             old = _keep_old(path, olds) if existed else None
             done.append((path, existed, old))
-            os.replace(tmp, path)
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise OSError(exc.errno, exc.strerror or str(exc), given) from exc
     except BaseException:
         for path, existed, old in reversed(done):  # the last may have failed: restoring it changes nothing
             with contextlib.suppress(OSError):
@@ -121,7 +125,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         Called once everything is staged, before the renames (to write standard
         output); an OSError it raises discards the staged files too.
     """
-    staged: list[tuple[str, str]] = []
+    staged: list[tuple[str, str, str]] = []  # (temporary, destination, name given)
     temps: list[str] = []  # every temporary name, recorded before its file is made
     direct: list[tuple[str, bytes]] = []
     mode = _umask_mode()
@@ -138,7 +142,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
                 continue
             fd = _create_beside(real, temps)
             tmp = temps[-1]
-            staged.append((tmp, real))
+            staged.append((tmp, real, path))
             with os.fdopen(fd, "wb") as fh:
                 fh.write(data)
                 fh.flush()
@@ -150,11 +154,12 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         path = "-"
         if before_rename is not None:
             before_rename()
+        path = ""  # _rename_all names the destination it could not rename
         _rename_all(staged)
     except BaseException as exc:
         _discard(temps)
         if isinstance(exc, OSError):  # name the destination, not the temporary file
-            raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
+            raise OSError(exc.errno, exc.strerror or str(exc), path or exc.filename) from exc
         raise
 
 

@@ -360,8 +360,9 @@ def test_atomic_write_puts_back_what_a_failed_later_rename_replaced(tmp_path, mo
         real_replace(src, dst)
 
     monkeypatch.setattr(fileio.os, "replace", busy)
-    with pytest.raises(OSError, match="busy"):
+    with pytest.raises(OSError, match="busy") as failed:
         write_files_atomic([(mesh, b"new mesh"), (report, b"new report")])
+    assert failed.value.filename == str(report)  # the destination, as given
     assert report.read_bytes() == b"old report"
     assert (mesh.read_bytes() == b"old mesh") if existing else not mesh.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["r.json"] + (["o.ply"] if existing else []))
