@@ -227,9 +227,9 @@ def test_dynamic_npz(cli, dfx, tmp_path, coherence):
     (["--outliers"], "low_rank>=1", "--dynamic"),
     (["--dynamic"], "precision>=0", "--outliers"),
     ([], "rpca_sparse_faces<=0", "--method rpca"),
-    (["--outliers"], "sigma_r>=0", "a single mesh"),
+    (["--outliers"], "sigma_r>=0", "a mesh (not --outliers)"),
     (["--outliers"], "mean_refinement_shift<=1", "--outliers --refined"),
-    (["--dynamic"], "noise_roughness<=1", "a single mesh"),
+    (["--dynamic"], "coarseness_deg<=1", "a single mesh"),
 ])
 def test_a_check_that_the_mode_cannot_report_is_refused_before_reading(cli, tmp_path, args, gate, option):
     missing = tmp_path / "missing.ply"  # never read when the check is refused first
