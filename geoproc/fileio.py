@@ -41,6 +41,9 @@ def _create_beside(path: str, names: list[str]) -> int:
             return os.open(name, flags, 0o600)
         except FileExistsError:  # that name is taken (not ours): another
             names.pop()
+        except OSError:  # not made: the error is the destination's, not this name's
+            names.pop()
+            raise
 
 
 def _keep_old(path: str, names: list[str]) -> str | None:
@@ -60,18 +63,19 @@ def _keep_old(path: str, names: list[str]) -> str | None:
     return name
 
 
-def _rename_all(staged: list[tuple[str, str, str]]) -> None:
+def _rename_all(staged: list[tuple[str, str, str]], names: list[str]) -> None:
     """Rename every (temporary, destination, name given) triple; if one fails
     (or a signal arrives) the destinations get their old files back, or are
     removed when there were none, so the outputs stay all old or all new (a
     file system that cannot hard-link keeps the new file where an old one
-    was). An OSError names the destination as it was given."""
+    was). An OSError names the destination as it was given. The old files'
+    second names are appended to ``names`` too, so that the caller removes
+    them if an interruption cuts this short."""
     done: list[tuple[str, bool, str | None]] = []  # (destination, existed, its old file's second name)
-    olds: list[str] = []
     try:
         for tmp, path, given in staged:
             existed = os.path.lexists(path)
-            old = _keep_old(path, olds) if existed else None
+            old = _keep_old(path, names) if existed else None
             done.append((path, existed, old))
             try:
                 os.replace(tmp, path)
@@ -84,15 +88,15 @@ def _rename_all(staged: list[tuple[str, str, str]]) -> None:
                     os.replace(old, path)
                 elif not existed:
                     os.unlink(path)
-        # a restore that failed, or a rename onto a link of the same file (which does nothing)
-        _discard(olds)
-        raise
-    _discard(olds)
+        raise  # the caller removes the second names left (a failed restore, a rename onto the same file)
+    _discard([old for _, _, old in done if old is not None])
 
 
 def _discard(temps: list[str]) -> None:
+    """Remove these files where they exist; a removal that fails is left (it
+    must not replace the error being reported)."""
     for tmp in temps:
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
 
 
@@ -155,7 +159,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         if before_rename is not None:
             before_rename()
         path = ""  # _rename_all names the destination it could not rename
-        _rename_all(staged)
+        _rename_all(staged, temps)
     except BaseException as exc:
         _discard(temps)
         if isinstance(exc, OSError):  # name the destination, not the temporary file

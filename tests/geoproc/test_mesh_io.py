@@ -392,6 +392,49 @@ def test_an_interruption_as_a_temporary_file_is_made_leaves_none(tmp_path, monke
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_interruption_after_the_renames_leaves_no_second_names(tmp_path, monkeypatch):
+    # the old files' hard links were removed only on the way out of the renames: a signal as
+    # they were removed left them beside the new outputs
+    import os
+
+    import geoproc.fileio as fileio
+
+    (tmp_path / "o.ply").write_bytes(b"old")
+    (tmp_path / "r.json").write_bytes(b"old report")
+    real_unlink = os.unlink
+    calls = []
+
+    def interrupted(path, *args, **kw):
+        calls.append(path)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return real_unlink(path, *args, **kw)
+
+    monkeypatch.setattr(fileio.os, "unlink", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_files_atomic([(tmp_path / "o.ply", b"new"), (tmp_path / "r.json", b"new report")])
+    monkeypatch.setattr(fileio.os, "unlink", real_unlink)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.ply", "r.json"]
+
+
+def test_a_temporary_file_that_cannot_be_made_names_the_destination(tmp_path, monkeypatch):
+    # on a read-only file system the temporary name had stayed recorded, and removing it
+    # (EROFS, not 'no such file') replaced the error with one naming that temporary file
+    import errno
+    import os
+
+    import geoproc.fileio as fileio
+
+    def read_only(path, *args, **kw):
+        raise OSError(errno.EROFS, "Read-only file system", path)
+
+    monkeypatch.setattr(fileio.os, "open", read_only)
+    monkeypatch.setattr(fileio.os, "unlink", read_only)
+    with pytest.raises(OSError) as failed:
+        write_files_atomic([(tmp_path / "out.ply", b"data")])
+    assert failed.value.filename == str(tmp_path / "out.ply") and failed.value.errno == errno.EROFS
+
+
 def test_obj_relative_indices_count_back_from_the_line():
     # -1 is the last vertex defined above the face line, not the file's last vertex
     data = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 1 1 0\nf -3 -1 -2\nf 2 4 3\n"
