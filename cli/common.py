@@ -608,6 +608,7 @@ def command_run(
     internal error (a bug; --debug shows the traceback).
     """
     run = Run(command, dict(params), quiet)
+    outputs_committed(False)  # a signal interrupts this command until its outputs are in place
     try:
         parsed = [parse_check(c) for c in (checks or [])]
         if metrics is not None:

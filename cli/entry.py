@@ -58,8 +58,15 @@ def unreported_interruption() -> KeyboardInterrupt | None:
     return _pending
 
 
+_committed = False
+"""Whether the running command's outputs are in place (:func:`outputs_committed`):
+a terminating signal is then dropped."""
+
+
 def _raise_interruption(signum, frame) -> None:
     global _pending, _deferred
+    if _committed:
+        return
     _pending = KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
     if _deferring:  # an extension is loading: raised once it is (_SignalsDeferredLoader)
         _deferred = _deferred or _pending
@@ -67,22 +74,29 @@ def _raise_interruption(signum, frame) -> None:
     raise _pending
 
 
-def outputs_committed() -> None:
-    """The run's outputs are in place: from here a terminating signal is
-    ignored (it had made a finished run exit 143, most often with no error
-    line, with its outputs complete). Only the handlers of
-    :func:`install_signal_handlers` are changed."""
-    for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
-        if sig is not None and signal.getsignal(sig) is _raise_interruption:
-            signal.signal(sig, signal.SIG_IGN)
+def outputs_committed(done: bool = True) -> None:
+    """The running command's outputs are in place (``done``; False when a
+    command starts): until the next command starts, the handlers of
+    :func:`install_signal_handlers` drop a terminating signal (it had made a
+    finished run exit 143, most often with no error line, with its outputs
+    complete)."""
+    global _committed
+    _committed = done
+
+
+_TERMINATING = (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None))
 
 
 def install_signal_handlers() -> None:
     """SIGINT raises KeyboardInterrupt, SIGTERM and SIGHUP :class:`Terminated`;
     each is remembered for :func:`unreported_interruption`. A signal the
     process was started with ignored (``nohup`` ignores SIGHUP, a shell's
-    background job SIGINT) stays ignored."""
-    for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+    background job SIGINT) stays ignored. The handlers stay until the process
+    ends (its exit included, where a signal after the outputs are in place is
+    dropped); a program that runs commands in its own process calls
+    ``geoproc_cli.main.main``, which installs none."""
+    outputs_committed(False)
+    for sig in _TERMINATING:
         if sig is not None and signal.getsignal(sig) in (signal.SIG_DFL, signal.default_int_handler):
             signal.signal(sig, _raise_interruption)
 

@@ -841,6 +841,48 @@ def test_a_signal_once_the_outputs_are_in_place_is_ignored(fixture_dir, tmp_path
     assert out.stat().st_size > 0 and json.loads(rep.read_text())["command"] == "perturb"
 
 
+def test_a_second_command_in_the_process_is_interruptible_again(fixture_dir, tmp_path, capsys):
+    # once a command's outputs were in place the terminating signals were set to be ignored
+    # for good: a second command in the same process ran through a Ctrl-C
+    import signal
+
+    from geoproc_cli import entry
+    from geoproc_cli.common import Run
+
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    flush = Run._flush_notes
+    try:
+        for sig in saved:
+            signal.signal(sig, signal.SIG_DFL if sig != signal.SIGINT else signal.default_int_handler)
+        entry.install_signal_handlers()
+        entry.outputs_committed()  # as the first command leaves it
+        os.kill(os.getpid(), signal.SIGTERM)  # dropped: that command is done
+        Run._flush_notes = lambda self: os.kill(os.getpid(), signal.SIGINT)  # inside the second command
+        import sys
+
+        sys.argv = ["geoproc", "perturb", str(fixture_dir / "torus.ply"), "--seed", "1", "-o", str(tmp_path / "o.ply")]
+        with pytest.raises(SystemExit) as stop:
+            entry.main()
+        assert stop.value.code == 0  # the outputs were in place when it came
+        Run._flush_notes = flush
+        with pytest.raises(SystemExit) as stop:  # a signal while it works interrupts it
+            sys.argv[-1] = str(tmp_path / "p.ply")
+            from geoproc_cli import main as cli_main
+
+            real_load = Run.load_mesh
+            Run.load_mesh = lambda self, *a, **k: os.kill(os.getpid(), signal.SIGINT) or real_load(self, *a, **k)
+            try:
+                cli_main.main()
+            finally:
+                Run.load_mesh = real_load
+        assert stop.value.code == 130 and not (tmp_path / "p.ply").exists()
+        assert "error: interrupted" in capsys.readouterr().err
+    finally:
+        Run._flush_notes = flush
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
 def test_interruption_typer_swallows_is_reported(monkeypatch, capsys):
     # typer turns a Ctrl-C outside a command's body (while it parses the options) into a
     # silent exit status 130; the handlers remember the signal and main() reports it

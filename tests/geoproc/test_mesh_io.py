@@ -421,7 +421,6 @@ def test_a_temporary_file_that_cannot_be_made_names_the_destination(tmp_path, mo
     # on a read-only file system the temporary name had stayed recorded, and removing it
     # (EROFS, not 'no such file') replaced the error with one naming that temporary file
     import errno
-    import os
 
     import geoproc.fileio as fileio
 
