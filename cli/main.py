@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import os
 import sys
+import typing
 from typing import Annotated
 
 import typer
@@ -53,7 +53,9 @@ def _refusing_repeats(make_parser):
     given more than once, is a usage error: the parser keeps the last one, so
     ``-o a.ply -o b.ply`` wrote only b.ply and ``--seed 1 --seed 2`` ran seed 2,
     without a word. Repeatable options (``-s``, ``--check``) and flags are not
-    affected."""
+    affected. A numeric option's value spelled with Python's digit separators
+    (``--noise 1_0``, which ``float`` reads as 10 and ``--check`` refuses) is
+    a usage error too."""
     def make(ctx):
         parser = make_parser(ctx)
         parse = parser.parse_args
@@ -67,6 +69,9 @@ def _refusing_repeats(make_parser):
                 if single and param.name in seen:
                     ctx.fail(f"{' / '.join(param.opts)} given more than once; it takes one value")
                 seen.add(param.name)
+                spelled = _separated_number(param, opts.get(param.name))
+                if spelled is not None:
+                    ctx.fail(f"{max(param.opts, key=len)} '{spelled}': write the number without '_'")
             return opts, rest, order
 
         parser.parse_args = parse_args
@@ -106,26 +111,22 @@ def _stop(exc: KeyboardInterrupt) -> None:
     sys.exit(status)
 
 
-def _number_with_underscores(argv: list[str]) -> tuple[str, str] | None:
-    """(option, value) of the first option value that reads as a number only
-    through Python's digit separators (``--noise 1_0`` is 10 to ``float``),
-    which ``--check`` refuses; a value naming an existing file is left alone."""
-    previous = ""
-    for word in argv:
-        option, value = (word.split("=", 1) if word.startswith("--") and "=" in word
-                         else (previous, word))
-        previous = word if word.startswith("-") and not _is_number(word) else ""
-        if option.startswith("-") and "_" in value and _is_number(value) and not os.path.exists(value):
-            return option, value
-    return None
+def _numeric(annotation) -> bool:
+    """Whether a parameter annotated so takes numbers (``float``, ``int``,
+    ``int | None``, ``list[int]``; not ``bool``)."""
+    if annotation in (int, float):
+        return True
+    return any(_numeric(a) for a in typing.get_args(annotation) if a is not type(None))
 
 
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+def _separated_number(param, raw) -> str | None:
+    """The first raw value of a numeric option ``param`` written with digit
+    separators ('1_0'), else None."""
+    descriptor = getattr(param, "type_descriptor", None)
+    if getattr(param, "param_type_name", "") != "option" or not _numeric(getattr(descriptor, "annotation", None)):
+        return None
+    values = raw if isinstance(raw, (list, tuple)) else [raw]
+    return next((v for v in values if isinstance(v, str) and "_" in v), None)
 
 
 def main() -> None:
@@ -138,12 +139,6 @@ def main() -> None:
     if len(sys.argv) == 1:  # bare `geoproc`: a usage error like any other
         say("error: missing command: info, geodesic, wos-solve, morse-simplify, denoise or perturb "
             "(see 'geoproc --help')")
-        sys.exit(EXIT_BAD_INPUT)
-    spelled = _number_with_underscores(sys.argv[1:])
-    if spelled is not None:
-        words = [w for w in sys.argv[1:2] if not w.startswith("-")]
-        say(f"error: {spelled[0]} '{spelled[1]}': write the number without '_' "
-            f"(see '{' '.join(['geoproc', *words])} --help')")
         sys.exit(EXIT_BAD_INPUT)
     try:
         code = command()(standalone_mode=False)

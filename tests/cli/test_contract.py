@@ -469,9 +469,13 @@ def test_parser_errors_and_non_finite_options_are_one_line_usage_errors(cli, fix
             assert lines[0].endswith(f" {args[0]} --help')"), lines[0]
     # Python's digit separators: --noise 1_0 had been read as 10, while --check refuses 1_0
     for args in (["perturb", mesh, "--noise", "1_0", "--seed", "1"], ["perturb", mesh, "--noise=0_3", "--seed", "1"],
-                 ["geodesic", mesh, "-s", "1_0"]):
+                 ["geodesic", mesh, "-s", "1_0"], ["geodesic", mesh, "-s1_0"]):
         p = cli(*args, "-o", tmp_path / "o.ply")
         assert p.returncode == 2 and "write the number without '_'" in p.stderr and p.stderr.count("\n") == 1, p.stderr
+    # ... and only numbers: a positional file name, or a text option, may hold '_'
+    for args in (["info", "--json", "1_0"], ["info", "--", "1_0"]):
+        p = cli(*args)
+        assert p.returncode == 2 and "1_0: no such file" in p.stderr, p.stderr
     # an option without its value comes with no parser context: the hint had been left out
     p = cli("geodesic", mesh, "-s", "0", "-o")
     assert p.stderr.strip() == "error: Option '-o' requires an argument. (see 'geoproc geodesic --help')"
