@@ -538,15 +538,16 @@ def require_memory(needed: float, what: str) -> None:
         raise MemoryError(f"{what} needs about {needed / 2**30:.3g} GiB, and {free / 2**30:.3g} GiB are available")
 
 
-def require_mesh_output(output: str, input: str) -> None:
+def require_mesh_output(output: str, allow_npz: bool = False) -> None:
     """UsageError unless the mesh output ``output`` is ``-`` or has an extension
-    a mesh is written in (checked before the work, not after it); with the
-    input on standard input also ``.npz``, whose reading then tells that an
-    animation cannot come from there."""
+    a mesh is written in (checked before the work, not after it). ``allow_npz``
+    lets ``.npz`` pass, for a check before an input on standard input is read
+    (which then says that an animation cannot come from there; once it is read
+    as a mesh, the check is made again without it)."""
     from geoproc.fileio import file_extension
     from geoproc.mesh.write import write_format
 
-    if output != "-" and not (input == "-" and file_extension(output) == "npz"):
+    if output != "-" and not (allow_npz and file_extension(output) == "npz"):
         write_format(output)
 
 

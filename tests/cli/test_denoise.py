@@ -384,6 +384,39 @@ def test_k_beyond_the_memory_is_an_out_of_memory_error(dfx, tmp_path, monkeypatc
     assert not out.exists()
 
 
+def test_a_npz_output_for_a_mesh_on_stdin_is_refused_before_the_work(cube_pair, tmp_path, monkeypatch, capsys):
+    # .npz passes the check made before standard input is read (an animation piped in is
+    # named as the problem); a mesh read from there had then been denoised before the refusal
+    import io
+    import sys
+
+    import geoproc.denoise.mesh_denoise as mesh_denoise
+    from geoproc_cli import main as cli_main
+
+    noisy, _ = cube_pair
+    monkeypatch.setattr(mesh_denoise, "denoise_mesh", lambda *a, **k: pytest.fail("the work ran"))
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(noisy.read_bytes())))
+    monkeypatch.setattr("sys.argv", ["geoproc", "denoise", "-", "-o", str(tmp_path / "x.npz")])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    assert stop.value.code == 2 and "x.npz: cannot write '.npz'" in capsys.readouterr().err
+
+
+def test_a_k_beyond_the_points_is_named_as_such_whatever_the_memory(dfx, tmp_path, capsys, monkeypatch):
+    # the memory estimate had counted k neighbours for each of fewer than k points
+    from geoproc_cli import main as cli_main
+
+    P, _ = dfx.cloud_with_outliers(100, 0.1, 0.05)
+    src = tmp_path / "c.ply"
+    save_mesh(src, Mesh(P, np.zeros((0, 3), int)))
+    monkeypatch.setattr("sys.argv", ["geoproc", "denoise", str(src), "--outliers", "--k", "100000000", "-o",
+                                     str(tmp_path / "o.ply")])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and "fewer than the neighbourhood size" in err and "out of memory" not in err
+
+
 def test_feature_angle_sets_the_dihedral_threshold(cli, cube_pair, tmp_path):
     # the cube's edges are 90 degrees: a threshold above that finds no feature, below it many
     noisy, _ = cube_pair
