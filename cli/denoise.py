@@ -45,7 +45,7 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "vertices", "faces", "feature_faces", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
     "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "guidance_mix", "outer_iterations", "normal_iterations",
     "vertex_iterations", "fidelity", "sigma_r", "sigma_s", "sigma_s_length", "unfold_rounds", "folded_faces",
-    "crease_bisected_faces", "input_side_faces", "rpca_sparse_faces", "repeated_corner_faces",
+    "crease_repair", "crease_bisected_faces", "input_side_faces", "rpca_sparse_faces", "repeated_corner_faces",
     # feature detection
     "feature_method", "feature_angle_deg", "feature_lambda", "feature_tau", "feature_vertices",
     "feature_admm_iterations",
@@ -102,9 +102,16 @@ def denoise(
     guidance_mix: Annotated[float | None, typer.Option("--guidance-mix", help="--method guided: each "
                                                        "pass's guidance is the patch guidance blended with the "
                                                        "normals themselves by this weight, 0 to 1 (0: the patch "
-                                                       "guidance alone, as Zhang et al.; 1: the plain bilateral "
-                                                       "filter; default: from the noise level and the mesh).",
-                                                       show_default=False)] = None,
+                                                       "guidance alone, as Zhang et al.; 1: the normals, as the "
+                                                       "bilateral filter's range kernel; default: from the noise "
+                                                       "level and the mesh).", show_default=False)] = None,
+    crease_repair: Annotated[bool | None, flag("--crease-repair/--no-crease-repair", help="Before the last fit, "
+                                               "turn the targets of faces the fit squashed against a crease into "
+                                               "bisectors and fit again (on finely meshed surfaces after narrow "
+                                               "guided passes and a second fit; default: with --method guided at "
+                                               "strong noise, roughness >= 0.18). --method guided "
+                                               "--guidance-mix 0 --no-crease-repair is Zhang et al.'s filter as "
+                                               "published.", show_default=False)] = None,
     pin_boundary: Annotated[bool, flag("--pin-boundary", help="Keep boundary vertices fixed.")]
     = False,
     features: Annotated[str, typer.Option("--features", help="How the per-face 'feature' output is found: "
@@ -168,7 +175,8 @@ def denoise(
     params = {"input": input, "output": output, "method": method, "reference": reference, "rounds": rounds,
               "normal_iterations": normal_iterations, "vertex_iterations": vertex_iterations,
               "fidelity": fidelity,
-              "sigma_r": sigma_r, "sigma_s": sigma_s, "guidance_mix": guidance_mix, "pin_boundary": pin_boundary,
+              "sigma_r": sigma_r, "sigma_s": sigma_s, "guidance_mix": guidance_mix, "crease_repair": crease_repair,
+              "pin_boundary": pin_boundary,
               "features": features,
               "feature_tau": feature_tau, "feature_angle": feature_angle, "outliers": outliers,
               "k": k, "threshold": threshold, "keep_all": keep_all, "refined": refined, "dynamic": dynamic,
@@ -211,7 +219,7 @@ def denoise(
             raise UsageError(f"--feature-angle {shown_number(feature_angle)}: must be within [0, 180] degrees")
         dp = DenoiseParams(outer_iterations=rounds, normal_iterations=normal_iterations,
                            vertex_iterations=vertex_iterations, fidelity=fidelity, sigma_r=sigma_r,
-                           sigma_s_scale=sigma_s, guidance_mix=guidance_mix,
+                           sigma_s_scale=sigma_s, guidance_mix=guidance_mix, crease_repair=crease_repair,
                            pin_boundary=pin_boundary, features=features, feature_tau=feature_tau,
                            feature_angle_deg=feature_angle)
         if mode == DYNAMIC:
@@ -227,7 +235,7 @@ def denoise(
 
 
 _FILTER_OPTIONS = ("method", "rounds", "normal_iterations", "vertex_iterations", "fidelity", "sigma_r",
-                   "sigma_s", "guidance_mix", "pin_boundary")
+                   "sigma_s", "guidance_mix", "crease_repair", "pin_boundary")
 MESH, CLOUD, MOVING_CLOUD, DYNAMIC = "mesh", "cloud", "moving cloud", "dynamic"
 """The four modes of ``denoise``: a single mesh, --outliers on a point cloud or
 on an animation, --dynamic."""
@@ -251,7 +259,7 @@ MODE_METRICS = (
     ("a single mesh (not --outliers or --dynamic)", lambda c: c.mode == MESH,
      ("feature_faces", "feature_method", "noise_median_dihedral_deg", "coarseness_deg",
       "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "sigma_s_length", "unfold_rounds",
-      "folded_faces", "crease_bisected_faces", "input_side_faces")),
+      "folded_faces", "crease_repair", "crease_bisected_faces", "input_side_faces")),
     ("--method rpca on a single mesh", lambda c: c.mode == MESH and c.method == "rpca",
      ("rpca_sparse_faces",)),
     ("--features l1", lambda c: c.mode == MESH and c.features == "l1",
@@ -373,6 +381,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
                         "feature_faces": int(res.feature.sum())})
     run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
+    run.metrics.setdefault("guidance_mix", None)  # null: bilateral and rpca blend nothing
     _note_unused_filter_options(run, res.info, dp, given)
     if ref_V is not None:
         with run.timer("metrics"):

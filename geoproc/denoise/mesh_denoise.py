@@ -631,7 +631,7 @@ def filter_and_fit(
         if progress is not None:
             progress(done / total)
     info = {
-        "guidance_mix": mix,
+        "guidance_mix": mix if method == "guided" else None,  # the others use no blend
         "outer_iterations": outer,
         "normal_iterations": inner,
         "vertex_iterations": p.vertex_iterations,
@@ -641,6 +641,7 @@ def filter_and_fit(
         "sigma_s_length": sigma_s,
         "unfold_rounds": p.unfold_rounds,
         "folded_faces": folded,
+        "crease_repair": bool(strong),
         "crease_bisected_faces": int(changed.sum()),
         "input_side_faces": int(sided.sum()),
     }

@@ -129,6 +129,21 @@ def test_the_reported_schedule_given_back_reproduces_the_run(cli, cube_pair, tmp
     assert p.returncode == 2 and "--guidance-mix" in p.stderr and "only with --method guided" in p.stderr
     p = cli("denoise", noisy, "--guidance-mix", "1.5", "-o", tmp_path / "x.ply")
     assert p.returncode == 2 and "must be within [0, 1]" in p.stderr and not (tmp_path / "x.ply").exists()
+    # at strong noise the crease repair runs whatever the schedule; --no-crease-repair with the
+    # patch guidance alone is the published filter, as the library's parameters give it
+    from geoproc.denoise import denoise_mesh
+    from geoproc.denoise.params import DenoiseParams
+
+    assert m["crease_repair"] is True and m["crease_bisected_faces"] > 0
+    z, rep_z = tmp_path / "zhang.ply", tmp_path / "zhang.json"
+    p = cli("denoise", noisy, "--guidance-mix", "0", "--no-crease-repair", "-o", z, "--report", rep_z)
+    assert p.returncode == 0 and _metrics(rep_z)["crease_repair"] is False
+    mesh = load_mesh(noisy)
+    want = denoise_mesh(mesh.V, mesh.F, "guided", DenoiseParams(guidance_mix=0.0, crease_repair=False)).V
+    np.testing.assert_array_equal(load_mesh(z).V, want)
+    # bilateral blends nothing: its guidance_mix is null (it had read 0, the patch guidance alone)
+    p = cli("denoise", noisy, "--method", "bilateral", "-o", tmp_path / "b.ply", "--report", rep)
+    assert p.returncode == 0 and _metrics(rep)["guidance_mix"] is None
 
 
 def test_inliers_drop_an_earlier_runs_scores(cli, dfx, tmp_path):
