@@ -119,14 +119,7 @@ def main(argv: list[str]) -> int:
     console = Console()
     if not console.is_terminal:
         console = Console(width=160)
-    try:
-        console.print(table)
-        sys.stdout.flush()
-    except OSError as exc:  # a full disk, a closed pipe: one line, as geoproc's commands say it
-        with contextlib.suppress(OSError):
-            sys.stdout = open(os.devnull, "w")  # nothing more to flush at exit  # noqa: SIM115
-        print(f"report_table: error: cannot write standard output: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+    console.print(table)
     return 0
 
 
@@ -137,11 +130,18 @@ def run(argv: list[str]) -> int:
 
     install_signal_handlers()
     try:
-        return main(argv)
+        code = main(argv)
+        sys.stdout.flush()
+        return code
     except KeyboardInterrupt as exc:
         text, code = interruption_line(exc)
         print(f"report_table: error: {text}", file=sys.stderr)
         return code
+    except OSError as exc:  # standard output full or closed (the table, or --help): one line
+        with contextlib.suppress(OSError):
+            sys.stdout = open(os.devnull, "w")  # nothing left to flush at exit  # noqa: SIM115
+        print(f"report_table: error: cannot write standard output: {exc.strerror or exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -80,6 +80,10 @@ def test_a_full_standard_output_and_a_termination_are_one_error_line(tmp_path):
                            stderr=subprocess.PIPE, text=True, timeout=60)
     assert p.returncode == 2
     assert p.stderr == "report_table: error: cannot write standard output: No space left on device\n"
+    with open("/dev/full", "w") as full:  # --help too
+        p = subprocess.run([sys.executable, "-m", "geoproc_cli.report_table", "--help"], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=60)
+    assert p.returncode == 2 and p.stderr.startswith("report_table: error: cannot write standard output"), p.stderr
     script = ("import os, signal, sys\n"
               "from geoproc_cli import report_table\n"
               "report_table.summary_table = lambda folder: os.kill(os.getpid(), signal.SIGTERM)\n"
