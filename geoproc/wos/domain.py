@@ -601,7 +601,14 @@ def load_domain_json(path: str, data: bytes | None = None) -> Domain:
         elif (isinstance(item, list) and len(item) == 2
               and all(isinstance(c, int) and not isinstance(c, bool) for c in item)
               and 0 <= item[0] < len(loops) and 0 <= item[1] < len(loops[item[0]])):
-            flags[item[0]][item[1]] = True
+            k, j = item
+            if np.array_equal(np.asarray(loops[k][j], float), np.asarray(loops[k][(j + 1) % len(loops[k])], float)):
+                # from a vertex to a copy of itself (a loop's closing copy back to its first vertex):
+                # the mark had been dropped with that zero-length segment, leaving a Dirichlet problem
+                raise InputError(path, f"neumann entry {item!r}: segment {j} of loop {k} runs from a vertex to "
+                                 "a copy of itself (zero length), so it marks nothing; segment j runs from "
+                                 "vertex j to j+1 as written")
+            flags[k][j] = True
         else:
             raise InputError(path, f"neumann entry {item!r} is not a loop index or [loop, segment] pair "
                              f"of this domain ({len(loops)} loops)")

@@ -47,6 +47,20 @@ def test_neumann_flags_follow_reversed_loops(tmp_path):
     assert sorted(ys[d.neumann]) == [0.0, 1.0]
 
 
+@pytest.mark.parametrize("loop, mark", [
+    ([[0, 0], [2, 0], [2, 1], [0, 1], [0, 0]], 4),  # the closing copy back to the first vertex
+    ([[0, 0], [1, 0], [1, 0], [1, 1], [0, 1]], 1),  # a repeated vertex
+])
+def test_a_neumann_mark_on_a_zero_length_segment_is_refused(tmp_path, loop, mark):
+    # such a mark named no segment and was dropped with it: a Dirichlet problem without a word
+    p = tmp_path / "m.json"
+    p.write_text(json.dumps({"loops": [loop], "neumann": [[0, mark]]}))
+    with pytest.raises(InputError, match=f"segment {mark} of loop 0 runs from a vertex to a copy of itself"):
+        load_domain_json(str(p))
+    p.write_text(json.dumps({"loops": [loop], "neumann": [[0, mark - 1]]}))  # a real segment is marked
+    assert load_domain_json(str(p)).has_neumann
+
+
 def test_zero_length_segment_flags_stay_on_their_segments():
     # vertex 2 repeats vertex 1: segment 1 has zero length, segment 2 is the right edge
     loop = [[0, 0], [1, 0], [1, 0], [1, 1], [0, 1]]
