@@ -151,7 +151,8 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
     A column whose spread is within rounding of its size (:data:`FLAT_SPREAD`)
     is constant over the fit points, as an angle kernel over a whole closed
     loop is (2 pi or 0 inside the domain): the free constant stands for it and
-    its coefficient is 0. Scaled by its rounding noise it had taken a
+    its coefficient is 0, unless Neumann rows set it (with one fit point every
+    column is flat, and those rows alone determine the fit). Scaled by its rounding noise it had taken a
     coefficient near 1e14, and the control variate, added back, cancelled
     catastrophically (a star with one kernel: rmse 2.9 against 0.046 without
     it, its error bars blind to the rounding).
@@ -166,10 +167,9 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
     cols[:, flat] = 0.0
     D = np.hstack([cols, np.ones((len(Phi), 1))])  # centred: the constant takes the means
     y = np.asarray(u, dtype=np.float64)
-    if dPhi is not None and len(dPhi):
-        rows = dPhi / scale
-        rows[:, flat] = 0.0
-        D = np.vstack([D, np.hstack([rows, np.zeros((len(dPhi), 1))])])
+    neumann = dPhi is not None and len(dPhi) > 0
+    if neumann:  # a flat column's normal derivatives still set its coefficient (scale 1 there)
+        D = np.vstack([D, np.hstack([dPhi / scale, np.zeros((len(dPhi), 1))])])
         y = np.concatenate([y, flux])
     pen = np.full(M + 1, float(alpha))
     pen[-1] = 0.0
@@ -178,7 +178,8 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
     else:  # no ridge: least squares, the minimum-norm fit (centred, scaled columns) when rows do not determine it
         x = np.linalg.lstsq(D, y, rcond=None)[0]
     sigma = x[:M] / scale
-    sigma[flat] = 0.0
+    if not neumann:
+        sigma[flat] = 0.0
     return sigma, float(x[M] - sigma @ mean), scale
 
 

@@ -171,6 +171,10 @@ def test_ridge_fit_gives_a_column_constant_up_to_rounding_no_weight():
             sigma, b, scale = ridge_fit(Phi, u, alpha)
             assert sigma[2] == 0.0 and scale[2] == 1.0
             assert np.abs(Phi @ sigma + b - u).max() < (1e-9 if alpha == 0 else 0.2)
+    # with one fit point every column is flat: the Neumann rows alone set the coefficients
+    Phi, dPhi = rng.random((1, 3)), rng.random((5, 3))
+    sigma, _, _ = ridge_fit(Phi, np.array([1.0]), 0.0, dPhi, dPhi @ [1.0, 2.0, 3.0])
+    np.testing.assert_allclose(sigma, [1.0, 2.0, 3.0], rtol=1e-9)
 
 
 def test_cv_angle_with_one_kernel_per_closed_loop_is_the_naive_estimate():
