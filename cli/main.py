@@ -126,7 +126,18 @@ def _separated_number(param, raw) -> str | None:
     if getattr(param, "param_type_name", "") != "option" or not _numeric(getattr(descriptor, "annotation", None)):
         return None
     values = raw if isinstance(raw, (list, tuple)) else [raw]
-    return next((v for v in values if isinstance(v, str) and "_" in v), None)
+    return next((v for v in values if isinstance(v, str) and "_" in v and _reads_as_number(v)), None)
+
+
+def _reads_as_number(text: str) -> bool:
+    """Whether ``text`` is a number as ``float`` reads it (``1_0`` is; a file
+    name such as ``my_mesh.ply`` given where a number belongs is not: the
+    parser's own 'invalid value' error suits it)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def main() -> None:

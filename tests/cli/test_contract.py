@@ -476,6 +476,9 @@ def test_parser_errors_and_non_finite_options_are_one_line_usage_errors(cli, fix
     for args in (["info", "--json", "1_0"], ["info", "--", "1_0"]):
         p = cli(*args)
         assert p.returncode == 2 and "1_0: no such file" in p.stderr, p.stderr
+    # a file name where a number belongs gets the parser's own error, not the separator advice
+    p = cli("perturb", "--seed", "my_mesh.ply", mesh, "-o", tmp_path / "o.ply")
+    assert p.returncode == 2 and "Invalid value for '--seed'" in p.stderr and "without '_'" not in p.stderr
     # an option without its value comes with no parser context: the hint had been left out
     p = cli("geodesic", mesh, "-s", "0", "-o")
     assert p.stderr.strip() == "error: Option '-o' requires an argument. (see 'geoproc geodesic --help')"
