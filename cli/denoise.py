@@ -230,7 +230,7 @@ def denoise(
             _outliers(run, input, output, k, threshold, keep_all, refined, no_clean)
         else:
             given = options_given(ctx, "method", "sigma_r", "sigma_s", "guidance_mix", "normal_iterations",
-                                  "vertex_iterations", "fidelity")
+                                  "vertex_iterations", "fidelity", "crease_repair")
             _mesh(run, input, output, reference, method, dp, no_clean, given)
 
 
@@ -255,7 +255,9 @@ MODE_METRICS = (
     # frame_schedule_summary): each frame's is chosen from its own noise
     ("a mesh (not --outliers)", lambda c: c.mode in (MESH, DYNAMIC),
      ("vertices", "faces", "fidelity", "vertex_iterations", "repeated_corner_faces", "noise_roughness",
-      "guidance_mix", "outer_iterations", "normal_iterations", "sigma_r", "sigma_s")),
+      "outer_iterations", "normal_iterations", "sigma_r", "sigma_s")),
+    ("--method guided (the default) on a mesh", lambda c: c.mode in (MESH, DYNAMIC) and c.method == "guided",
+     ("guidance_mix",)),
     ("a single mesh (not --outliers or --dynamic)", lambda c: c.mode == MESH,
      ("feature_faces", "feature_method", "noise_median_dihedral_deg", "coarseness_deg",
       "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "sigma_s_length", "unfold_rounds",
@@ -381,7 +383,6 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
                         "feature_faces": int(res.feature.sum())})
     run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
-    run.metrics.setdefault("guidance_mix", None)  # null: bilateral and rpca blend nothing
     _note_unused_filter_options(run, res.info, dp, given)
     if ref_V is not None:
         with run.timer("metrics"):
@@ -417,7 +418,7 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
     zero = [opt for opt, _, value in counts if value == 0]  # the cause, not an unused option
     filter_options = ("--method", "--sigma-r", "--sigma-s", "--guidance-mix", "--normal-iterations")
     unused = [o for o in given if o in filter_options and not filtered]
-    unused += [o for o in given if o in ("--vertex-iterations", "--fidelity") and not rounds]
+    unused += [o for o in given if o in ("--vertex-iterations", "--fidelity", "--crease-repair") and not rounds]
     unused = [o for o in unused if o not in zero]
     if unused:
         if zero:
@@ -428,7 +429,7 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
                    f"nothing was filtered; give {' and '.join(auto)} to filter anyway")
         run.note(f"{', '.join(unused)} not used: {why}")
     if (filtered and "--method" in given and "--guidance-mix" not in given and dp.guidance_mix is None
-            and info.get("guidance_mix") == 1.0 and info.get("crease_bisected_faces", 0) == 0):
+            and info.get("guidance_mix") == 1.0 and not info.get("crease_repair")):
         run.note("--method guided: at this noise level on this mesh the guidance is blended away "
                  "(guidance_mix 1: the plain bilateral filter); --guidance-mix sets it")
     if rounds and "--fidelity" in given and not info.get("vertex_iterations", 1):

@@ -641,7 +641,7 @@ def filter_and_fit(
         "sigma_s_length": sigma_s,
         "unfold_rounds": p.unfold_rounds,
         "folded_faces": folded,
-        "crease_repair": bool(strong),
+        "crease_repair": bool(strong) and outer > 0,  # it runs in the last round
         "crease_bisected_faces": int(changed.sum()),
         "input_side_faces": int(sided.sum()),
     }

@@ -141,9 +141,13 @@ def test_the_reported_schedule_given_back_reproduces_the_run(cli, cube_pair, tmp
     mesh = load_mesh(noisy)
     want = denoise_mesh(mesh.V, mesh.F, "guided", DenoiseParams(guidance_mix=0.0, crease_repair=False)).V
     np.testing.assert_array_equal(load_mesh(z).V, want)
-    # bilateral blends nothing: its guidance_mix is null (it had read 0, the patch guidance alone)
+    # bilateral blends nothing: no guidance_mix (it had read 0, the patch guidance alone), and a
+    # check on it is refused before the work
     p = cli("denoise", noisy, "--method", "bilateral", "-o", tmp_path / "b.ply", "--report", rep)
-    assert p.returncode == 0 and _metrics(rep)["guidance_mix"] is None
+    assert p.returncode == 0 and "guidance_mix" not in _metrics(rep)
+    p = cli("denoise", tmp_path / "missing.ply", "--method", "bilateral", "--check", "guidance_mix<=1", "-o",
+            tmp_path / "b.ply")
+    assert p.returncode == 2 and "only with --method guided" in p.stderr and "missing.ply" not in p.stderr
 
 
 def test_inliers_drop_an_earlier_runs_scores(cli, dfx, tmp_path):
@@ -682,6 +686,10 @@ def test_filter_options_unused_on_a_clean_mesh_are_noted(cli, fixture_dir, tmp_p
     assert p.returncode == 0 and "note: --method not used: no filter pass ran (--rounds 0)" in p.stderr
     p = cli("denoise", fixture_dir / "torus.ply", "--method", "rpca", "-o", out)
     assert p.returncode == 0 and "note: --method not used: the mesh reads as clean" in p.stderr
+    rep = tmp_path / "r.json"
+    p = cli("denoise", fixture_dir / "torus.ply", "--crease-repair", "--rounds", "0", "-o", out, "--report", rep)
+    assert p.returncode == 0 and "note: --crease-repair not used: no filter pass ran (--rounds 0)" in p.stderr
+    assert _metrics(rep)["crease_repair"] is False  # it had read true with no round run
 
 
 def test_guided_blended_away_by_the_schedule_is_noted(cli, dfx, tmp_path):
@@ -694,6 +702,8 @@ def test_guided_blended_away_by_the_schedule_is_noted(cli, dfx, tmp_path):
     assert p.returncode == 0 and _metrics(rep)["guidance_mix"] == 1.0
     assert "note: --method guided: at this noise level on this mesh the guidance is blended away" in p.stderr
     p = cli("denoise", src, "--method", "guided", "--guidance-mix", "0", "-o", tmp_path / "z.ply")
+    assert p.returncode == 0 and "blended away" not in p.stderr
+    p = cli("denoise", src, "--method", "guided", "--crease-repair", "-o", tmp_path / "r.ply")  # guided passes ran
     assert p.returncode == 0 and "blended away" not in p.stderr
     assert (tmp_path / "z.ply").read_bytes() != (tmp_path / "g.ply").read_bytes()
 
