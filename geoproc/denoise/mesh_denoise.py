@@ -631,7 +631,7 @@ def filter_and_fit(
         if progress is not None:
             progress(done / total)
     info = {
-        "guidance_mix": mix if method == "guided" else None,  # the others use no blend
+        "guidance_mix": mix,
         "outer_iterations": outer,
         "normal_iterations": inner,
         "vertex_iterations": p.vertex_iterations,
@@ -656,4 +656,6 @@ def filter_and_fit(
         feature = np.zeros(len(F))
     if method == "rpca":
         info["rpca_sparse_faces"] = int((sparse > SPARSE_ROW).sum())
+    if method != "guided":  # the others blend no guidance
+        del info["guidance_mix"]
     return DenoiseResult(V=X, normals=N, feature=feature, info=info)

@@ -92,7 +92,7 @@ def test_denoise_checks_refused_early_are_not_reported_by_that_mode(method, feat
     assert with_reference & _gated(denoise._metric_needs(mesh._replace(reference="clean.ply"))) == set()
     frames = np.stack([Vn * (1 + 0.01 * t) for t in range(3)])
     for coherence in ("heights", "normals"):
-        _, info = denoise_animation(frames, F, coherence=coherence, params=DenoiseParams(features=features))
+        _, info = denoise_animation(frames, F, method, coherence=coherence, params=DenoiseParams(features=features))
         assert (_scalars(info) | {"frames", "vertices", "faces"}) & _gated(
             denoise._metric_needs(mesh._replace(mode=denoise.DYNAMIC))) == set()
 
