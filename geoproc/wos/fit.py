@@ -152,10 +152,10 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
     is constant over the fit points, as an angle kernel over a whole closed
     loop is (2 pi or 0 inside the domain): the free constant stands for it and
     its coefficient is 0, unless Neumann rows set it (with one fit point every
-    column is flat, and those rows alone determine the fit). Scaled by its rounding noise it had taken a
-    coefficient near 1e14, and the control variate, added back, cancelled
-    catastrophically (a star with one kernel: rmse 2.9 against 0.046 without
-    it, its error bars blind to the rounding).
+    column is flat, and those rows alone determine the fit). Scaled by its
+    rounding noise it had taken a coefficient near 1e14, and the control
+    variate, added back, cancelled catastrophically (a star with one kernel:
+    rmse 2.9 against 0.046 without it, its error bars blind to the rounding).
     """
     mean = Phi.mean(axis=0)
     scale = Phi.std(axis=0)
