@@ -38,7 +38,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 
 from geoproc.c_output import c_stdout_silenced
 from geoproc.errors import GeoprocError, InputError, UsageError
-from geoproc.fileio import read_input_bytes, sha256_bytes, sha256_file, write_files_atomic
+from geoproc.fileio import file_kind, read_input_bytes, sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
 from geoproc.report import build_report, evaluate_checks, parse_check, require_known_metrics
@@ -468,18 +468,10 @@ def _require_output_folders(names: list[str]) -> None:
         folder = os.path.dirname(real) if os.path.islink(name) else os.path.dirname(os.path.abspath(name))
         if not os.path.isdir(folder):
             raise UsageError(f"{name}: output folder '{folder}' does not exist")
-        if _is_special_file(real):
+        if file_kind(name) == "other":  # written directly, as write_files_atomic does
             continue
         if not os.access(folder, os.W_OK | os.X_OK):  # read-only file system, no permission
             raise UsageError(f"{name}: cannot write: output folder '{folder}' is not writable")
-
-
-def _is_special_file(path: str) -> bool:
-    """Whether ``path`` exists and is not a regular file (a device, a FIFO)."""
-    try:
-        return not stat.S_ISREG(os.stat(path).st_mode)
-    except (OSError, ValueError):
-        return False
 
 
 def _require_finite_options(params: dict) -> None:

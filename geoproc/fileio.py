@@ -138,7 +138,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         for path, data in files:
             path = os.fspath(path)
             real = os.path.realpath(path)
-            kind = _file_kind(path)  # through links, /dev/stdout's to a pipe too (realpath names no file there)
+            kind = file_kind(path)  # through links, /dev/stdout's to a pipe too (realpath names no file there)
             if kind == "folder":
                 raise IsADirectoryError(errno.EISDIR, "is a folder", path)
             if kind == "other":
@@ -167,7 +167,7 @@ def write_files_atomic(files: list[tuple[str | os.PathLike, bytes]],
         raise
 
 
-def _file_kind(path: str) -> str:
+def file_kind(path: str) -> str:
     """``"missing"``, ``"folder"``, ``"file"`` (regular) or ``"other"`` (a device,
     a FIFO, a pipe or socket behind /dev/stdout), following symbolic links."""
     try:
