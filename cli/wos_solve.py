@@ -158,7 +158,7 @@ def wos_solve(
             require_input_file(domain, "domain file")
         from geoproc.wos import load_domain, solve_laplace
         from geoproc.wos.images import EXR_MAX, exr_bytes, float32_steps, png_bytes
-        from geoproc.wos.solve import default_ridge
+        from geoproc.wos.solve import FIT_POINTS_PER_KERNEL, default_ridge
 
         if fitted and ridge is None:  # the report names the weight used
             run.params["ridge"] = default_ridge(method.value)
@@ -209,11 +209,11 @@ def wos_solve(
                      f"reaches {MAX_STEPS} steps stops and scores the closest boundary point, which biases "
                      "the estimate. Long Neumann corridors take that many steps, and so does an --epsilon "
                      f"finer than the coordinates' rounding ({epsilon:g} here), where walks stall at the boundary")
-        wanted = fit_points if fit_points is not None else 8 * (used or 0)  # the default: 8 x kernels used
+        wanted = fit_points if fit_points is not None else FIT_POINTS_PER_KERNEL * (used or 0)
         if fitted and res.metrics.get("fit_points", wanted) < wanted:
             run.note(f"{res.metrics['fit_points']} fit points used, not {wanted}"
-                     f"{'' if fit_points is not None else ' (8 x the kernels used)'}: every grid point farther "
-                     "than 2 x epsilon from the boundary (raise --grid for more)")
+                     f"{'' if fit_points is not None else f' ({FIT_POINTS_PER_KERNEL} x the kernels used)'}: "
+                     "every grid point farther than 2 x epsilon from the boundary (raise --grid for more)")
         gs = res.grid
         extent = (gs.x0, gs.x0 + gs.nx * gs.h, gs.y1 - gs.ny * gs.h, gs.y1)
         with run.timer("write"):

@@ -29,6 +29,8 @@ from geoproc.wos.npass import adam_refine
 from geoproc.wos.problem import WalkProblem, pass_seed
 
 METHODS = ("naive", "cv-green", "cv-angle", "npass")
+FIT_POINTS_PER_KERNEL = 8
+"""The default number of fit points per kernel used (at most the grid's interior points)."""
 _TAG_FIT, _TAG_RESIDUAL, _TAG_NPASS = 1, 2, 1000
 
 
@@ -129,7 +131,7 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     fit_walks : int
         Walks per fit point.
     fit_points_n : int, optional
-        Number of fit points (default ``8 * kernels``).
+        Number of fit points (default ``FIT_POINTS_PER_KERNEL`` times the kernels used).
     ridge : float, optional
         Ridge weight (default :func:`default_ridge` of the method).
     seed : int
@@ -198,7 +200,7 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         far = X[problem.distance(X) > 2 * eps]
         cand = far if len(far) else X
         ks = make_kernels(method, domain, kernels, problem.distance)
-        F = fit_points(cand, fit_points_n or 8 * ks.M)
+        F = fit_points(cand, fit_points_n or FIT_POINTS_PER_KERNEL * ks.M)
         u_fit, _, st = problem.estimate_chunked(F, fit_walks, pass_seed(seed, _TAG_FIT),
                                                 progress=lambda f: report(0.05 * f))
         dPhi = hN = None
