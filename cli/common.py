@@ -211,10 +211,21 @@ class Run:
         self.add_input(name, data, getattr(getattr(out, "log", None), "sha256", ""))
         return out
 
-    def load_mesh(self, path: str | os.PathLike, clean: bool = True) -> Mesh:
-        """Read a mesh or point cloud (``-`` reads standard input) and record it."""
+    def load_mesh(self, path: str | os.PathLike, clean: bool = True, mesh_output: str | None = None) -> Mesh:
+        """Read a mesh or point cloud (``-`` reads standard input) and record it.
+
+        ``mesh_output``: the run's mesh output, whose extension is checked
+        before the input is read, so that a mistyped one fails before the work
+        (a ``.npz`` passes that check when the input is standard input, whose
+        reading then says that an animation cannot come from there), and again
+        once the input is read as a mesh (:func:`require_mesh_output`)."""
+        stdin = os.fspath(path) == "-"
+        if mesh_output is not None:
+            require_mesh_output(mesh_output, allow_npz=stdin)
         with self.timer("load"):
             mesh = self.read_input(path, lambda name, data: load_mesh(name, clean=clean, stdin_bytes=data))
+        if mesh_output is not None and stdin:
+            require_mesh_output(mesh_output)
         self.note_load(mesh)
         return mesh
 

@@ -30,7 +30,6 @@ from geoproc_cli.common import (
     options_given,
     refuse_options,
     require_memory,
-    require_mesh_output,
     require_ply_output,
 )
 
@@ -358,9 +357,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
         kind = "a folder" if os.path.isdir(input) else "a .npz file"
         raise UsageError(f"{input}: {kind} is read as an animation; --dynamic denoises it, --outliers finds "
                          "its outlying points")
-    require_mesh_output(output, allow_npz=input == "-")  # a mistyped extension fails now, not after the work
-    mesh = run.load_mesh(input, clean=not no_clean)
-    require_mesh_output(output)
+    mesh = run.load_mesh(input, clean=not no_clean, mesh_output=output)
     path = mesh.log.path or None
     if mesh.is_point_cloud:
         raise InputError(path, "is a point cloud (no faces); use --outliers for point clouds")
@@ -439,9 +436,7 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
 def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> None:
     if k < 4:
         raise UsageError(f"--k {k}: must be at least 4")
-    require_mesh_output(output, allow_npz=input == "-")
-    cloud = run.load_mesh(input, clean=not no_clean)
-    require_mesh_output(output)
+    cloud = run.load_mesh(input, clean=not no_clean, mesh_output=output)
     # (a k beyond the points is refused by the method, naming the count)
     require_memory(OUTLIER_BYTES * len(cloud.V) * min(k, len(cloud.V)), f"--k {k} on {len(cloud.V)} points")
     from geoproc.denoise.outliers import detection_scores, rpca_outliers

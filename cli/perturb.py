@@ -22,7 +22,6 @@ from geoproc_cli.common import (
     command_run,
     metrics_epilog,
     refuse_options,
-    require_mesh_output,
     require_ply_output,
 )
 
@@ -137,9 +136,7 @@ def perturb(
                                 "outlier_vertices": int(flag.sum())})
             run.write_bytes(output, animation_to_bytes(out))
             return
-        require_mesh_output(output, allow_npz=input == "-")  # a mistyped extension fails now, not after the work
-        mesh = run.load_mesh(input, clean=not no_clean)
-        require_mesh_output(output)
+        mesh = run.load_mesh(input, clean=not no_clean, mesh_output=output)
         if not mesh.is_point_cloud:
             require_triangle_mesh(mesh)  # normals, and the edge-length unit, need a face of some area
         _note_fractions_of_none(run, len(mesh.V), impulsive, outliers)
