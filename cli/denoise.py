@@ -535,9 +535,9 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     from geoproc.denoise.dynamic import denoise_animation
     from geoproc.denoise.metrics import reference_metrics
     from geoproc.denoise.validate import reference_in_input_order, require_denoisable
-    from geoproc.mesh.topology import repeated_corner_faces
+    from geoproc.mesh.topology import faces_with_distinct_corners
 
-    require_denoisable(anim.F[~repeated_corner_faces(anim.F)], anim.path)  # those are left out, as for a mesh
+    require_denoisable(faces_with_distinct_corners(anim.F), anim.path)  # those are left out, as for a mesh
     if "outlier" in anim.fields:  # carried to the output: refused as perturb and --outliers refuse it
         outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path, anim.frame_files)
     ref_V = None

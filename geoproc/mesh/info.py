@@ -9,10 +9,10 @@ from geoproc.mesh.mesh import Mesh
 from geoproc.mesh.topology import (
     count_boundary_loops,
     degenerate_faces,
+    faces_with_distinct_corners,
     nonmanifold_vertices,
     orientation_status,
     referenced_vertices,
-    repeated_corner_faces,
     unique_edges,
     used_bbox_diagonal,
     vertex_components,
@@ -74,7 +74,7 @@ def mesh_info(mesh: Mesh) -> dict:
     # had counted as a non-manifold or boundary edge of length 0 (a closed tetrahedron with
     # such a facet read as open, not edge-manifold, mean edge length 1.035 for 1.207);
     # degenerate_faces counts it
-    Ft = F[~repeated_corner_faces(F)]
+    Ft = faces_with_distinct_corners(F)
     edges = unique_edges(Ft)
     E, _, count = edges
     n_used = int(referenced_vertices(Ft, n).sum())

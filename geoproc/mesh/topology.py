@@ -253,6 +253,13 @@ def repeated_corner_faces(F: np.ndarray) -> np.ndarray:
     return (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
 
 
+def faces_with_distinct_corners(F: np.ndarray) -> np.ndarray:
+    """(k, 3) the rows of F (m, 3) with three distinct corners, in order: the
+    faces that bound a surface (see :func:`repeated_corner_faces`)."""
+    F = np.asarray(F).reshape(-1, 3)
+    return F[~repeated_corner_faces(F)]
+
+
 def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
     """Mean length h of the mesh's undirected edges (each once), in V's unit;
     0 when there is none.
@@ -261,8 +268,7 @@ def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
     :func:`geoproc.mesh.info.mesh_info` counts them: a face that repeats a
     corner had added an edge from a vertex to itself, of length 0.
     """
-    F = np.asarray(F).reshape(-1, 3)
-    E = unique_edges(F[~repeated_corner_faces(F)])[0]
+    E = unique_edges(faces_with_distinct_corners(F))[0]
     return float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()) if len(E) else 0.0
 
 

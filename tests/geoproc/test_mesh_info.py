@@ -12,6 +12,7 @@ from geoproc.mesh.topology import (
     COMPILED_FANS_FROM,
     boundary_edges,
     count_boundary_loops,
+    faces_with_distinct_corners,
     fans_by_sorting,
     fans_compiled,
     orientation_status,
@@ -165,6 +166,13 @@ def test_boundary_edges_are_the_edges_of_one_face_on_random_soups():
         count = Counter(tuple(sorted((int(f[k]), int(f[(k + 1) % 3])))) for f in F for k in range(3))
         expected = sorted(e for e, c in count.items() if c == 1)
         assert boundary_edges(F).tolist() == [list(e) for e in expected]
+
+
+def test_faces_with_distinct_corners_keeps_the_proper_triangles_in_order():
+    F = np.array([[0, 1, 2], [3, 3, 4], [2, 1, 3], [5, 6, 5], [4, 7, 7], [1, 2, 4]])
+    assert faces_with_distinct_corners(F).tolist() == [[0, 1, 2], [2, 1, 3], [1, 2, 4]]
+    assert faces_with_distinct_corners(np.zeros((0, 3), int)).shape == (0, 3)
+    assert faces_with_distinct_corners(F.ravel()).tolist() == [[0, 1, 2], [2, 1, 3], [1, 2, 4]]
 
 
 def test_vertex_fans_and_components_of_disjoint_parts(make_fixtures):
