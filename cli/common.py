@@ -516,6 +516,8 @@ def require_extension(path: str | os.PathLike, ext: str, option: str, stdout_ok:
         raise UsageError(f"{option}: the file name is empty")
     if (stdout_ok and name == "-") or name.lower().endswith(ext):
         return
+    if name == "-":
+        raise UsageError(f"{option} -: this file is not written to standard output; give a file name ending in {ext}")
     raise UsageError(f"{option} {name}: must end in {ext}" + (" (or be -)" if stdout_ok else ""))
 
 

@@ -166,6 +166,14 @@ def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, do
     assert not out.exists() and not (tmp_path / "r.json").exists() and not (tmp_path / "e.png").exists()
 
 
+def test_output_to_standard_output_is_refused_in_words(cli, inputs, tmp_path):
+    # it had read "-o -: must end in .exr", as if "-" were a file name
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--grid", "8", "--walks", "2", "-o", "-")
+    assert p.returncode == 2 and p.stdout == b""
+    assert p.stderr.strip().splitlines() == [
+        "error: -o -: this file is not written to standard output; give a file name ending in .exr"]
+
+
 @pytest.mark.parametrize("domain,extra,message", [
     # (values past float32's range are refused before the walks, naming the domain)
     ("big_values.json", [], ("error: ", "big_values.json: the domain's values reach 1e+308")),
