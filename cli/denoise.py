@@ -370,7 +370,8 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     ref_V = None
     if reference is not None:
         ref = run.read_input(reference, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
-        ref_V = reference_in_input_order(mesh.F, len(mesh.V), ref.F, ref.V, reference)
+        ref_V = reference_in_input_order(mesh.F, len(mesh.V), ref.F, ref.V, reference,
+                                         counts_hint=" (if it is, load both with the same --no-clean setting)")
     with run.timer("denoise"), run.progress(f"denoise ({method})") as update, _naming_the_input(path or input):
         res = denoise_mesh(mesh.V, mesh.F, method, dp, progress=update)
     out = Mesh(res.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields))

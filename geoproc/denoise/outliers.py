@@ -305,7 +305,7 @@ class AnimationOutlierResult:
     ----------
     score : (T, n) float64
         Distance of each point in each frame from its robust low-rank trajectory,
-        in median point spacings (of the first frame).
+        in point spacings (:func:`frames_spacing`: the median over the frames).
     outlier : (T, n) bool
         ``score > threshold``.
     threshold : float

@@ -23,7 +23,7 @@ turned."""
 
 
 def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np.ndarray,
-                             path: str | None) -> np.ndarray:
+                             path: str | None, counts_hint: str = "") -> np.ndarray:
     """Reference positions numbered as the input's vertices.
 
     The reference must be the same mesh as the input: the same faces in the
@@ -40,6 +40,8 @@ def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np
     F : (m, 3) int input faces over ``n`` vertices.
     F_ref : (m', 3) int reference faces.
     V_ref : (..., n', 3) float reference positions (one mesh, or frames of one).
+    counts_hint : appended to the error when the counts differ (how the caller
+        may have loaded the two differently).
 
     Returns
     -------
@@ -59,7 +61,7 @@ def reference_in_input_order(F: np.ndarray, n: int, F_ref: np.ndarray, V_ref: np
     if n_ref != n or len(F_ref) != len(F):
         raise InputError(path, f"reference connectivity differs from the input ({n_ref} vertices, "
                          f"{len(F_ref)} faces vs {n}, {len(F)}): it must be the same mesh, with the same faces "
-                         "in the same order (if it is, load both with the same --no-clean setting)")
+                         f"in the same order{counts_hint}")
     for t in range(len(P)):
         if not (face_areas(P[t], F_ref) > 0).any():
             where = f" (frame {t})" if V_ref.ndim == 3 else ""

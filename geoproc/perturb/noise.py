@@ -114,10 +114,12 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     copy (closer than 1e-4 of the typical distance to the 16th neighbour; a
     cloud stored twice, once rounded to float32) is not its neighbour either,
     as :func:`geoproc.denoise.outliers.rpca_outliers` counts them (it had made
-    the unit 2.6e-8 of the cloud's spacing)."""
+    the unit 2.6e-8 of the cloud's spacing). Each group of near copies counts
+    once in the mean, as a point stored many times does (five near copies of
+    a dense half had weighted that half six times)."""
     from scipy.spatial import cKDTree
 
-    from geoproc.mesh.spacing import nearest_distinct_distances
+    from geoproc.mesh.spacing import COPY_DISTANCE, near_copy_groups, nearest_distinct_distances
     from geoproc.mesh.topology import mean_edge_length
 
     V, F = mesh_arrays(V, F, allow_point_cloud=True)
@@ -126,8 +128,13 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     U = unique_rows(V)[0]
     if len(U) < 2:
         return 0.0
-    d, _ = cKDTree(U).query(U, k=min(len(U), 16), workers=-1)
-    return float(nearest_distinct_distances(d).mean())
+    d, idx = cKDTree(U).query(U, k=min(len(U), 16), workers=-1)
+    nearest = nearest_distinct_distances(d)
+    far = float(np.median(d[:, -1]))
+    if not far > 0:
+        return float(nearest.mean())
+    first, _ = near_copy_groups(idx, d, COPY_DISTANCE * far)
+    return float(nearest[first].mean())
 
 
 def perturb_positions(

@@ -520,6 +520,7 @@ def test_reference_with_other_connectivity(cli, cube_pair, fixture_dir, tmp_path
     out, rep = tmp_path / "o.ply", tmp_path / "r.json"
     p = cli("denoise", noisy, "--reference", fixture_dir / "icosphere.ply", "-o", out, "--report", rep)
     assert _one_line_error(p) and "connectivity" in p.stderr and not out.exists() and not rep.exists()
+    assert "(if it is, load both with the same --no-clean setting)" in p.stderr
 
 
 def test_reference_whose_faces_all_have_zero_area_is_refused(cli, cube_pair, tmp_path):
@@ -777,6 +778,11 @@ def test_dynamic_checks_every_frame_and_names_file_and_frame(cli, dfx, tmp_path)
     p = cli("denoise", src, "--dynamic", "--reference", ref, "-o", out)
     assert _one_line_error(p) and "ref.npz: the reference is degenerate (frame 2): every face has zero area" \
         in p.stderr and not out.exists()
+    # other counts: no advice on --no-clean, which --dynamic refuses
+    ref.write_bytes(animation_to_bytes(Animation(Vn, F[:0])))
+    p = cli("denoise", src, "--dynamic", "--reference", ref, "-o", out)
+    assert _one_line_error(p) and "ref.npz: reference connectivity differs from the input" in p.stderr
+    assert "same faces in the same order\n" in p.stderr and not out.exists()
     # the outlier field travels to the output: non-finite values are refused there too
     src = tmp_path / "inf.npz"
     src.write_bytes(animation_to_bytes(Animation(Vn, F, {"outlier": np.full(Vn.shape[:2], np.inf)})))

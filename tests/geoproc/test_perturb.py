@@ -32,6 +32,12 @@ def test_noise_scale_of_a_cloud_is_the_mean_nearest_neighbour_distance():
     # neighbours, and the unit came out at the rounding (2.6e-8 of the spacing on a torus cloud)
     twice = np.vstack([P, P.astype(np.float32).astype(np.float64)])
     assert noise_scale(twice, empty) == pytest.approx(nearest.mean(), rel=1e-5)
+    # near copies of part of the cloud count once, as exact copies do: five more copies of
+    # the tight cluster, each shifted by k nm, had weighted it six times (0.2286 for 0.55
+    # on two grids of spacing 0.1 and 1)
+    shifted = np.vstack([P] + [P[:300] + [0.0, 0.0, k * 1e-9] for k in range(1, 6)])
+    assert noise_scale(shifted, empty) == pytest.approx(nearest.mean(), rel=1e-6)
+    assert noise_scale(np.vstack([P] + [P[:300]] * 5), empty) == pytest.approx(nearest.mean(), rel=1e-12)
 
 
 @pytest.mark.parametrize("sigma", [0.2, 0.5])
