@@ -306,6 +306,10 @@ _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 OUTLIER_BYTES = 150
 """Memory of --outliers per point and neighbour (the stacked neighbourhoods and
 RPCA's matrices): 1.38 GB at k = 400 on 20,000 points, 0.51 GB at k = 100."""
+ANIMATION_OUTLIER_BYTES = 110
+"""Memory of --outliers on a moving cloud per coordinate of the input (the
+animation matrix and RPCA's copies of it): 1.24 GB for 20 frames of 200,000
+points."""
 
 
 def _unused_option_groups(mode: str, features: str, method: str) -> list[tuple[tuple[str, ...], str]]:
@@ -502,6 +506,8 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
     if not output.lower().endswith(".npz"):
         raise UsageError(f"{output}: an animation is written as .npz")
     anim = run.load_animation(input)
+    require_memory(ANIMATION_OUTLIER_BYTES * anim.V.size,
+                   f"--outliers on {anim.n_frames} frames of {anim.V.shape[1]} points")
     from geoproc.denoise.outliers import detection_scores, rpca_animation_outliers
 
     with run.timer("outliers"):

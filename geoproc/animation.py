@@ -101,6 +101,8 @@ def load_animation(path: str | os.PathLike) -> Animation:
             bad = int(np.flatnonzero((F != F[:1]).reshape(len(F), -1).any(axis=1))[0])
             raise InputError(name, f"frame {bad} has a different connectivity from frame 0")
         F = F[0]
+    if F.ndim == 2 and F.shape[1] == 3 and F.size == 0:
+        F = F.astype(np.int64)  # no faces (a moving cloud), as np.zeros((0, 3)) stores them: float64
     if F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer):
         raise InputError(name, f"'faces' has shape {F.shape} ({F.dtype}); expected (m, 3) integers")
     _validate(V, F, name)

@@ -187,7 +187,8 @@ def rpca_outliers(P: np.ndarray, k: int = 16, threshold: float | None = None,
     P, _ = mesh_arrays(P, np.zeros((0, 3), dtype=np.int64), path, allow_point_cloud=True)
     U, inv = unique_rows(P)
     if len(U) < k:
-        raise InputError(path, f"has {len(U)} distinct points, fewer than the neighbourhood size k={k}")
+        raise InputError(path, f"has {len(U)} distinct point{'s' if len(U) != 1 else ''}, fewer than the "
+                               f"neighbourhood size k={k}")
     res = _score_distinct_points(U, k, threshold, path, lam, refine_passes)
     return OutlierResult(score=res.score[inv], outlier=res.outlier[inv], threshold=res.threshold,
                          refined=res.refined[inv])

@@ -403,6 +403,24 @@ def test_k_beyond_the_memory_is_an_out_of_memory_error(dfx, tmp_path, monkeypatc
     assert not out.exists()
 
 
+def test_a_moving_cloud_beyond_the_memory_is_an_out_of_memory_error(dfx, tmp_path, monkeypatch, capsys):
+    # the animation matrix and RPCA's copies of it take about 100 bytes per coordinate
+    # (1.24 GB for 20 frames of 200,000 points): past the memory the kernel killed the run
+    from geoproc_cli import common
+    from geoproc_cli import main as cli_main
+
+    V = np.random.default_rng(1).random((5, 4000, 3))
+    src, out = tmp_path / "c.npz", tmp_path / "o.npz"
+    src.write_bytes(animation_to_bytes(Animation(V, np.zeros((0, 3), int))))
+    monkeypatch.setattr(common, "available_memory", lambda: 2**20)  # 1 MiB
+    monkeypatch.setattr("sys.argv", ["geoproc", "denoise", str(src), "--outliers", "-o", str(out)])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and err.startswith("error: out of memory: --outliers on 5 frames of 4000 points")
+    assert not out.exists()
+
+
 def test_a_npz_output_for_a_mesh_on_stdin_is_refused_before_the_work(cube_pair, tmp_path, monkeypatch, capsys):
     # .npz passes the check made before standard input is read (an animation piped in is
     # named as the problem); a mesh read from there had then been denoised before the refusal

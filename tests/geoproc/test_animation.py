@@ -124,6 +124,15 @@ def test_npz_face_index_just_out_of_range_is_refused(wave, tmp_path, bad):
         load_animation(p)
 
 
+def test_a_moving_cloud_may_store_its_empty_faces_as_floats(wave, tmp_path):
+    # np.zeros((0, 3)), the plain way to write "no faces", is float64: it had been refused
+    V, _ = wave
+    anim = load_animation(_npz(tmp_path / "c.npz", vertices=V, faces=np.zeros((0, 3))))
+    assert anim.F.shape == (0, 3) and anim.F.dtype.kind == "i" and np.array_equal(anim.V, V)
+    with pytest.raises(InputError, match=re.escape("'faces' has shape (1, 3) (float64); expected (m, 3) integers")):
+        load_animation(_npz(tmp_path / "f.npz", vertices=V, faces=np.zeros((1, 3))))
+
+
 @pytest.mark.parametrize("member", ["vertices", "outlier"])
 def test_a_damaged_member_is_refused(wave, tmp_path, member):
     # a .npy member cut short had been called an object array, and a cut 'outlier' member

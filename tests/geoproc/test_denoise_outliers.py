@@ -71,6 +71,8 @@ def test_coincident_points_are_scored_once(dfx):
     assert detection_scores(twice.outlier, np.r_[flag, flag])["f1"] > 0.8
     with pytest.raises(InputError, match="has 3 distinct points"):
         rpca_outliers(np.repeat(P[:3], 10, axis=0))
+    with pytest.raises(InputError, match="has 1 distinct point, fewer"):
+        rpca_outliers(np.repeat(P[:1], 30, axis=0))
 
 
 def test_near_copies_are_scored_once(dfx):
