@@ -146,6 +146,8 @@ def morse_simplify(
         require_triangle_mesh(m)
         require_manifold(m, "; morse-simplify needs a manifold mesh")
         # the methods (scipy, the compiled kernels) load once the mesh is read and checked
+        from geoproc.mesh.clean import remove_unreferenced_vertices
+        from geoproc.mesh.topology import referenced_vertices
         from geoproc.morse import morse_simplify as morse_simplify_field
         from geoproc.morse.barycentric import barycentric_simplify, mesh_cell, subdivision_values
         from geoproc.morse.critical_table import critical_cells_table
@@ -165,7 +167,15 @@ def morse_simplify(
             raise UsageError("--field cell_dim with --barycentric: the output's 'cell_dim' property holds "
                              "each subdivision vertex's cell dimension; copy the field under another name")
         run.note_replaced("vertex", [k for k in written if k != field], m.vertex_fields)
-        span = float(f.max() - f.min()) if len(f) else 0.0
+        n_vertices = m.n_vertices  # the input's, for the report
+        used = referenced_vertices(m.F, m.n_vertices)  # (all but under --no-clean)
+        if barycentric and not used.all():  # the subdivision is of the surface: they are left out
+            run.note(f"{m.log.path or mesh}: {int((~used).sum())} vertices no face uses are left out of the "
+                     "subdivision (the output's vertex ids are the subdivision's)")
+            V, F, keep = remove_unreferenced_vertices(m.V, m.F)
+            m = Mesh(V, F, {k: v[keep] for k, v in m.vertex_fields.items()}, m.face_fields, m.log)
+            f, used = f[keep], used[keep]
+        span = float(f[used].max() - f[used].min()) if used.any() else 0.0  # the field's range on the surface
         threshold = float(persistence) * span if relative else float(persistence)
         if not np.isfinite(threshold):
             raise UsageError(f"--persistence {persistence:g} --relative: P times the field's range "
@@ -178,7 +188,7 @@ def morse_simplify(
         with run.timer("after"):  # pairs of g, and the checks that tie them to f's
             summary = simplification_summary(res, f, threshold)
         before, after, g = summary.before, summary.after, summary.g
-        run.metrics.update({"vertices": m.n_vertices, "faces": m.n_faces, **summary.metrics})
+        run.metrics.update({"vertices": n_vertices, "faces": m.n_faces, **summary.metrics})
         beyond, max_change = summary.metrics["vertices_beyond_half_threshold"], summary.metrics["max_abs_change"]
         if beyond:
             run.note(_beyond_note(beyond, threshold, max_change, summary, TIE_ROUNDING))

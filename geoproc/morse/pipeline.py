@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geoproc.errors import UsageError
+from geoproc.mesh.topology import referenced_vertices
 from geoproc.mesh.validate import require_indices_below, triangle_array, vertex_field_values
 from geoproc.morse.complex import SurfaceComplex, canonical_faces, require_distinct_corners, surface_complex
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
@@ -22,9 +23,11 @@ class MorseSimplification:
 
     Attributes
     ----------
-    order : (n,) int64 array
-        ``order[i]`` is the input vertex with relabelled index i (vertices
-        sorted by (value, index)); map a relabelled vertex id back with it.
+    order : (k,) int64 array
+        ``order[i]`` is the input vertex with relabelled index i (the k
+        vertices some face uses, sorted by (value, index)); map a relabelled
+        vertex id back with it. A vertex no face uses is no cell of the
+        surface: it is left out of the complex, and g keeps its value.
     cx : SurfaceComplex
         The complex of the relabelled mesh (faces ``rank[F]`` in
         :func:`~geoproc.morse.complex.canonical_faces` order).
@@ -49,7 +52,7 @@ class MorseSimplification:
         slack = self.simplification.tie_slack
         if not np.ndim(slack):
             return slack
-        out = np.empty_like(slack)
+        out = np.zeros(len(self.g))
         out[self.order] = slack
         return out
 
@@ -78,14 +81,21 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
     F = triangle_array(F, path)
     require_indices_below(F, n, path)
     require_distinct_corners(F, path)  # before the faces are reordered: the message names the input's triangle
-    order, rank = vertex_order(f)
+    # a vertex no face uses (kept under --no-clean) is no cell of the surface: as an
+    # isolated point of the complex it had counted as a component and an essential
+    # minimum, where `info` counts the surface alone
+    keep = np.flatnonzero(referenced_vertices(F, n))
+    order, rank_kept = vertex_order(f[keep])
+    order = keep[order]
+    rank = np.full(n, -1, dtype=np.int64)
+    rank[keep] = rank_kept
     # faces and corners in a canonical order: the exact windows' programs, and so
     # what HiGHS finds within its node limit, do not depend on how the input lists them
-    cx = surface_complex(canonical_faces(rank[F]), n, path)
+    cx = surface_complex(canonical_faces(rank[F]), len(keep), path)
     fr = f[order]
     grad = discrete_gradient(cx, fr)
     pairs = lower_star_persistence(cx, fr)
     simp = simplify_function(cx, fr, threshold, grad, exact_windows)
-    g = np.empty(n)
+    g = f.copy()
     g[order] = simp.g
     return MorseSimplification(order, cx, grad, pairs, simp, g)

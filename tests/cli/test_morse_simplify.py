@@ -254,6 +254,36 @@ def test_npy_with_one_value_per_stored_vertex_names_the_clean_up(cli, fixture_di
     assert p.returncode == 0, p.stderr
 
 
+@pytest.mark.parametrize("barycentric", [False, True])
+def test_a_vertex_no_face_uses_is_no_part_of_the_topology(cli, fixture_dir, tmp_path, barycentric):
+    # kept under --no-clean, it had been a component and an essential minimum of its own:
+    # minima_after, betti_0 and euler_characteristic disagreed with info's for the same file
+    m = load_mesh(fixture_dir / "icosphere.ply")
+    V = np.vstack([[[5.0, 5.0, -9.0]], m.V])  # numbered first, below every surface value
+    mesh = tmp_path / "extra.off"
+    mesh.write_text(f"OFF\n{len(V)} {len(m.F)} 0\n" + "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in V.tolist())
+                    + "".join(f"3 {a + 1} {b + 1} {c + 1}\n" for a, b, c in m.F.tolist()))
+    extra = ["--barycentric"] if barycentric else []
+    runs = {}
+    for name, src, clean in (("plain", fixture_dir / "icosphere.ply", []), ("extra", mesh, ["--no-clean"])):
+        out, rep, crit = tmp_path / f"{name}.ply", tmp_path / f"{name}.json", tmp_path / f"{name}_c.json"
+        p = cli("morse-simplify", src, "--field", "z", "--persistence", "0.5", "--relative", *clean, *extra,
+                "-o", out, "--report", rep, "--critical", crit)
+        assert p.returncode == 0, p.stderr
+        runs[name] = (json.loads(rep.read_text())["metrics"], json.loads(crit.read_text()), load_mesh(out, clean=False),
+                      p.stderr)
+    (mp, cp, op, _), (me, ce, oe, err) = runs["plain"], runs["extra"]
+    counts = ("vertices", "input_vertices")
+    assert {k: v for k, v in me.items() if k not in counts} == {k: v for k, v in mp.items() if k not in counts}
+    assert (me["vertices"], mp["vertices"], me["betti_0"], me["euler_characteristic"]) == (643, 642, 1, 2)
+    if barycentric:  # the subdivision is of the surface, numbered as the plain run's
+        assert ce == cp and np.array_equal(oe.V, op.V)
+        assert "1 vertices no face uses are left out of the subdivision" in err
+    else:  # the stray vertex keeps its value; the critical cells name the input's vertices
+        assert np.array_equal(oe.vertex_fields["z_value"], np.r_[-9.0, op.vertex_fields["z_value"]])
+        assert [r["vertex"] for r in ce["before"]] == [r["vertex"] + 1 for r in cp["before"]]
+
+
 @pytest.mark.parametrize("name", ["camelhead.off", "fertility.off", "cow.obj", "teapot.obj"])
 def test_shared_meshes(cli, shared_data, tmp_path, name):
     out, rep = tmp_path / "o.ply", tmp_path / "r.json"

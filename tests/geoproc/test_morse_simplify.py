@@ -384,6 +384,28 @@ def test_simplification_summary_counts_match_gudhi(make_fixtures, barycentric):
     assert m["max_abs_change"] == pytest.approx(np.abs(s.g - s.f_ref).max())
 
 
+def test_vertices_no_face_uses_are_no_cells_of_the_surface(make_fixtures):
+    # kept under --no-clean, each had been an isolated component of the complex: an
+    # essential minimum in every count, betti_0 and the Euler characteristic (a
+    # tetrahedron with two such vertices read chi 4, betti_0 3), where info counts 2 and 1
+    from geoproc.morse import morse_simplify
+    from geoproc.morse.summary import simplification_summary
+
+    V, F = make_fixtures.torus(nu=24, nv=12)
+    f = V[:, 0] + 0.3 * np.random.default_rng(5).random(len(V))
+    P = 0.03
+    plain = morse_simplify(F, f, P)
+    ref = simplification_summary(plain, f, P)
+    # two stray vertices numbered first (every face index moves) and one last, with extreme values
+    f2 = np.concatenate([[-5.0, 7.0], f, [-9.0]])
+    res = morse_simplify(F + 2, f2, P)
+    s = simplification_summary(res, f2, P)
+    assert s.metrics == ref.metrics
+    assert np.array_equal(res.g[2:-1], plain.g) and np.array_equal(res.g[[0, 1, -1]], [-5.0, 7.0, -9.0])
+    assert np.array_equal(res.order, plain.order + 2)
+    assert (s.metrics["euler_characteristic"], s.metrics["betti_0"]) == (0, 1)
+
+
 def test_simplification_summary_refuses_pairs_that_miss_the_gradient(make_fixtures):
     # a construction defect (pairs of another field) is an internal error, not a report
     from geoproc.morse import morse_simplify
