@@ -147,7 +147,7 @@ def morse_simplify(
         require_manifold(m, "; morse-simplify needs a manifold mesh")
         # the methods (scipy, the compiled kernels) load once the mesh is read and checked
         from geoproc.mesh.clean import remove_unreferenced_vertices
-        from geoproc.mesh.topology import referenced_vertices
+        from geoproc.mesh.topology import orientation_status, referenced_vertices
         from geoproc.morse import morse_simplify as morse_simplify_field
         from geoproc.morse.barycentric import barycentric_simplify, mesh_cell, subdivision_values
         from geoproc.morse.critical_table import critical_cells_table
@@ -177,6 +177,12 @@ def morse_simplify(
             f, used = f[keep], used[keep]
         span = float(f[used].max() - f[used].min()) if used.any() else 0.0  # the field's range on the surface
         threshold = float(persistence) * span if relative else float(persistence)
+        if relative and span == 0.0 and persistence > 0:
+            run.note(f"{m.log.path or mesh}: the field is constant on the surface, so --relative makes P 0 "
+                     "and nothing is simplified (give P in the field's unit without --relative)")
+        if field == "mean-curvature" and not orientation_status(m.F)[0]:
+            run.note(f"{m.log.path or mesh}: the surface is not orientable, so the mean curvature's sign "
+                     "flips across a seam of it (its magnitude does not)")
         if not np.isfinite(threshold):
             raise UsageError(f"--persistence {persistence:g} --relative: P times the field's range "
                              f"{span:.3g} overflows; use a smaller P")

@@ -254,6 +254,30 @@ def test_npy_with_one_value_per_stored_vertex_names_the_clean_up(cli, fixture_di
     assert p.returncode == 0, p.stderr
 
 
+def test_notes_on_a_constant_relative_field_and_a_non_orientable_mean_curvature(cli, fixture_dir, tmp_path):
+    # both had run without a word: P came out 0 and nothing was simplified; the sign of the
+    # mean curvature flipped across the strip's seam (-1.41 next to +0.08)
+    p = cli("morse-simplify", fixture_dir / "grid.ply", "--field", "z", "--persistence", "0.1", "--relative",
+            "-o", tmp_path / "g.ply")
+    assert p.returncode == 0 and "grid.ply: the field is constant on the surface, so --relative makes P 0" in p.stderr
+    n, w = 48, 0.3
+    t = 2 * np.pi * np.arange(n) / n
+    V = np.empty((2 * n, 3))
+    for k, s in enumerate((-w, w)):  # a Moebius strip: vertex 2i + k at angle t_i, offset s
+        V[k::2] = np.column_stack([(1 + s * np.cos(t / 2)) * np.cos(t), (1 + s * np.cos(t / 2)) * np.sin(t),
+                                   s * np.sin(t / 2)])
+    a, b = 2 * np.arange(n), 2 * np.arange(n) + 1
+    F = [f for i in range(n - 1) for f in ([a[i], a[i + 1], b[i + 1]], [a[i], b[i + 1], b[i]])]
+    F += [[a[-1], b[0], a[0]], [a[-1], a[0], b[-1]]]  # the half twist closes it
+    strip = tmp_path / "strip.ply"
+    save_mesh(strip, Mesh(V, np.array(F)))
+    note = "strip.ply: the surface is not orientable, so the mean curvature's sign flips across a seam"
+    p = cli("morse-simplify", strip, "--field", "mean-curvature", "--persistence", "0.1", "-o", tmp_path / "s.ply")
+    assert p.returncode == 0 and note in p.stderr
+    p = cli("morse-simplify", strip, "--field", "gaussian-curvature", "--persistence", "0.1", "-o", tmp_path / "s.ply")
+    assert p.returncode == 0 and "not orientable" not in p.stderr
+
+
 @pytest.mark.parametrize("barycentric", [False, True])
 def test_a_vertex_no_face_uses_is_no_part_of_the_topology(cli, fixture_dir, tmp_path, barycentric):
     # kept under --no-clean, it had been a component and an essential minimum of its own:
