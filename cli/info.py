@@ -29,7 +29,7 @@ METRICS = LOAD_METRICS + (
     "vertices", "faces", "point_cloud", "duplicate_vertices", "bbox_diagonal", "edges", "components",
     "boundary_edges", "boundary_loops", "euler_characteristic", "genus", "closed", "edge_manifold",
     "vertex_manifold", "orientable", "consistently_oriented", "nonmanifold_edges", "nonmanifold_vertices",
-    "degenerate_faces", "unreferenced_vertices", "mean_edge_length",
+    "degenerate_faces", "duplicate_faces", "unreferenced_vertices", "mean_edge_length",
 )
 """Every metric ``info`` reports (the scalar entries of :func:`geoproc.mesh.mesh_info`)."""
 

@@ -9,6 +9,7 @@ from geoproc.mesh.mesh import Mesh
 from geoproc.mesh.topology import (
     count_boundary_loops,
     degenerate_faces,
+    duplicate_faces,
     faces_with_distinct_corners,
     nonmanifold_vertices,
     orientation_status,
@@ -38,7 +39,8 @@ def mesh_info(mesh: Mesh) -> dict:
         over components: (2C - chi) / 2; else None), ``closed, edge_manifold,
         vertex_manifold, orientable, consistently_oriented``,
         ``nonmanifold_edges, nonmanifold_vertices, degenerate_faces,
-        duplicate_vertices`` (vertices at a position already taken by a lower index),
+        duplicate_faces`` (faces with the corners of an earlier face, in any order),
+        ``duplicate_vertices`` (vertices at a position already taken by a lower index),
         ``unreferenced_vertices, mean_edge_length`` (length unit),
         ``bbox_diagonal`` (length unit; of the vertices the faces use, of every
         point for a point cloud), ``vertex_properties, face_properties``
@@ -66,7 +68,7 @@ def mesh_info(mesh: Mesh) -> dict:
             ["edges", "components", "boundary_edges", "boundary_loops", "euler_characteristic",
              "genus", "closed", "edge_manifold", "vertex_manifold", "orientable",
              "consistently_oriented", "nonmanifold_edges", "nonmanifold_vertices",
-             "degenerate_faces", "mean_edge_length"]))
+             "degenerate_faces", "duplicate_faces", "mean_edge_length"]))
         info["unreferenced_vertices"] = 0
         return info
     # the topology of the faces with three distinct corners: a face that repeats one (an STL
@@ -105,6 +107,7 @@ def mesh_info(mesh: Mesh) -> dict:
         nonmanifold_edges=nm_e,
         nonmanifold_vertices=nm_v,
         degenerate_faces=len(degenerate_faces(V, F, diagonal=diag)),
+        duplicate_faces=len(duplicate_faces(Ft)),
         unreferenced_vertices=n - int(referenced_vertices(F, n).sum()),
         mean_edge_length=float(lengths.mean()) if len(lengths) else 0.0,
     )

@@ -253,6 +253,19 @@ def repeated_corner_faces(F: np.ndarray) -> np.ndarray:
     return (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
 
 
+def duplicate_faces(F: np.ndarray) -> np.ndarray:
+    """(k,) int64, increasing: the rows of F (m, 3) whose three corners, in any
+    order or winding, are those of an earlier row (a face stored twice, each
+    copy making its edges count one more face)."""
+    F = np.sort(np.asarray(F, dtype=np.int64).reshape(-1, 3), axis=1)
+    if not len(F):
+        return np.zeros(0, dtype=np.int64)
+    _, first = np.unique(F, axis=0, return_index=True)
+    later = np.ones(len(F), dtype=bool)
+    later[first] = False
+    return np.flatnonzero(later)
+
+
 def faces_with_distinct_corners(F: np.ndarray) -> np.ndarray:
     """(k, 3) the rows of F (m, 3) with three distinct corners, in order: the
     faces that bound a surface (see :func:`repeated_corner_faces`)."""

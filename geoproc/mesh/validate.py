@@ -100,7 +100,7 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> Non
     """Refuse a face that repeats a vertex (its edges would count twice) or an
     edge shared by more than two faces, naming the first; ``why`` ends the
     message (``"; denoising needs ..."``)."""
-    from geoproc.mesh.topology import nonmanifold_edges, repeated_corner_faces
+    from geoproc.mesh.topology import duplicate_faces, nonmanifold_edges, repeated_corner_faces
 
     F = np.asarray(F).reshape(-1, 3)
     rep = np.flatnonzero(repeated_corner_faces(F))
@@ -112,8 +112,15 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> Non
     bad_e = nonmanifold_edges(F)
     if len(bad_e):
         a, b = (int(x) for x in bad_e[0])
+        dup = duplicate_faces(F)
+        twice = ""
+        if len(dup):  # the likely cause, which the edge count alone had not named
+            k = int(dup[0])
+            first = int(np.flatnonzero((np.sort(F[:k], axis=1) == np.sort(F[k])).all(axis=1))[0])
+            twice = (f"; {len(dup)} face{'' if len(dup) == 1 else 's'} repeat{'s' if len(dup) == 1 else ''} "
+                     f"the corners of an earlier one (first: face {k}, as face {first})")
         raise InputError(path, f"non-manifold: {len(bad_e)} edges have more than two faces "
-                               f"(first: edge {a}-{b}){why}")
+                               f"(first: edge {a}-{b}){twice}{why}")
 
 
 def require_manifold(mesh: Mesh, why: str = "") -> None:

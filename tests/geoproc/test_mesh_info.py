@@ -12,6 +12,7 @@ from geoproc.mesh.topology import (
     COMPILED_FANS_FROM,
     boundary_edges,
     count_boundary_loops,
+    duplicate_faces,
     faces_with_distinct_corners,
     fans_by_sorting,
     fans_compiled,
@@ -173,6 +174,22 @@ def test_faces_with_distinct_corners_keeps_the_proper_triangles_in_order():
     assert faces_with_distinct_corners(F).tolist() == [[0, 1, 2], [2, 1, 3], [1, 2, 4]]
     assert faces_with_distinct_corners(np.zeros((0, 3), int)).shape == (0, 3)
     assert faces_with_distinct_corners(F.ravel()).tolist() == [[0, 1, 2], [2, 1, 3], [1, 2, 4]]
+
+
+def test_duplicate_faces_are_named_in_info_and_in_the_manifold_refusal():
+    from geoproc.errors import InputError
+    from geoproc.mesh.validate import require_edge_manifold
+
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3], [3, 1, 0], [1, 2, 3], [2, 1, 0]])
+    assert duplicate_faces(F).tolist() == [4, 5, 6]  # same corners, any order or winding
+    assert duplicate_faces(F[:4]).tolist() == [] and duplicate_faces(np.zeros((0, 3), int)).tolist() == []
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    info = mesh_info(Mesh(V, F[:5]))  # a tetrahedron with one face stored twice
+    assert (info["duplicate_faces"], info["nonmanifold_edges"], info["closed"]) == (1, 3, True)
+    assert mesh_info(Mesh(V, F[:4]))["duplicate_faces"] == 0
+    with pytest.raises(InputError, match=r"3 edges have more than two faces \(first: edge 0-1\); 1 face repeats "
+                                         r"the corners of an earlier one \(first: face 4, as face 1\)"):
+        require_edge_manifold(F[:5], "t.obj")
 
 
 def test_vertex_fans_and_components_of_disjoint_parts(make_fixtures):
