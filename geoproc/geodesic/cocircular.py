@@ -8,9 +8,14 @@ weight is zero either way), but the barycentric mass and the gradient and
 divergence on the triangles do, by up to a third of a vertex's mass on a grid.
 :func:`canonical_cocircular_diagonals` flips every such quad to the diagonal
 that is an edge of the input mesh, which depends on its connectivity alone (not
-on the coordinates, nor on how the vertices or faces are numbered); a quad with
-no input edge across it (made by earlier flips) takes the diagonal that holds
-its smallest vertex index.
+on the coordinates, nor on how the vertices or faces are numbered). A quad
+with no input edge across it, or two (made by earlier flips, or on the doubled
+cover of a mesh with boundary), takes its shorter diagonal
+(:func:`shorter_other_diagonal`), and between two of one length (a rectangle)
+the one holding its first vertex by :func:`vertex_rank`: the angle sum around
+it, then its face count, both unchanged by relabelling, moving, turning or
+scaling the mesh; the index comes last (it had come first: relabelling a grid
+with boundary caps moved its heat distances by 9e-4 of their maximum).
 """
 
 from __future__ import annotations
@@ -144,6 +149,59 @@ def _edge_weights(Fi, h, t, a, b, cot, on) -> tuple[np.ndarray, np.ndarray, np.n
     return np.stack([a[on], b[on]], axis=1), 0.5 * (cot[h[on]] + cot[t[on]]), halves == 2
 
 
+ANGLE_STEP = 2 * np.pi * 1e-9
+"""The unit in which :func:`vertex_rank` compares the angle sums around vertices:
+sums closer than rounding are the same, whatever the mesh's numbering or pose."""
+
+
+def vertex_rank(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(n,) int64 rank of each vertex of the mesh (V (n, 3), F (m, 3)) by its
+    angle sum (the corners of the faces around it, in units of
+    :data:`ANGLE_STEP`), then by how many faces it has, then by index.
+
+    The first two keys are intrinsic: relabelling the vertices, moving,
+    turning or scaling the mesh leaves them as they are, so the cocircular
+    diagonals they decide do too; the index only orders vertices that match
+    in both (a regular grid's interior)."""
+    from geoproc.mesh.topology import face_cross_products
+
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    n = len(V)
+    area2 = np.linalg.norm(face_cross_products(V, F), axis=1)
+    angles = np.empty((len(F), 3))
+    for c in range(3):
+        u, w = V[F[:, (c + 1) % 3]] - V[F[:, c]], V[F[:, (c + 2) % 3]] - V[F[:, c]]
+        angles[:, c] = np.arctan2(area2, np.einsum("ij,ij->i", u, w))
+    total = np.bincount(F.ravel(), weights=angles.ravel(), minlength=n)
+    faces = np.bincount(F.ravel(), minlength=n)
+    order = np.lexsort((np.arange(n), faces, np.round(total / ANGLE_STEP)))
+    rank = np.empty(n, dtype=np.int64)
+    rank[order] = np.arange(n)
+    return rank
+
+
+def shorter_other_diagonal(l: np.ndarray, h: np.ndarray, t: np.ndarray, tol: float = TOL) -> np.ndarray:
+    """(k,) int8 for the cocircular quads of the interior edges (half-edges h
+    and their twins t, ``f * 3 + c`` opposite corner c of an oriented
+    triangulation with edge lengths ``l`` (m, 3)): 1 where the other diagonal
+    is shorter than the edge by more than ``tol`` of the longer, -1 where it
+    is longer, 0 within that (a square, or a quad near one).
+
+    The other diagonal's length follows from Ptolemy's theorem,
+    ``|pq| |ab| = |pa| |qb| + |qa| |pb|`` (the edge ab, p and q the corners
+    across it), so it needs no flip. Lengths are intrinsic: the comparison does
+    not change when the vertices are relabelled or the mesh is moved, turned
+    or scaled, and ``tol`` keeps a quad whose diagonals differ by storage
+    rounding alone (float32 positions: about 1e-7) among the ties."""
+    L = np.asarray(l, dtype=np.float64).reshape(-1)
+    f, c, g, d = 3 * (h // 3), h % 3, 3 * (t // 3), t % 3
+    ab = L[h]
+    other = (L[f + (c + 2) % 3] * L[g + (d + 2) % 3] + L[g + (d + 1) % 3] * L[f + (c + 1) % 3]) / ab
+    gap = (ab - other) / np.maximum(ab, other)
+    return np.where(gap > tol, 1, np.where(gap < -tol, -1, 0)).astype(np.int8)
+
+
 def _are_edges(keys: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(k,) bool: whether each vertex pair (a, b) is among the sorted undirected
     edge ``keys`` (:func:`~geoproc.mesh.topology.undirected_edge_keys`, base ``n``)."""
@@ -154,10 +212,13 @@ def _are_edges(keys: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.nda
 
 def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = TOL,
                                    max_passes: int = 64,
-                                   F: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int, tuple]:
+                                   F: np.ndarray | None = None,
+                                   V: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int, tuple]:
     """Flip every cocircular quad of an intrinsic Delaunay triangulation to the
     diagonal that is an edge of the input faces ``F``; where neither or both
-    diagonals are, to the one that holds the quad's smallest vertex index.
+    diagonals are, to the shorter one, and between two of one length to the
+    one that holds the quad's first vertex by :func:`vertex_rank` (of ``V``
+    and ``F``; by index without them).
 
     A quad is cocircular when the cotangents of its two angles opposite the
     diagonal sum to zero, within ``tol`` times the larger of 1 and their sizes
@@ -173,8 +234,10 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
         opposite corner c (libigl's ``intrinsic_delaunay_cotmatrix`` output).
     F : (m, 3) int array, optional
         The mesh the triangulation was made from (same vertex ids). Without
-        it every quad takes its smallest vertex's diagonal, which depends on
-        the numbering.
+        it every quad takes its shorter diagonal or its smallest vertex's.
+    V : (n, 3) float array, optional
+        The mesh's positions, for :func:`vertex_rank`; without them the
+        index orders the vertices, which depends on the numbering.
 
     Returns
     -------
@@ -187,6 +250,7 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
     if len(Fi) == 0:
         return Fi, l, 0, cocircular_edge_weights(Fi, l, tol)
     total = 0
+    rank = None  # the vertices' order (vertex_rank), computed when a cocircular quad first asks
     input_keys = None  # F's edges, sorted when a cocircular quad first asks (most meshes have none)
     for _ in range(max_passes):
         pairs = _cocircular_pairs(Fi, l, tol)
@@ -194,7 +258,12 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
         p, q = Fi.ravel()[h], Fi.ravel()[t]
         want = np.zeros(len(on), dtype=bool)
         at = np.flatnonzero(on)
-        want[at] = np.minimum(p[at], q[at]) < np.minimum(a[at], b[at])  # the smallest index's diagonal
+        if len(at):  # the shorter diagonal; between two of one length, that of the first vertex
+            rank = (vertex_rank(V, F) if V is not None and F is not None else np.arange(Fi.max() + 1)) \
+                if rank is None else rank
+            shorter = shorter_other_diagonal(l, h[at], t[at])
+            first = np.minimum(rank[p[at]], rank[q[at]]) < np.minimum(rank[a[at]], rank[b[at]])
+            want[at] = np.where(shorter != 0, shorter > 0, first)
         if len(at) and F is not None and len(F):  # unless exactly one of the two is an input edge
             input_keys = np.unique(undirected_edge_keys(F)) if input_keys is None else input_keys
             now, other = (_are_edges(input_keys, edge_key_base(F), x[at], y[at]) for x, y in ((a, b), (p, q)))

@@ -28,7 +28,15 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geoproc.geodesic.cocircular import TOL, _are_edges, _cocircular, _interior_edges, corner_cotangents
+from geoproc.geodesic.cocircular import (
+    TOL,
+    _are_edges,
+    _cocircular,
+    _interior_edges,
+    corner_cotangents,
+    shorter_other_diagonal,
+    vertex_rank,
+)
 from geoproc.mesh.topology import boundary_edges, edge_key_base, undirected_edge_keys
 
 DELAUNAY_TOL = 1e-9
@@ -111,10 +119,12 @@ def _edges_once(twin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return h, twin[h]
 
 
-def canonical_cover_diagonals(C, lc, twin, original, F, max_passes: int = 64) -> np.ndarray:
+def canonical_cover_diagonals(C, lc, twin, original, F, max_passes: int = 64, V=None) -> np.ndarray:
     """Flip the cover's cocircular quads (in place) to the diagonal that is an
-    edge of the mesh ``F``, else to the one holding the smallest mesh vertex,
-    as :func:`geoproc.geodesic.cocircular.canonical_cocircular_diagonals` does
+    edge of the mesh ``F``, else to the shorter one, else to the one holding
+    the first mesh vertex by :func:`geoproc.geodesic.cocircular.vertex_rank`
+    (of the positions ``V`` and ``F``; by index without ``V``), as
+    :func:`geoproc.geodesic.cocircular.canonical_cocircular_diagonals` does
     on the mesh (vertices compared by the mesh vertex they stand for, so both
     sheets choose alike). Returns (3 m2,) bool, the half-edges of the
     cocircular edges left whose weight, zero in exact arithmetic, came out
@@ -123,6 +133,7 @@ def canonical_cover_diagonals(C, lc, twin, original, F, max_passes: int = 64) ->
     from geoproc.geodesic.cover_flips import flip_edge
 
     keys, base = None, edge_key_base(F)  # F's edges, sorted when a cocircular quad first asks
+    rank = None  # the mesh vertices' order, likewise
     flat = C.ravel()
     for _ in range(max_passes):
         h, t = _edges_once(twin)
@@ -136,7 +147,11 @@ def canonical_cover_diagonals(C, lc, twin, original, F, max_passes: int = 64) ->
             p, q = original[flat[ha]], original[flat[ta]]
             keys = np.unique(undirected_edge_keys(F)) if keys is None else keys
             now, other = (_are_edges(keys, base, x, y) for x, y in ((a, b), (p, q)))
-            want[at] = np.where(now == other, np.minimum(p, q) < np.minimum(a, b), other)
+            if rank is None:
+                rank = vertex_rank(V, F) if V is not None else np.arange(original.max() + 1)
+            shorter = shorter_other_diagonal(lc, ha, ta)
+            first = np.minimum(rank[p], rank[q]) < np.minimum(rank[a], rank[b])
+            want[at] = np.where(now == other, np.where(shorter != 0, shorter > 0, first), other)
         if not want.any():
             return _negative_halves(twin, h, t, cot, on)
         used = np.zeros(len(C), dtype=bool)

@@ -158,7 +158,8 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bo
     """The intrinsic Delaunay triangulation of an edge-manifold mesh with its operators
     (libigl's flips, or on the doubled cover the project's own).
 
-    Cocircular quads get the diagonal that is an edge of ``F``
+    Cocircular quads get the diagonal that is an edge of ``F``, else the
+    shorter one, else the one an intrinsic order of ``V``'s vertices picks
     (:func:`geoproc.geodesic.cocircular.canonical_cocircular_diagonals`), so
     that the triangulation depends neither on the coordinates' rounding nor on
     the numbering of the vertices. Where an obtuse angle faces a boundary edge,
@@ -201,22 +202,25 @@ def intrinsic_delaunay_mesh(V: np.ndarray, F: np.ndarray, boundary_negatives: bo
         return tri
     if not _all_boundary_edges(row[negative], col[negative], tri.F):
         return None
-    cover = doubled_cover_mesh(tri.F, tri.l, Fo, len(V))
+    cover = doubled_cover_mesh(tri.F, tri.l, Fo, len(V), V)
     return cover if cover is not None or not boundary_negatives else tri
 
 
-def doubled_cover_mesh(Fi: np.ndarray, l: np.ndarray, F: np.ndarray, n: int) -> IntrinsicMesh | None:
+def doubled_cover_mesh(Fi: np.ndarray, l: np.ndarray, F: np.ndarray, n: int,
+                       V: np.ndarray | None = None) -> IntrinsicMesh | None:
     """The intrinsic Delaunay triangulation of the doubled cover of the
     triangulation ``(Fi, l)`` of the mesh ``F`` (n vertices), folded onto the
     mesh (:mod:`geoproc.geodesic.doubled_cover`); None where the cover does not
-    apply or the flips do not end."""
+    apply or the flips do not end. ``V`` (n, 3), the mesh's positions, order
+    the cocircular quads' diagonals that ``F`` leaves undecided
+    (:func:`~geoproc.geodesic.doubled_cover.canonical_cover_diagonals`)."""
     cover = doubled_cover(Fi, l, F, n)
     if cover is None:
         return None
     C, lc, twin, original = cover
     if lawson_flips(C, lc, twin, DELAUNAY_TOL, 64 * len(C) + 1024) < 0:
         return None
-    zero = canonical_cover_diagonals(C, lc, twin, original, F)
+    zero = canonical_cover_diagonals(C, lc, twin, original, F, V=V)
     L = _drop_rounding_negatives(folded_laplacian(C, lc, original, n, zero))
     if (upper_entries(L)[2] < 0).any() or not np.isfinite(L.data).all():
         return None
@@ -234,7 +238,7 @@ def _flipped_triangulation(V: np.ndarray, F: np.ndarray) -> IntrinsicMesh | None
     Li, l, Fi = igl.intrinsic_delaunay_cotmatrix(np.ascontiguousarray(V), np.ascontiguousarray(F))
     # cocircular quads: the input's diagonal, not the one rounding picks (the mass and the
     # face operators would otherwise change with the mesh's scale and position)
-    Fi, l, flips, cocircular = canonical_cocircular_diagonals(Fi, l, F=F)
+    Fi, l, flips, cocircular = canonical_cocircular_diagonals(Fi, l, F=F, V=V)
     if flips or len(cocircular[0]):
         Li = igl.cotmatrix_intrinsic(l, Fi)
         Li.resize((len(V), len(V)))  # vertices after the last one a face uses
