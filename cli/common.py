@@ -41,7 +41,7 @@ from geoproc.errors import GeoprocError, InputError, UsageError
 from geoproc.fileio import file_kind, read_input_bytes, sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
-from geoproc.report import build_report, evaluate_checks, parse_check, require_known_metrics
+from geoproc.report import build_report, check_records, evaluate_checks, parse_check, require_known_metrics
 from geoproc.report.report import report_json
 from geoproc_cli.entry import interruption_line, outputs_committed
 
@@ -352,8 +352,9 @@ class Run:
         """Queue bytes for standard output; written only when the run succeeds."""
         self._outputs.append(("-", data))
 
-    def _commit(self, report: str | None) -> None:
-        """Write every queued output and the report, all or none.
+    def _commit(self, report: str | None, checks: list[dict] | None = None) -> None:
+        """Write every queued output and the report (with ``checks``, the
+        ``--check`` outcomes), all or none.
 
         The files are staged beside their destinations, standard output gets
         its bytes, and only then are the files renamed into place (so an
@@ -364,7 +365,7 @@ class Run:
         self.timings["total"] = time.perf_counter() - self._t0
         outputs = list(self._outputs)
         if report is not None:
-            rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings)
+            rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings, checks)
             outputs.append((os.fspath(report), report_json(rep).encode()))
         _require_distinct_outputs([name for name, _ in outputs], [i["path"] for i in self.inputs], report)
         piped = b"".join(data for name, data in outputs if name == "-")
@@ -635,7 +636,7 @@ def command_run(
         with _stray_stdout_dropped() if "-" in named else contextlib.nullcontext():
             yield run
         failures = evaluate_checks(parsed, run.metrics)  # raises on unknown metric names
-        run._commit(report)
+        run._commit(report, check_records(parsed, run.metrics))
         outputs_committed()  # the run is done: a signal from here would only misreport it
         run._flush_notes()
     except typer.Exit:

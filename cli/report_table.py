@@ -58,7 +58,7 @@ def read_report(path: Path) -> dict | None:
     OSError when the file cannot be read."""
     try:
         rep = json.loads(path.read_bytes())
-    except (json.JSONDecodeError, UnicodeDecodeError):
+    except (ValueError, RecursionError):  # not JSON, not UTF-8, an integer past 4300 digits, nested too deep
         return None
     if not isinstance(rep, dict) or "command" not in rep or not isinstance(rep.get("metrics"), dict):
         return None
@@ -71,10 +71,10 @@ def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[
     Returns the table, the number of reports in it and one note per
     ``*.json`` file that could not be read."""
     t = Table(title=Text(f"geoproc reports in {folder}"))
-    for col in ("report", "command", "input", "metrics", "total s"):
+    for col in ("report", "command", "input", "metrics", "checks", "total s"):
         t.add_column(col)
     rows, notes = 0, []
-    for path in sorted(folder.glob("*.json")):
+    for path in sorted(p for p in folder.iterdir() if p.suffix.lower() == ".json"):  # as --report accepts them
         if not path.is_file():
             continue
         try:
@@ -86,9 +86,20 @@ def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[
             continue
         shown = [f"{k}={_shown_value(v)}" for k, v in headline_metrics(rep["metrics"])][:max_metrics]
         t.add_row(Text(path.name), Text(str(rep["command"])), Text(_input_names(rep)), Text(" ".join(shown)),
-                  _total_seconds(rep))
+                  _check_summary(rep), _total_seconds(rep))
         rows += 1
     return t, rows, notes
+
+
+def _check_summary(rep: dict) -> Text:
+    """``2 passed``, ``1 of 2 failed`` (and which), or blank: the report's ``checks``."""
+    checks = rep.get("checks")
+    if not isinstance(checks, list) or not checks:
+        return Text("")
+    failed = [str(c.get("check")) for c in checks if isinstance(c, dict) and c.get("passed") is not True]
+    if not failed:
+        return Text(f"{len(checks)} passed")
+    return Text(f"{len(failed)} of {len(checks)} failed: {', '.join(failed)}", style="bold red")
 
 
 USAGE = "usage: python -m geoproc_cli.report_table [FOLDER]  (default out/demo)"

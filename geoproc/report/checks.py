@@ -129,18 +129,27 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     if text:
         raise UsageError(f"--check '{text[0].text}': metric '{text[0].metric}' is not a number "
                          f"(it is '{metrics[text[0].metric]}')")
-    failures = []
-    for c in checks:
-        measured = _numeric(metrics[c.metric])
-        if measured is None:
-            failures.append(f"check failed: {c.text} (not measured in this run: null in the report)")
-        elif not c.passes(measured):
-            # every digit: 0.0376518 could hide a miss of <=0.037651843221598626; a count as the
-            # count, a flag as the flag (false had read 0.0)
-            raw = metrics[c.metric]
-            shown = raw if isinstance(raw, int) else measured
-            failures.append(f"check failed: {c.text} (measured: {shown!r})")
-    return failures
+    return [line for line in (_failure(c, metrics) for c in checks) if line is not None]
+
+
+def check_records(checks: list[Check], metrics: dict) -> list[dict]:
+    """``[{"check": text, "passed": bool}]``, one per check in the order given,
+    for the report (checks :func:`evaluate_checks` has accepted)."""
+    return [{"check": c.text, "passed": _failure(c, metrics) is None} for c in checks]
+
+
+def _failure(c: Check, metrics: dict) -> str | None:
+    """The line that tells how ``c`` failed on ``metrics``, or None when it passed."""
+    measured = _numeric(metrics[c.metric])
+    if measured is None:
+        return f"check failed: {c.text} (not measured in this run: null in the report)"
+    if c.passes(measured):
+        return None
+    # every digit: 0.0376518 could hide a miss of <=0.037651843221598626; a count as the
+    # count, a flag as the flag (false had read 0.0)
+    raw = metrics[c.metric]
+    shown = raw if isinstance(raw, int) else measured
+    return f"check failed: {c.text} (measured: {shown!r})"
 
 
 def _numeric(value) -> float | None:

@@ -75,6 +75,7 @@ def build_report(
     params: dict,
     metrics: dict,
     timings_s: dict,
+    checks: list[dict] | None = None,
 ) -> dict:
     """Assemble a report dict (JSON-safe) for ``command``.
 
@@ -89,18 +90,22 @@ def build_report(
         Scalar results (numbers, booleans, strings or None).
     timings_s : dict of str to float
         Wall-clock seconds per phase; ``total`` covers the whole run.
+    checks : list of {"check": str, "passed": bool}, optional
+        The run's ``--check`` gates and their outcomes (the key is left out
+        when there are none).
     """
-    return json_safe(
-        {
-            "command": command,
-            "geoproc_version": geoproc.__version__,
-            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
-            "inputs": inputs,
-            "params": params,
-            "metrics": metrics,
-            "timings_s": timings_s,
-        }
-    )
+    report = {
+        "command": command,
+        "geoproc_version": geoproc.__version__,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
+        "inputs": inputs,
+        "params": params,
+        "metrics": metrics,
+        "timings_s": timings_s,
+    }
+    if checks:
+        report["checks"] = checks
+    return json_safe(report)
 
 
 def report_json(report: dict) -> str:

@@ -130,7 +130,13 @@ def test_checks_gate_the_exit_code(cli, fixture_dir, tmp_path):
     assert bad.returncode == 1
     lines = bad.stderr.strip().splitlines()
     assert len(lines) == 2 and lines[0].startswith("check failed: genus==0") and "faces<10" in lines[1]
-    validate_report(json.loads(report.read_text()))  # the run itself succeeded
+    rep = json.loads(report.read_text())
+    validate_report(rep)  # the run itself succeeded
+    # the report tells a failed gate from a passing one (it had recorded no check at all)
+    assert rep["checks"] == [{"check": "genus==0", "passed": False}, {"check": "faces<10", "passed": False},
+                             {"check": "vertices>1", "passed": True}]
+    cli("info", mesh, "--report", report)
+    assert "checks" not in json.loads(report.read_text())  # none given: no key
 
 
 def test_unknown_metric_and_malformed_check_are_usage_errors(cli, fixture_dir, tmp_path):

@@ -24,6 +24,28 @@ def test_table_lists_reports_and_skips_other_json(tmp_path, capsys):
     assert "critical.json" not in out and "notes.json" not in out
 
 
+def test_the_checks_column_names_failed_gates(tmp_path, capsys):
+    good, bad = {"check": "genus==1", "passed": True}, {"check": "faces<10", "passed": False}
+    _write(tmp_path, "a.json", {"command": "info", "metrics": {"genus": 1}, "checks": [good, bad]})
+    _write(tmp_path, "b.json", {"command": "info", "metrics": {"genus": 1}, "checks": [good]})
+    _write(tmp_path, "c.json", {"command": "info", "metrics": {"genus": 1}, "checks": "x"})  # left blank
+    assert main(["report_table", str(tmp_path)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "1 of 2 failed: faces<10" in out and "1 passed" in out
+
+
+def test_reports_named_in_capitals_are_read_and_json_past_the_parser_limits_is_skipped(tmp_path, capsys):
+    # --report accepts R.JSON, which the table had not looked at ("no geoproc reports"); an
+    # integer of 5000 digits and arrays nested 100,000 deep had raised ValueError and
+    # RecursionError (a traceback, exit 1)
+    _write(tmp_path, "T.JSON", {"command": "info", "metrics": {"genus": 1}})
+    _write(tmp_path, "big.json", '{"command": "big", "metrics": {"n": ' + "9" * 5000 + "}}")
+    _write(tmp_path, "deep.json", "[" * 100000 + "]" * 100000)
+    assert main(["report_table", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "T.JSON" in out and "genus=1" in out and "big" not in out and "deep" not in out
+
+
 @pytest.mark.parametrize("report", [
     {"command": "x", "metrics": {"rmse": 0.5}, "inputs": [{"p": "x"}]},
     {"command": "x", "metrics": {"rmse": 0.5}, "inputs": None},

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from geoproc.errors import UsageError
-from geoproc.report import build_report, evaluate_checks, parse_check, report_schema, validate_report
+from geoproc.report import build_report, check_records, evaluate_checks, parse_check, report_schema, validate_report
 
 
 def test_schema_is_a_valid_json_schema():
@@ -27,6 +27,18 @@ def test_built_report_validates_and_is_strict_json():
     validate_report(rep)
     assert rep["metrics"] == {"rmse": 0.5, "count": 3, "ok": True, "bad": None}
     json.dumps(rep, allow_nan=False)
+
+
+def test_check_records_give_each_outcome_in_order_and_validate():
+    checks = [parse_check(t) for t in ("rmse<=0.1", "genus==1", "n>2")]
+    records = check_records(checks, {"rmse": 0.5, "genus": None, "n": 3})
+    assert records == [{"check": "rmse<=0.1", "passed": False}, {"check": "genus==1", "passed": False},
+                       {"check": "n>2", "passed": True}]
+    rep = build_report("info", [], {}, {"rmse": 0.5}, {"total": 0.0}, records)
+    validate_report(rep)
+    assert rep["checks"] == records and "checks" not in build_report("info", [], {}, {}, {"total": 0.0})
+    with pytest.raises(jsonschema.ValidationError):
+        validate_report({**rep, "checks": [{"check": "x<1"}]})
 
 
 def test_schema_rejects_malformed_reports():
