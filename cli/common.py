@@ -165,6 +165,15 @@ class Run:
         self._notes: list[str] = []
         self._stdin_read = False
         self._t0 = time.perf_counter()
+        self.checked: set[str] = set()  # the metrics the run's --check gates name
+
+    def refuse_unmeasurable_checks(self, names: tuple[str, ...], why: str) -> None:
+        """UsageError, before the work, when a --check names one of the metrics
+        ``names`` that this input cannot give; ``why`` says so (``"FILE: has
+        no 'outlier' property"``). Checks are otherwise judged after the run."""
+        missed = [n for n in names if n in self.checked]
+        if missed:
+            raise UsageError(f"--check on {', '.join(missed)}: {why}")
 
     # ---- inputs ---------------------------------------------------------
     def add_input(self, path: str | os.PathLike, data: bytes | None = None, digest: str = "") -> None:
@@ -618,6 +627,7 @@ def command_run(
     outputs_committed(False)  # a signal interrupts this command until its outputs are in place
     try:
         parsed = [parse_check(c) for c in (checks or [])]
+        run.checked = {c.metric for c in parsed}
         if metrics is not None:
             require_known_metrics(parsed, metrics, command, needs, text_metrics)
         _require_finite_options(params)

@@ -272,7 +272,8 @@ MODE_METRICS = (
 """Which metrics each mode and option reports (every name of ``METRICS`` in one
 group): a --check on one that the run's options cannot report is refused before
 the input is read. precision, recall, f1 and true_outliers also need an
-'outlier' property in the input, which only the run can tell."""
+'outlier' property in the input: a check on them is refused once the input is
+read without one, before the work."""
 
 
 def denoise_mode(input: str, outliers: bool, dynamic: bool) -> str:
@@ -306,6 +307,8 @@ _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 OUTLIER_BYTES = 150
 """Memory of --outliers per point and neighbour (the stacked neighbourhoods and
 RPCA's matrices): 1.38 GB at k = 400 on 20,000 points, 0.51 GB at k = 100."""
+SCORED_METRICS = ("true_outliers", "precision", "recall", "f1")
+"""The --outliers metrics that need an 'outlier' property in the input."""
 ANIMATION_OUTLIER_BYTES = 110
 """Memory of --outliers on a moving cloud per coordinate of the input (the
 animation matrix and RPCA's copies of it): 1.24 GB for 20 frames of 200,000
@@ -444,6 +447,9 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
     cloud = run.load_mesh(input, clean=not no_clean, mesh_output=output)
     # (a k beyond the points is refused by the method, naming the count)
     require_memory(OUTLIER_BYTES * len(cloud.V) * min(k, len(cloud.V)), f"--k {k} on {len(cloud.V)} points")
+    if "outlier" not in cloud.vertex_fields:
+        run.refuse_unmeasurable_checks(SCORED_METRICS, f"{cloud.log.path or input} has no 'outlier' property to "
+                                                       "score against (perturb --outliers writes one)")
     from geoproc.denoise.outliers import detection_scores, rpca_outliers
 
     path = cloud.log.path or None
@@ -508,6 +514,9 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
     anim = run.load_animation(input)
     require_memory(ANIMATION_OUTLIER_BYTES * anim.V.size,
                    f"--outliers on {anim.n_frames} frames of {anim.V.shape[1]} points")
+    if "outlier" not in anim.fields:
+        run.refuse_unmeasurable_checks(SCORED_METRICS, f"{anim.path} has no 'outlier' property to score against "
+                                                       "(perturb --outliers writes one)")
     from geoproc.denoise.outliers import detection_scores, rpca_animation_outliers
 
     with run.timer("outliers"):

@@ -9,6 +9,7 @@ import os
 import stat
 from pathlib import Path
 
+import numpy as np
 import pytest
 import typer
 from typer.testing import CliRunner
@@ -152,14 +153,20 @@ def test_unknown_metric_and_malformed_check_are_usage_errors(cli, fixture_dir, t
     p = cli("geodesic", tmp_path / "missing.ply", "-s", "0", "-o", out, "--check", "iterations<9")
     assert p.returncode == 2 and p.stderr == ("error: --check 'iterations<9': geodesic reports 'iterations' only "
                                               "with -m log-ode --solver lu or newton\n")
-    # one that depends on the input's content (f1 needs an 'outlier' property) is judged after the run,
-    # and nothing is written
+    # one that depends on the input's content (f1 needs an 'outlier' property) is refused once the
+    # input is read, before the work (it had been judged after the scoring), and nothing is written
     cloud = tmp_path / "cloud.ply"
     cloud.write_text("ply\nformat ascii 1.0\nelement vertex 20\nproperty float x\nproperty float y\n"
                      "property float z\nend_header\n" + "".join(f"{i} {i % 3} {i % 5}\n" for i in range(20)))
     p = cli("denoise", cloud, "--outliers", "--k", "8", "-o", out, "--check", "f1>=0.9", "--report", report)
-    assert p.returncode == 2 and "metric 'f1' was not reported by this run" in p.stderr, p.stderr
-    assert "detected_outliers" in p.stderr and not out.exists() and not report.exists()
+    assert p.returncode == 2 and p.stderr == (f"error: --check on f1: {cloud} has no 'outlier' property to score "
+                                              "against (perturb --outliers writes one)\n"), p.stderr
+    assert not out.exists() and not report.exists()
+    moving = tmp_path / "moving.npz"
+    np.savez(moving, vertices=np.random.default_rng(1).random((4, 30, 3)), faces=np.zeros((0, 3), int))
+    p = cli("denoise", moving, "--outliers", "-o", tmp_path / "m.npz", "--check", "recall>=0.9", "--check",
+            "precision>0")
+    assert p.returncode == 2 and "error: --check on precision, recall: " in p.stderr and "moving.npz has no" in p.stderr
     p = cli("info", fixture_dir / "torus.ply", "--check", "genus=1")
     assert p.returncode == 2 and "--check 'genus=1'" in p.stderr
 
