@@ -12,10 +12,11 @@ on the coordinates, nor on how the vertices or faces are numbered). A quad
 with no input edge across it, or two (made by earlier flips, or on the doubled
 cover of a mesh with boundary), takes its shorter diagonal
 (:func:`shorter_other_diagonal`), and between two of one length (a rectangle)
-the one holding its first vertex by :func:`vertex_rank`: the angle sum around
-it, then its face count, both unchanged by relabelling, moving, turning or
-scaling the mesh; the index comes last (it had come first: relabelling a grid
-with boundary caps moved its heat distances by 9e-4 of their maximum).
+the one holding its first vertex by :func:`vertex_rank`: colour refinement of
+the vertices' angle sums, face counts and edge lengths, unchanged by
+relabelling, moving, turning or scaling the mesh; the index comes last (it had
+come first: relabelling a grid with boundary caps moved its heat distances by
+up to 9e-4 of their maximum).
 """
 
 from __future__ import annotations
@@ -154,16 +155,31 @@ ANGLE_STEP = 2 * np.pi * 1e-9
 sums closer than rounding are the same, whatever the mesh's numbering or pose."""
 
 
-def vertex_rank(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(n,) int64 rank of each vertex of the mesh (V (n, 3), F (m, 3)) by its
-    angle sum (the corners of the faces around it, in units of
-    :data:`ANGLE_STEP`), then by how many faces it has, then by index.
+LENGTH_STEP = 1e-7
+"""The unit, in mean edge lengths, in which :func:`vertex_rank` compares edge lengths."""
 
-    The first two keys are intrinsic: relabelling the vertices, moving,
-    turning or scaling the mesh leaves them as they are, so the cocircular
-    diagonals they decide do too; the index only orders vertices that match
-    in both (a regular grid's interior)."""
-    from geoproc.mesh.topology import face_cross_products
+RANK_ROUNDS = 8
+"""Rounds of :func:`vertex_rank`'s refinement: vertices whose surroundings differ
+within this many edges of them are told apart."""
+
+
+def vertex_rank(V: np.ndarray, F: np.ndarray, rounds: int = RANK_ROUNDS) -> np.ndarray:
+    """(n,) int64 rank of each vertex of the mesh (V (n, 3), F (m, 3)) in an
+    order that does not depend on how the vertices are numbered, nor on the
+    mesh's position, orientation or unit, wherever the mesh's geometry tells
+    them apart.
+
+    Each vertex starts with its angle sum (the corners of the faces around it,
+    in units of :data:`ANGLE_STEP`) and its face count; then, ``rounds`` times,
+    its class is refined by the classes of its neighbours and the lengths of
+    the edges to them (in units of :data:`LENGTH_STEP` mean edge lengths), as
+    colour refinement does (an order-free sum of 64-bit hashes). So a vertex
+    of a grid's boundary next to a moved vertex differs from the other
+    boundary vertices (they share angle sum and face count, which alone had
+    left the index to order them). The index orders what still ties: vertices
+    a symmetry of the mesh exchanges, or that lie farther from anything that
+    tells them apart."""
+    from geoproc.mesh.topology import face_cross_products, unique_edges
 
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
@@ -175,10 +191,72 @@ def vertex_rank(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         angles[:, c] = np.arctan2(area2, np.einsum("ij,ij->i", u, w))
     total = np.bincount(F.ravel(), weights=angles.ravel(), minlength=n)
     faces = np.bincount(F.ravel(), minlength=n)
-    order = np.lexsort((np.arange(n), faces, np.round(total / ANGLE_STEP)))
+    color = _dense_classes(np.round(total / ANGLE_STEP).astype(np.int64), faces)
+    E = unique_edges(F)[0]
+    if len(E):
+        length = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
+        unit = float(length.mean()) if length.mean() > 0 else 1.0
+        q = np.round(length / (unit * LENGTH_STEP)).astype(np.int64).astype(np.uint64)
+        a, b = np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]]
+        qq = np.r_[q, q]
+        for _ in range(rounds):
+            with np.errstate(over="ignore"):
+                h = _mix64(_mix64(color[b].astype(np.uint64)) ^ qq)
+                summed = np.zeros(n, dtype=np.uint64)
+                np.add.at(summed, a, h)
+            new = _dense_classes(color, summed)
+            if new.max() == color.max():  # no class split: the refinement is stable
+                break
+            color = new
+    order = np.lexsort((np.arange(n), color))
     rank = np.empty(n, dtype=np.int64)
     rank[order] = np.arange(n)
     return rank
+
+
+def _dense_classes(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """(n,) int64 0, 1, 2, ...: the rank of each (first, second) pair among the distinct pairs."""
+    order = np.lexsort((second, first))
+    step = np.r_[True, (first[order][1:] != first[order][:-1]) | (second[order][1:] != second[order][:-1])]
+    out = np.empty(len(first), dtype=np.int64)
+    out[order] = np.cumsum(step) - 1
+    return out
+
+
+def _mix64(x: np.ndarray) -> np.ndarray:
+    """splitmix64's finalizer on uint64 (wrapping): a hash that spreads nearby integers apart."""
+    with np.errstate(over="ignore"):
+        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return x ^ (x >> np.uint64(31))
+
+
+class _LazyRank:
+    """:func:`vertex_rank` of (V, F), computed on first use (by index without V or F)."""
+
+    def __init__(self, V, F, n: int):
+        self.V, self.F, self.n, self._rank = V, F, n, None
+
+    def __call__(self) -> np.ndarray:
+        if self._rank is None:
+            ok = self.V is not None and self.F is not None
+            self._rank = vertex_rank(self.V, self.F) if ok else np.arange(self.n, dtype=np.int64)
+        return self._rank
+
+
+def other_diagonal_first(l, h, t, a, b, p, q, rank) -> np.ndarray:
+    """(k,) bool for cocircular quads the input's edges leave undecided (edge ab,
+    half-edges h and twins t, p and q across it): whether to flip to pq. The
+    shorter diagonal (:func:`shorter_other_diagonal`); between two of one
+    length, the one through the first vertex by ``rank()`` (a callable giving
+    :func:`vertex_rank`, asked only when some quad ties)."""
+    shorter = shorter_other_diagonal(l, h, t)
+    flip = shorter > 0
+    tie = np.flatnonzero(shorter == 0)
+    if len(tie):
+        r = rank()
+        flip[tie] = np.minimum(r[p[tie]], r[q[tie]]) < np.minimum(r[a[tie]], r[b[tie]])
+    return flip
 
 
 def shorter_other_diagonal(l: np.ndarray, h: np.ndarray, t: np.ndarray, tol: float = TOL) -> np.ndarray:
@@ -258,16 +336,17 @@ def canonical_cocircular_diagonals(Fi: np.ndarray, l: np.ndarray, tol: float = T
         p, q = Fi.ravel()[h], Fi.ravel()[t]
         want = np.zeros(len(on), dtype=bool)
         at = np.flatnonzero(on)
-        if len(at):  # the shorter diagonal; between two of one length, that of the first vertex
-            rank = (vertex_rank(V, F) if V is not None and F is not None else np.arange(Fi.max() + 1)) \
-                if rank is None else rank
-            shorter = shorter_other_diagonal(l, h[at], t[at])
-            first = np.minimum(rank[p[at]], rank[q[at]]) < np.minimum(rank[a[at]], rank[b[at]])
-            want[at] = np.where(shorter != 0, shorter > 0, first)
-        if len(at) and F is not None and len(F):  # unless exactly one of the two is an input edge
+        undecided = at
+        if len(at) and F is not None and len(F):  # the input's edge, where exactly one diagonal is one
             input_keys = np.unique(undirected_edge_keys(F)) if input_keys is None else input_keys
             now, other = (_are_edges(input_keys, edge_key_base(F), x[at], y[at]) for x, y in ((a, b), (p, q)))
-            want[at] = np.where(now == other, want[at], other)
+            want[at] = other
+            undecided = at[now == other]
+        if len(undecided):
+            if rank is None:  # computed once, when a quad first needs it
+                rank = _LazyRank(V, F, int(Fi.max()) + 1)
+            u = undecided
+            want[u] = other_diagonal_first(l, h[u], t[u], a[u], b[u], p[u], q[u], rank)
         if not want.any():
             return Fi, l, total, _edge_weights(Fi, *pairs)
         if total == 0:

@@ -33,9 +33,9 @@ from geoproc.geodesic.cocircular import (
     _are_edges,
     _cocircular,
     _interior_edges,
+    _LazyRank,
     corner_cotangents,
-    shorter_other_diagonal,
-    vertex_rank,
+    other_diagonal_first,
 )
 from geoproc.mesh.topology import boundary_edges, edge_key_base, undirected_edge_keys
 
@@ -147,11 +147,12 @@ def canonical_cover_diagonals(C, lc, twin, original, F, max_passes: int = 64, V=
             p, q = original[flat[ha]], original[flat[ta]]
             keys = np.unique(undirected_edge_keys(F)) if keys is None else keys
             now, other = (_are_edges(keys, base, x, y) for x, y in ((a, b), (p, q)))
-            if rank is None:
-                rank = vertex_rank(V, F) if V is not None else np.arange(original.max() + 1)
-            shorter = shorter_other_diagonal(lc, ha, ta)
-            first = np.minimum(rank[p], rank[q]) < np.minimum(rank[a], rank[b])
-            want[at] = np.where(now == other, np.where(shorter != 0, shorter > 0, first), other)
+            want[at] = other
+            u = np.flatnonzero(now == other)
+            if len(u):
+                if rank is None:
+                    rank = _LazyRank(V, F, int(original.max()) + 1)
+                want[at[u]] = other_diagonal_first(lc, ha[u], ta[u], a[u], b[u], p[u], q[u], rank)
         if not want.any():
             return _negative_halves(twin, h, t, cot, on)
         used = np.zeros(len(C), dtype=bool)
