@@ -237,7 +237,7 @@ def _beyond_note(beyond: int, threshold: float, max_change: float, summary, tie_
     interact, or where breaking g's ties took more than units in the last
     place (the field's doubles too coarse for its values)."""
     head = f"{beyond} vertices moved by more than P/2 = {threshold / 2:.6g} (max |f - g| = {max_change:.6g})"
-    f = summary.f_ref
+    f = summary.f_ref if summary.order_after is None else summary.f_ref[summary.order_after]  # the surface's
     spacing = float(np.spacing(np.abs(f).max())) if len(f) else 0.0
     if summary.tie_rise <= tie_rounding * threshold / 2 + 64 * spacing:  # within what counts as rounding
         return (f"{head} where cancelled basins and peaks interact; the critical points are still exactly the kept "

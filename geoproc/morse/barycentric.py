@@ -40,6 +40,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from geoproc.errors import InputError
+from geoproc.mesh.topology import referenced_vertices
 from geoproc.morse.complex import SurfaceComplex, surface_complex
 from geoproc.morse.dag import topological_order, values_in_box
 from geoproc.morse.gradient import DiscreteGradient, discrete_gradient
@@ -322,6 +324,10 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
 
     Raises
     ------
+    InputError
+        When some vertex no face uses: it is no cell of the surface (as
+        :func:`geoproc.morse.morse_simplify` leaves it out), and the
+        subdivision would carry it as an isolated point.
     RuntimeError
         If a cancellation path is missing or the cancelled gradient has a
         closed path (neither happens for a gradient built by
@@ -330,6 +336,10 @@ def barycentric_simplify(V: np.ndarray, F: np.ndarray, f: np.ndarray, threshold:
     f = np.asarray(f, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     n = len(f)
+    unused = ~referenced_vertices(F, n)
+    if unused.any():  # (the command leaves them out first, as geoproc.mesh.clean.remove_unreferenced_vertices does)
+        raise InputError(path, f"{int(unused.sum())} vertices no face uses (first: {int(np.flatnonzero(unused)[0])}):"
+                               " they are no cells of the surface; remove them before the subdivision")
     P = float(threshold)
     order, rank = vertex_order(f)
     cx = surface_complex(rank[F], n, path)

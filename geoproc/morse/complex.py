@@ -167,7 +167,8 @@ def surface_complex(F: np.ndarray, n: int, path: str | None = None) -> SurfaceCo
         (check vertex manifoldness beforehand with
         :func:`geoproc.mesh.validate.require_manifold`).
     n : int
-        Number of vertices (unreferenced vertices become isolated minima).
+        Number of vertices (unreferenced vertices become isolated minima;
+        :func:`geoproc.morse.morse_simplify` leaves them out first).
     path : str, optional
         File name used in error messages.
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geoproc.errors import UsageError
+from geoproc.errors import InputError, UsageError
 from geoproc.mesh.topology import referenced_vertices
 from geoproc.mesh.validate import require_indices_below, triangle_array, vertex_field_values
 from geoproc.morse.complex import SurfaceComplex, canonical_faces, require_distinct_corners, surface_complex
@@ -84,6 +84,8 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
     # a vertex no face uses (kept under --no-clean) is no cell of the surface: as an
     # isolated point of the complex it had counted as a component and an essential
     # minimum, where `info` counts the surface alone
+    if not len(F):
+        raise InputError(path, "has no faces; this method needs a triangle mesh")
     keep = np.flatnonzero(referenced_vertices(F, n))
     order, rank_kept = vertex_order(f[keep])
     order = keep[order]

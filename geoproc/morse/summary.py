@@ -103,7 +103,8 @@ def simplification_summary(res: MorseSimplification | BarycentricSimplification,
     # tied vertex is tie-breaking, not a move beyond P/2; with P = 0
     # (nothing removed), the barycentric path breaks the lower-star extension's
     # ties by units in the last place
-    half_tol = half_bound_tolerance(f_ref, threshold / 2.0, tie_slack)
+    # (the rounding allowance from the surface's values: a vertex no face uses keeps its own)
+    half_tol = half_bound_tolerance(f_ref if order_after is None else f_ref[order_after], threshold / 2.0, tie_slack)
     beyond = int(np.count_nonzero(np.abs(g - f_ref) > half_tol)) if threshold > 0 else 0
     b0, b1, b2 = before.betti
     metrics = {

@@ -404,6 +404,16 @@ def test_vertices_no_face_uses_are_no_cells_of_the_surface(make_fixtures):
     assert np.array_equal(res.g[2:-1], plain.g) and np.array_equal(res.g[[0, 1, -1]], [-5.0, 7.0, -9.0])
     assert np.array_equal(res.order, plain.order + 2)
     assert (s.metrics["euler_characteristic"], s.metrics["betti_0"]) == (0, 1)
+    # the library's subdivision refuses them (the command leaves them out first); no faces at all
+    # is refused too (it had raised ValueError from an empty reduction)
+    from geoproc.errors import InputError
+    from geoproc.morse import barycentric_simplify
+
+    V2 = np.vstack([[[5.0, 5.0, 5.0]] * 2, V, [[9.0, 9.0, 9.0]]])
+    with pytest.raises(InputError, match="3 vertices no face uses \\(first: 0\\)"):
+        barycentric_simplify(V2, F + 2, f2, P)
+    with pytest.raises(InputError, match="has no faces"):
+        morse_simplify(np.zeros((0, 3), int), np.array([1.0, 2.0]), 0.1)
 
 
 def test_simplification_summary_refuses_pairs_that_miss_the_gradient(make_fixtures):
