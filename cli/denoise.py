@@ -45,6 +45,7 @@ METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "guidance_mix", "outer_iterations", "normal_iterations",
     "vertex_iterations", "fidelity", "sigma_r", "sigma_s", "sigma_s_length", "unfold_rounds", "folded_faces",
     "crease_repair", "crease_bisected_faces", "input_side_faces", "rpca_sparse_faces", "repeated_corner_faces",
+    "scale_groups",
     # feature detection
     "feature_method", "feature_angle_deg", "feature_lambda", "feature_tau", "feature_vertices",
     "feature_admm_iterations",
@@ -260,7 +261,7 @@ MODE_METRICS = (
     ("a single mesh (not --outliers or --dynamic)", lambda c: c.mode == MESH,
      ("feature_faces", "feature_method", "noise_median_dihedral_deg", "coarseness_deg",
       "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "sigma_s_length", "unfold_rounds",
-      "folded_faces", "crease_repair", "crease_bisected_faces", "input_side_faces")),
+      "folded_faces", "crease_repair", "crease_bisected_faces", "input_side_faces", "scale_groups")),
     ("--method rpca on a single mesh", lambda c: c.mode == MESH and c.method == "rpca",
      ("rpca_sparse_faces",)),
     ("--features l1", lambda c: c.mode == MESH and c.features == "l1",
@@ -372,6 +373,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     # the filters (scipy, the compiled kernels) load once the input is read
     from geoproc.denoise.mesh_denoise import denoise_mesh
     from geoproc.denoise.metrics import reference_metrics
+    from geoproc.denoise.scale_groups import SCALE_RATIO
     from geoproc.denoise.validate import reference_in_input_order
 
     ref_V = None
@@ -388,6 +390,10 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
                         "feature_faces": int(res.feature.sum())})
     run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
+    if res.info.get("scale_groups", 1) > 1:
+        run.note(f"{path or input}: its parts are meshed at scales more than {SCALE_RATIO:g} times apart; "
+                 f"denoised in {res.info['scale_groups']} groups, each with the schedule its own noise gives "
+                 "(the schedule's metrics are the largest group's)")
     _note_unused_filter_options(run, res.info, dp, given)
     if ref_V is not None:
         with run.timer("metrics"):

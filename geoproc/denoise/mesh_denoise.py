@@ -51,6 +51,7 @@ from geoproc.denoise.noise_level import roughness
 from geoproc.denoise.params import DenoiseParams
 from geoproc.denoise.patches import nearest_faces_in_ring
 from geoproc.denoise.rpca import rpca
+from geoproc.denoise.scale_groups import scale_groups
 from geoproc.denoise.vertex_update import unfold_faces, update_vertices
 from geoproc.errors import InputError, UsageError
 from geoproc.mesh.locality import inverse_permutation
@@ -435,6 +436,9 @@ def denoise_mesh(
     repeated = repeated_corner_faces(F)
     if repeated.any():  # no area and no normal: left out of the filter and the fit
         return _without_repeated_corner_faces(V, F, repeated, method, params, progress, initial_normals)
+    groups = scale_groups(V, F)
+    if groups.max(initial=0) > 0:  # parts meshed at very different scales: each group on its own
+        return _by_scale_group(V, F, groups, method, params, progress, initial_normals)
     if connectivity is None:
         connectivity = face_connectivity(F, len(V))
     elif not connectivity.matches(F, len(V)):
@@ -484,10 +488,37 @@ def denoise_mesh(
                 "coarseness_deg": None if shape is None else coarse,  # (not measured on a clean mesh)
                 "dihedral_tail_ratio": tail if np.isfinite(tail) else None, "reoriented_faces": int(flip.sum()),
                 "sliver_faces": 0 if shape is None else int(shape.sliver.sum()), "repeated_corner_faces": 0,
-                **res.info}
+                "scale_groups": 1, **res.info}
     if flip.any():  # the normals back in the input's face orientation
         res.normals = np.where(flip[:, None], -res.normals, res.normals)
     return res
+
+
+def _by_scale_group(V, F, groups, method, params, progress, initial_normals) -> DenoiseResult:
+    """:func:`denoise_mesh` of each group of parts (:func:`~geoproc.denoise.scale_groups.scale_groups`)
+    on its own, each with the schedule its own noise gives. The info is the
+    largest group's (by faces), with the face counts summed over the groups
+    and ``scale_groups`` the number of groups."""
+    m = len(F)
+    V_out, normals, feature = V.copy(), np.zeros((m, 3)), np.zeros(m)
+    infos, done = [], 0.0
+    for g in range(int(groups.max()) + 1):
+        fg = np.flatnonzero(groups == g)
+        vg = np.unique(F[fg])
+        share = len(fg) / m
+        sub_progress = None if progress is None else (lambda x, a=done, w=share: progress(a + w * x))
+        res = denoise_mesh(V[vg], np.searchsorted(vg, F[fg]), method, params, sub_progress,
+                           None if initial_normals is None else np.asarray(initial_normals)[fg])
+        V_out[vg], normals[fg], feature[fg] = res.V, res.normals, res.feature
+        infos.append(res.info)
+        done += share
+    sizes = np.bincount(groups)
+    info = dict(infos[int(np.argmax(sizes))])
+    for key, value in info.items():  # counts of faces and vertices over the whole mesh
+        if key.endswith(("_faces", "_vertices")) and isinstance(value, int | np.integer):
+            info[key] = int(sum(i.get(key) or 0 for i in infos))
+    info["scale_groups"] = len(infos)
+    return DenoiseResult(V_out, normals, feature.astype(res.feature.dtype), info)
 
 
 def _without_repeated_corner_faces(V, F, repeated, method, params, progress, initial_normals) -> DenoiseResult:

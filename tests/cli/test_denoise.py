@@ -403,6 +403,21 @@ def test_k_beyond_the_memory_is_an_out_of_memory_error(dfx, tmp_path, monkeypatc
     assert not out.exists()
 
 
+def test_parts_at_very_different_scales_are_denoised_apart_with_a_note(cli, dfx, tmp_path):
+    # a small noisy part had pulled the whole mesh's noise estimate to "clean": output = input
+    Vn, F, V = dfx.noisy_cube(n=10, sigma=0.3, seed=2)
+    Wn, G, W = dfx.noisy_cube(n=8, sigma=0.3, seed=3)
+    src, clean = tmp_path / "two.ply", tmp_path / "two_clean.ply"
+    save_mesh(src, Mesh(np.vstack([Vn, Wn * 1e-3]), np.vstack([F, G + len(Vn)])))
+    save_mesh(clean, Mesh(np.vstack([V, W * 1e-3]), np.vstack([F, G + len(V)])))
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = cli("denoise", src, "--reference", clean, "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    assert "two.ply: its parts are meshed at scales more than 4 times apart; denoised in 2 groups" in p.stderr
+    met = _metrics(rep)
+    assert met["scale_groups"] == 2 and met["mean_normal_angle_deg"] < 5.0 and met["new_flipped_faces"] == 0
+
+
 def test_a_moving_cloud_beyond_the_memory_is_an_out_of_memory_error(dfx, tmp_path, monkeypatch, capsys):
     # the animation matrix and RPCA's copies of it take about 100 bytes per coordinate
     # (1.24 GB for 20 frames of 200,000 points): past the memory the kernel killed the run
