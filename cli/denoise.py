@@ -88,9 +88,10 @@ def denoise(
     vertex_iterations: Annotated[int, typer.Option("--vertex-iterations", help="Vertex-update sweeps "
                                                    "per round, 0 to 10000.", min=0, max=10000)] = 10,
     fidelity: Annotated[float, typer.Option("--fidelity", help="Data term of the vertex update: every "
-                                            "sweep also pulls each vertex back towards its input position "
-                                            "by this fraction of the distance, 0 to 1 (0: the plain fit to "
-                                            "the filtered normals).")] = 0.005,
+                                            "sweep adds to its step towards the filtered normals this "
+                                            "fraction of the way back to the vertex's input position, 0 to 1 "
+                                            "(0: the plain fit; 1: each sweep is one fit step from the "
+                                            "input).")] = 0.005,
     sigma_r: Annotated[float | None, typer.Option("--sigma-r", help="Range kernel width on normal "
                                                   "differences, as the chord length between unit normals "
                                                   "(> 0; 0.3 is about 17 degrees; default: from the noise level).",
@@ -369,6 +370,8 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     path = mesh.log.path or None
     if mesh.is_point_cloud:
         raise InputError(path, "is a point cloud (no faces); use --outliers for point clouds")
+    if no_clean:
+        _note_kept_seams(run, mesh, path or input)
     require_triangle_mesh(mesh)  # the edge check is denoise_mesh's own, its error named below
     # the filters (scipy, the compiled kernels) load once the input is read
     from geoproc.denoise.mesh_denoise import denoise_mesh
@@ -445,6 +448,22 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
                  "(guidance_mix 1: the plain bilateral filter); --guidance-mix sets it")
     if rounds and "--fidelity" in given and not info.get("vertex_iterations", 1):
         run.note("--fidelity not used: no vertex sweep ran (--vertex-iterations 0)")
+
+
+def _note_kept_seams(run, mesh, name: str) -> None:
+    """Under --no-clean, a note when vertices the faces use share a position: each
+    copy moves on its own, so the surface can open along those seams."""
+    from geoproc.mesh.clean import position_groups
+    from geoproc.mesh.topology import referenced_vertices
+
+    used = np.flatnonzero(referenced_vertices(mesh.F, len(mesh.V)))
+    copies = len(used) - len(np.unique(position_groups(mesh.V[used])))
+    if copies:
+        one = copies == 1
+        run.note(f"{name}: {copies} {'vertex' if one else 'vertices'} the faces use "
+                 f"repeat{'s' if one else ''} the position of another, and --no-clean keeps them apart: each "
+                 "moves on its own, so the surface can open along those seams (without --no-clean they are "
+                 "merged)")
 
 
 def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> None:

@@ -418,6 +418,22 @@ def test_parts_at_very_different_scales_are_denoised_apart_with_a_note(cli, dfx,
     assert met["scale_groups"] == 2 and met["mean_normal_angle_deg"] < 5.0 and met["new_flipped_faces"] == 0
 
 
+def test_no_clean_notes_the_seams_it_keeps_open(cli, cube_pair, tmp_path):
+    # the surface tore along the kept seams (teapot's by up to 1.67 edges) without a word
+    noisy, _ = cube_pair
+    m = load_mesh(noisy)
+    f = m.F[0]
+    V = np.vstack([m.V, m.V[f[:1]]])  # a copy of one corner, used by one face instead of it
+    F = m.F.copy()
+    F[0, 0] = len(m.V)
+    src = tmp_path / "seam.ply"
+    save_mesh(src, Mesh(V, F))
+    p = cli("denoise", src, "--no-clean", "-o", tmp_path / "o.ply")
+    assert p.returncode == 0 and "seam.ply: 1 vertex the faces use repeats the position of another" in p.stderr
+    p = cli("denoise", noisy, "--no-clean", "-o", tmp_path / "o.ply")
+    assert p.returncode == 0 and "the position of another" not in p.stderr
+
+
 def test_a_moving_cloud_beyond_the_memory_is_an_out_of_memory_error(dfx, tmp_path, monkeypatch, capsys):
     # the animation matrix and RPCA's copies of it take about 100 bytes per coordinate
     # (1.24 GB for 20 frames of 200,000 points): past the memory the kernel killed the run
