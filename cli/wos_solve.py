@@ -31,7 +31,7 @@ METRICS = EXACT_METRICS + (
     "pixel_size", "walks", "kernels_used", "fit_points", "fit_walks", "fit_seconds", "fit_steps",
     "refine_seconds", "refine_steps", "refine_iterations", "residual_seconds", "residual_steps", "total_walks",
     "total_steps", "steps_per_second", "residual_steps_per_second", "mean_steps_per_walk",
-    "mean_standard_error",
+    "mean_standard_error", "rms_standard_error",
 )
 """Every metric ``wos-solve`` can report (which ones a run reports depends on its method and options)."""
 

@@ -166,6 +166,27 @@ def test_bad_input_exits_2_with_one_line_and_no_output(cli, inputs, tmp_path, do
     assert not out.exists() and not (tmp_path / "r.json").exists() and not (tmp_path / "e.png").exists()
 
 
+def test_exact_with_no_point_beyond_two_epsilon_is_refused_before_the_walks(tmp_path, monkeypatch, capsys):
+    # a 3 mm square at the default epsilon: the refusal had come after every walk (86 s at
+    # --grid 512 --walks 2000), without the file, the epsilon or what to change
+    import geoproc.wos.solve as solve
+    from geoproc_cli import main as cli_main
+
+    domain = tmp_path / "sq.json"
+    domain.write_text('{"loops": [[[0, 0], [0.003, 0], [0.003, 0.003], [0, 0.003]]]}')
+    monkeypatch.setattr(solve.WalkProblem, "estimate_chunked", lambda *a, **k: pytest.fail("walked"))
+    monkeypatch.setattr("sys.argv", ["geoproc", "wos-solve", str(domain), "--boundary", "x", "--exact", "--grid",
+                                     "64", "-o", str(tmp_path / "u.exr")])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and err == (
+        f"error: {domain}: --exact: no grid point lies farther than 2 x epsilon (0.002) from the boundary "
+        "(bounding-box diagonal 0.00424); --epsilon is in domain units (its default suits a unit square; try "
+        "3e-06 here), or use a finer --grid\n")
+    assert not (tmp_path / "u.exr").exists()
+
+
 def test_output_to_standard_output_is_refused_in_words(cli, inputs, tmp_path):
     # it had read "-o -: must end in .exr", as if "-" were a file name
     p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--grid", "8", "--walks", "2", "-o", "-")

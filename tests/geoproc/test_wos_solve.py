@@ -618,6 +618,8 @@ def test_mean_standard_error_is_over_the_scored_points():
     se = res.stderr[res.scored]
     assert res.metrics["error_points"] == len(se) < res.metrics["grid_points_inside"]
     assert res.metrics["mean_standard_error"] == pytest.approx(float(se.mean()), rel=1e-12)
+    assert res.metrics["rms_standard_error"] == pytest.approx(float(np.sqrt(np.mean(se**2))), rel=1e-12)
+    assert res.metrics["rms_standard_error"] > res.metrics["mean_standard_error"]
 
 
 @pytest.mark.parametrize("method", ["naive", "cv-green", "cv-angle"])
