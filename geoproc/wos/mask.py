@@ -134,7 +134,9 @@ def load_domain_mask(path: str) -> Domain:
     """Read a mask image and trace it into a :class:`Domain` (raises InputError)."""
     window, (row0, col0), (H, W) = read_mask_window(path)
     if not window.any():
-        raise InputError(path, "mask has no foreground pixels (value > 0.5 in the first channel)")
+        raise InputError(path, "mask has no foreground pixels (value > 0.5 in the first channel that is not "
+                               "alpha, times alpha): a dark shape on a light or transparent background reads as "
+                               "background; invert the image")
     # traced in the window, then placed: the display window's bottom row is y = 0
     shift = np.array([col0, H - row0 - window.shape[0]], dtype=np.float64)
     loops = [L + shift for L in trace_mask(window)]

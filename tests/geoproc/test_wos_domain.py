@@ -397,6 +397,17 @@ def test_mask_without_foreground(tmp_path):
     wf.write_mask(path, np.zeros((16, 16), bool))
     with pytest.raises(InputError, match="no foreground"):
         load_domain_mask(str(path))
+    # a black shape on a transparent background: the message says what reads as foreground
+    import OpenImageIO as oiio
+
+    rgba = np.zeros((16, 16, 4), np.uint8)
+    rgba[4:12, 4:12, 3] = 255  # opaque black square, transparent elsewhere
+    out = oiio.ImageOutput.create(str(tmp_path / "black.png"))
+    out.open(str(tmp_path / "black.png"), oiio.ImageSpec(16, 16, 4, oiio.UINT8))
+    out.write_image(rgba)
+    out.close()
+    with pytest.raises(InputError, match="times alpha\\): a dark shape on a light or transparent background reads"):
+        load_domain_mask(str(tmp_path / "black.png"))
 
 
 def test_files_that_are_neither_json_nor_an_image(tmp_path):
