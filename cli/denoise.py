@@ -256,13 +256,13 @@ MODE_METRICS = (
     # frame_schedule_summary): each frame's is chosen from its own noise
     ("a mesh (not --outliers)", lambda c: c.mode in (MESH, DYNAMIC),
      ("vertices", "faces", "fidelity", "vertex_iterations", "repeated_corner_faces", "noise_roughness",
-      "outer_iterations", "normal_iterations", "sigma_r", "sigma_s")),
+      "outer_iterations", "normal_iterations", "sigma_r", "sigma_s", "scale_groups")),
     ("--method guided (the default) on a mesh", lambda c: c.mode in (MESH, DYNAMIC) and c.method == "guided",
      ("guidance_mix",)),
     ("a single mesh (not --outliers or --dynamic)", lambda c: c.mode == MESH,
      ("feature_faces", "feature_method", "noise_median_dihedral_deg", "coarseness_deg",
       "dihedral_tail_ratio", "reoriented_faces", "sliver_faces", "sigma_s_length", "unfold_rounds",
-      "folded_faces", "crease_repair", "crease_bisected_faces", "input_side_faces", "scale_groups")),
+      "folded_faces", "crease_repair", "crease_bisected_faces", "input_side_faces")),
     ("--method rpca on a single mesh", lambda c: c.mode == MESH and c.method == "rpca",
      ("rpca_sparse_faces",)),
     ("--features l1", lambda c: c.mode == MESH and c.features == "l1",
@@ -396,7 +396,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     if res.info.get("scale_groups", 1) > 1:
         run.note(f"{path or input}: its parts are meshed at scales more than {SCALE_RATIO:g} times apart; "
                  f"denoised in {res.info['scale_groups']} groups, each with the schedule its own noise gives "
-                 "(the schedule's metrics are the largest group's)")
+                 "(the schedule's metrics are those of the largest group that was filtered)")
     _note_unused_filter_options(run, res.info, dp, given)
     if ref_V is not None:
         with run.timer("metrics"):

@@ -49,7 +49,12 @@ def _input_names(rep: dict) -> str:
 def _total_seconds(rep: dict) -> str:
     timings = rep.get("timings_s")
     total = timings.get("total") if isinstance(timings, dict) else None
-    return f"{total:.2f}" if isinstance(total, int | float) and not isinstance(total, bool) else ""
+    if not isinstance(total, int | float) or isinstance(total, bool):
+        return ""
+    try:
+        return f"{total:.2f}"
+    except OverflowError:  # an integer past the doubles' range (a hand-edited report)
+        return ""
 
 
 def read_report(path: Path) -> dict | None:

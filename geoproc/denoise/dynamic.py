@@ -293,7 +293,7 @@ def denoise_animation(
 
 
 SCHEDULE_MEANS = ("noise_roughness", "sigma_r", "sigma_s", "guidance_mix")
-SCHEDULE_LARGEST = ("outer_iterations", "normal_iterations")
+SCHEDULE_LARGEST = ("outer_iterations", "normal_iterations", "scale_groups")
 
 
 def frame_schedule_summary(frame_info: list[dict]) -> dict:

@@ -497,8 +497,9 @@ def denoise_mesh(
 def _by_scale_group(V, F, groups, method, params, progress, initial_normals) -> DenoiseResult:
     """:func:`denoise_mesh` of each group of parts (:func:`~geoproc.denoise.scale_groups.scale_groups`)
     on its own, each with the schedule its own noise gives. The info is the
-    largest group's (by faces), with the face counts summed over the groups
-    and ``scale_groups`` the number of groups."""
+    largest group's (by faces) among those that were filtered (any group's
+    when none was), with the counts of faces and vertices summed over the
+    groups and ``scale_groups`` the number of groups."""
     m = len(F)
     V_out, normals, feature = V.copy(), np.zeros((m, 3)), np.zeros(m)
     infos, done = [], 0.0
@@ -513,6 +514,9 @@ def _by_scale_group(V, F, groups, method, params, progress, initial_normals) -> 
         infos.append(res.info)
         done += share
     sizes = np.bincount(groups)
+    filtered = np.array([bool(i.get("outer_iterations")) for i in infos])
+    if filtered.any():  # the schedule of a group that was filtered: a clean largest one read as "nothing ran"
+        sizes = np.where(filtered, sizes, -1)
     info = dict(infos[int(np.argmax(sizes))])
     for key, value in info.items():  # counts of faces and vertices over the whole mesh
         if key.endswith(("_faces", "_vertices")) and isinstance(value, int | np.integer):

@@ -24,7 +24,9 @@ def scale_groups(V: np.ndarray, F: np.ndarray, ratio: float = SCALE_RATIO) -> np
     connected parts sorted by their mean edge length (length unit), a new
     group starting where a part's exceeds ``ratio`` times the group's first.
     Groups are numbered by increasing edge length from 0; a mesh of one
-    scale is one group (all zeros)."""
+    scale is one group (all zeros). A part whose edges all have length 0 (its
+    vertices at one place) has no scale: it joins the group of the smallest
+    part that has one (alone it had been refused, its faces coinciding)."""
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
     if not len(F):
         return np.zeros(0, dtype=np.int64)
@@ -36,7 +38,8 @@ def scale_groups(V: np.ndarray, F: np.ndarray, ratio: float = SCALE_RATIO) -> np
     edges = np.bincount(part[E[:, 0]], minlength=count)
     mean = np.bincount(part[E[:, 0]], weights=length, minlength=count) / np.maximum(edges, 1)
     order = np.argsort(mean, kind="stable")
-    group_of_part = np.empty(count, dtype=np.int64)
+    order = order[mean[order] > 0]  # the parts with a scale; the others stay in group 0
+    group_of_part = np.zeros(count, dtype=np.int64)
     group, first = 0, None
     for c in order.tolist():
         if first is not None and mean[c] > ratio * first:

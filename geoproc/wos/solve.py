@@ -185,10 +185,10 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     if len(X) == 0:
         raise UsageError(f"--grid {grid}: no grid point falls inside the domain; use a finer grid")
     if exact and not (d_all[inside] > 2 * eps).any():  # known before any walk: refused now, not after them
-        diag = float(np.linalg.norm(hi - lo))
+        deepest = float(d_all[inside].max())
         raise InputError(str(domain.source), f"--exact: no grid point lies farther than 2 x epsilon ({2 * eps:.3g}) "
-                         f"from the boundary (bounding-box diagonal {diag:.3g}); --epsilon is in domain units "
-                         f"(its default suits a unit square; try {7e-4 * diag:.2g} here), or use a finer --grid")
+                         f"from the boundary (the farthest is {deepest:.3g} from it); --epsilon is in domain "
+                         f"units (try {deepest / 500:.2g}, as 0.001 is to a unit square), or use a finer --grid")
     ue_inside = _declared_solution(boundary, X, domain) if exact else None
     # compile (or load cached code) outside the timed passes
     problem.load_kernels(X)

@@ -41,9 +41,12 @@ def test_reports_named_in_capitals_are_read_and_json_past_the_parser_limits_is_s
     _write(tmp_path, "T.JSON", {"command": "info", "metrics": {"genus": 1}})
     _write(tmp_path, "big.json", '{"command": "big", "metrics": {"n": ' + "9" * 5000 + "}}")
     _write(tmp_path, "deep.json", "[" * 100000 + "]" * 100000)
+    # a total past the doubles' range is left blank (formatting it had raised OverflowError)
+    huge = '{"command": "huge", "metrics": {"m": 1}, "timings_s": {"total": 1' + "0" * 400 + "}}"
+    _write(tmp_path, "huge.json", huge)
     assert main(["report_table", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "T.JSON" in out and "genus=1" in out and "big" not in out and "deep" not in out
+    assert "T.JSON" in out and "genus=1" in out and "big" not in out and "deep" not in out and "huge" in out
 
 
 @pytest.mark.parametrize("report", [

@@ -182,8 +182,8 @@ def test_exact_with_no_point_beyond_two_epsilon_is_refused_before_the_walks(tmp_
     err = capsys.readouterr().err
     assert stop.value.code == 2 and err == (
         f"error: {domain}: --exact: no grid point lies farther than 2 x epsilon (0.002) from the boundary "
-        "(bounding-box diagonal 0.00424); --epsilon is in domain units (its default suits a unit square; try "
-        "3e-06 here), or use a finer --grid\n")
+        "(the farthest is 0.00148 from it); --epsilon is in domain units (try 3e-06, as 0.001 is to a unit "
+        "square), or use a finer --grid\n")
     assert not (tmp_path / "u.exr").exists()
 
 

@@ -29,6 +29,14 @@ def test_parts_are_grouped_by_their_edge_length(dfx):
     # within the ratio (here 3), one group: nothing changes for meshes of one scale
     assert scale_groups(*_two_parts(dfx, 3.0)[4:]).max() == 0
     assert scale_groups(Vn, F).max() == 0 and scale_groups(Vn, F[:0]).shape == (0,)
+    # a part whose vertices all sit at one place has no scale: it joins the smallest group
+    # (alone it had been refused, its faces coinciding)
+    tet = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]]) + len(V)
+    V2, F2 = np.vstack([V, np.zeros((4, 3))]), np.vstack([FF, tet])
+    groups = scale_groups(V2, F2)
+    assert groups[-4:].tolist() == [0] * 4 and groups.max() == 1
+    res = denoise_mesh(V2, F2)
+    assert np.array_equal(res.V[-4:], np.zeros((4, 3))) and res.info["scale_groups"] == 2
 
 
 def test_each_scale_group_is_denoised_as_it_would_be_alone(dfx):
@@ -44,3 +52,15 @@ def test_each_scale_group_is_denoised_as_it_would_be_alone(dfx):
     assert res.info["scale_groups"] == 2 and denoise_mesh(Vn, F).info["scale_groups"] == 1
     assert res.info["reoriented_faces"] == alone_big.info["reoriented_faces"] + alone_small.info["reoriented_faces"]
     assert res.info["noise_roughness"] == alone_big.info["noise_roughness"]  # the largest group's schedule
+
+
+def test_the_schedule_reported_is_that_of_a_group_that_was_filtered(dfx):
+    # a clean large part and a noisy small one: the report had given the clean part's "nothing
+    # ran" (outer_iterations 0) for a run that filtered the small part
+    V = dfx.subdivided_cube(10)[0]
+    F = dfx.subdivided_cube(10)[1]
+    Wn, G, _ = dfx.noisy_cube(8, sigma=0.3, seed=3)
+    res = denoise_mesh(np.vstack([V, Wn * 1e-3]), np.vstack([F, G + len(V)]))
+    alone = denoise_mesh(Wn * 1e-3, G)
+    assert res.info["outer_iterations"] == alone.info["outer_iterations"] > 0
+    assert np.array_equal(res.V[: len(V)], V)
