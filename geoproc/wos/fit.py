@@ -12,6 +12,7 @@ column and ``b`` is an unpenalized constant. The coefficients returned are
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from geoproc.wos.domain import Domain
@@ -97,16 +98,39 @@ def angle_kernels(domain: Domain, m: int) -> KernelSet:
 
 
 def spread_points(candidates: np.ndarray, n: int, start: int = 0) -> np.ndarray:
-    """Farthest-point sampling of ``n`` indices among ``candidates`` (k, 2) (deterministic)."""
+    """Farthest-point sampling of ``n`` indices among ``candidates`` (k, 2) (deterministic).
+
+    Compiled, one pass over the candidates per point chosen (numpy's array
+    passes had taken 50 of cv-green's 56 s at ``--grid 2048``); the same
+    indices as those passes give (the same squared distances, the first
+    farthest)."""
     k = len(candidates)
     if k <= n:
         return np.arange(k)
+    return _farthest_points(np.ascontiguousarray(candidates, dtype=np.float64), int(n), int(start))
+
+
+@numba.njit(cache=True, nogil=True)
+def _farthest_points(C, n, start):
+    k = C.shape[0]
     chosen = np.empty(n, dtype=np.int64)
     chosen[0] = start
-    d = ((candidates - candidates[start]) ** 2).sum(axis=1)
+    d = np.empty(k)
+    for j in range(k):
+        dx, dy = C[j, 0] - C[start, 0], C[j, 1] - C[start, 1]
+        d[j] = dx * dx + dy * dy
     for i in range(1, n):
-        chosen[i] = int(np.argmax(d))
-        d = np.minimum(d, ((candidates - candidates[chosen[i]]) ** 2).sum(axis=1))
+        best, at = -1.0, 0
+        for j in range(k):  # the first largest, as np.argmax
+            if d[j] > best:
+                best, at = d[j], j
+        chosen[i] = at
+        x, y = C[at, 0], C[at, 1]
+        for j in range(k):
+            dx, dy = C[j, 0] - x, C[j, 1] - y
+            e = dx * dx + dy * dy
+            if e < d[j]:
+                d[j] = e
     return chosen
 
 

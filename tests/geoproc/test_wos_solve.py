@@ -649,3 +649,22 @@ def test_a_far_domain_is_named_in_its_own_coordinates_and_takes_the_deepest_expr
     res = solve_laplace(build_domain([square + 9e14]), parse_expression(deep), method="cv-green", walks=16,
                         grid=8)
     assert np.isfinite(res.U[res.scored]).all()
+
+
+def test_spread_points_is_farthest_point_sampling():
+    # the compiled loop against the definition: each new point the first farthest from those chosen
+    from geoproc.wos.fit import spread_points
+
+    def farthest(C, n):
+        chosen = [0]
+        d = ((C - C[0]) ** 2).sum(axis=1)
+        while len(chosen) < n:
+            chosen.append(int(np.argmax(d)))
+            d = np.minimum(d, ((C - C[chosen[-1]]) ** 2).sum(axis=1))
+        return chosen
+
+    rng = np.random.default_rng(0)
+    x, y = np.meshgrid(np.arange(40) / 40, np.arange(30) / 30)  # a grid: many ties, the first one wins
+    for C in (rng.random((3000, 2)) * 3 - 1, np.c_[x.ravel(), y.ravel()]):
+        assert spread_points(C, 64).tolist() == farthest(C, 64)
+    assert spread_points(C[:10], 64).tolist() == list(range(10))
