@@ -85,9 +85,22 @@ def merge_forest(adj_ptr, adj_nbr, adj_edge, order, rank, value, threshold, canc
         c = 0
         for j in range(adj_ptr[v], adj_ptr[v + 1]):
             u = adj_nbr[j]
-            r = rank[u]
-            if r < rv:
-                i = c
+            if rank[u] < rv:
+                br[c] = rank[u]
+                bu[c] = u
+                be[c] = adj_edge[j]
+                c += 1
+        if c == 0:
+            continue
+        # the lower edges by the neighbour's rank, stably: insertion sort, or a merge sort past
+        # 32 (a minimum at the centre of a 100k-face fan had cost 9 s in insertion sort)
+        if c > 32:
+            srt = np.argsort(br[:c], kind="mergesort")
+            br[:c], bu[:c], be[:c] = br[:c][srt], bu[:c][srt], be[:c][srt]
+        else:
+            for k in range(1, c):
+                r, u, e = br[k], bu[k], be[k]
+                i = k
                 while i > 0 and br[i - 1] > r:
                     br[i] = br[i - 1]
                     bu[i] = bu[i - 1]
@@ -95,10 +108,7 @@ def merge_forest(adj_ptr, adj_nbr, adj_edge, order, rank, value, threshold, canc
                     i -= 1
                 br[i] = r
                 bu[i] = u
-                be[i] = adj_edge[j]
-                c += 1
-        if c == 0:
-            continue
+                be[i] = e
         u0 = bu[0]
         down[v] = u0
         first_edge[v] = be[0]

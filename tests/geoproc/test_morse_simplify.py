@@ -463,3 +463,26 @@ def test_tie_allowances_count_each_vertex_its_own(make_fixtures):
     res = morse_simplify(F, f, 0.1)
     summary = simplification_summary(res, f, 0.1)
     assert summary.metrics["vertices_beyond_half_threshold"] == len(res.simplification.widened_vertices) > 0
+
+
+@pytest.mark.parametrize("apex", ["minimum", "maximum", "middle"])
+def test_a_vertex_of_high_valence_matches_gudhi(apex):
+    # a fan of 300 triangles around one vertex: its lower edges and its edge bucket are sorted
+    # by merge sort past 32 entries (insertion sort had made a 100k-face fan quadratic)
+    from geoproc.morse import barycentric_simplify, morse_simplify
+    from geoproc.morse.summary import simplification_summary
+
+    N = 300
+    t = 2 * np.pi * np.arange(N) / N
+    V = np.vstack([[0.0, 0.0, 0.0], np.c_[np.cos(t), np.sin(t), 0.01 * np.sin(7 * t)]])
+    F = np.c_[np.zeros(N, int), 1 + np.arange(N), 1 + (np.arange(N) + 1) % N]
+    f = np.r_[0.0, np.sin(5 * t) + 0.3 * np.random.default_rng(4).standard_normal(N)]
+    f[0] = {"minimum": f.min() - 1, "maximum": f.max() + 1, "middle": 0.05}[apex]
+    ref = gudhi_diagrams(F, f)
+    for res in (morse_simplify(F, f, 0.2), barycentric_simplify(V, F, f, 0.2)):
+        s = simplification_summary(res, f, 0.2)
+        pers = np.concatenate([finite_pairs(d, strictly_positive=True) for d in ref[:2]])
+        pers = pers[:, 1] - pers[:, 0]
+        m = s.metrics
+        assert m["pairs_kept"] == int((pers >= 0.2).sum()) and m["pairs_removed"] == int((pers < 0.2).sum())
+        assert m["betti_0"] == 1 and m["minima_after"] - m["saddles_after"] + m["maxima_after"] == 1
