@@ -81,11 +81,11 @@ def morse_simplify(F: np.ndarray, f: np.ndarray, threshold: float, path: str | N
     F = triangle_array(F, path)
     require_indices_below(F, n, path)
     require_distinct_corners(F, path)  # before the faces are reordered: the message names the input's triangle
+    if not len(F):
+        raise InputError(path, "has no faces; this method needs a triangle mesh")
     # a vertex no face uses (kept under --no-clean) is no cell of the surface: as an
     # isolated point of the complex it had counted as a component and an essential
     # minimum, where `info` counts the surface alone
-    if not len(F):
-        raise InputError(path, "has no faces; this method needs a triangle mesh")
     keep = np.flatnonzero(referenced_vertices(F, n))
     order, rank_kept = vertex_order(f[keep])
     order = keep[order]
