@@ -187,6 +187,19 @@ def test_exact_with_no_point_beyond_two_epsilon_is_refused_before_the_walks(tmp_
     assert not (tmp_path / "u.exr").exists()
 
 
+def test_a_declared_solution_that_is_not_harmonic_gets_a_note(cli, inputs, tmp_path):
+    # --exact compares with the function given; one that is not harmonic is not what the walks
+    # estimate, and it had passed without a word
+    rep = tmp_path / "r.json"
+    for boundary, harmonic in (("x*x + y*y", False), ("x**3 - 3*x*y**2", True), ("exp(x)*cos(y)", True)):
+        p = cli("wos-solve", inputs / "disk.json", "--boundary", boundary, "--exact", "--grid", "24", "--walks",
+                "2", "-o", tmp_path / "u.exr", "--report", rep)
+        assert p.returncode == 0, p.stderr
+        defect = json.loads(rep.read_text())["metrics"]["declared_laplacian"]
+        assert (defect < 1e-6) if harmonic else (defect > 1.0), (boundary, defect)
+        assert ("--boundary is not harmonic" in p.stderr) != harmonic
+
+
 def test_output_to_standard_output_is_refused_in_words(cli, inputs, tmp_path):
     # it had read "-o -: must end in .exr", as if "-" were a file name
     p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--grid", "8", "--walks", "2", "-o", "-")
