@@ -28,7 +28,8 @@ EXACT_METRICS = ("rmse", "max_abs_error", "bias", "error_points", "declared_lapl
 
 METRICS = EXACT_METRICS + (
     "segments", "loops", "neumann_segments", "domain_area", "grid_width", "grid_height", "grid_points_inside",
-    "pixel_size", "walks", "kernels_used", "fit_points", "fit_walks", "fit_seconds", "fit_steps",
+    "pixel_size", "grid_left", "grid_top", "walks", "kernels_used", "fit_points", "fit_walks", "fit_seconds",
+    "fit_steps",
     "refine_seconds", "refine_steps", "refine_iterations", "residual_seconds", "residual_steps", "total_walks",
     "total_steps", "steps_per_second", "residual_steps_per_second", "mean_steps_per_walk",
     "mean_standard_error", "rms_standard_error",

@@ -294,6 +294,9 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         exact_img = ue.reshape(shape)
     if shift is not None:
         gs = GridSpec(float(gs.x0 + shift[0]), float(gs.y1 + shift[1]), gs.h, gs.nx, gs.ny)
+    # where the image lies in the domain's coordinates: pixel (row, col) is centred at
+    # (grid_left + (col + 0.5) h, grid_top - (row + 0.5) h), h = pixel_size
+    metrics.update({"grid_left": gs.x0, "grid_top": gs.y1})
     return WosResult(U.reshape(shape), SE.reshape(shape), exact_img, scored.reshape(shape), gs,
                      metrics, sigma)
 

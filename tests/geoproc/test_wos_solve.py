@@ -668,3 +668,19 @@ def test_spread_points_is_farthest_point_sampling():
     for C in (rng.random((3000, 2)) * 3 - 1, np.c_[x.ravel(), y.ravel()]):
         assert spread_points(C, 64).tolist() == farthest(C, 64)
     assert spread_points(C[:10], 64).tolist() == list(range(10))
+
+
+@pytest.mark.parametrize("offset", [(0.0, 0.0), (1e12, -3e12)])
+def test_the_report_places_the_grid_in_the_domains_coordinates(offset):
+    # pixel (row, col) at (grid_left + (col + 0.5) h, grid_top - (row + 0.5) h): the value there
+    # is the solution there (u = x + 2y, so every pixel checks its own place); no report had said
+    ox, oy = offset
+    sq = build_domain([[[ox, oy], [ox + 2.0, oy], [ox + 2.0, oy + 1.0], [ox, oy + 1.0]]])
+    res = solve_laplace(sq, parse_expression(f"(x - {ox!r}) + 2*(y - {oy!r})"), method="naive", walks=4,
+                        grid=8, eps=1e-4, seed=1, exact=True)
+    m = res.metrics
+    assert (m["grid_left"], m["grid_top"]) == (ox, oy + 1.0) and m["pixel_size"] == 0.25
+    rows, cols = np.indices(res.U.shape)
+    x = m["grid_left"] + (cols + 0.5) * m["pixel_size"] - ox
+    y = m["grid_top"] - (rows + 0.5) * m["pixel_size"] - oy
+    assert np.allclose(res.exact, x + 2 * y, rtol=0, atol=1e-12)  # the declared function at each pixel's centre
