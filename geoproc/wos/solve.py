@@ -184,8 +184,12 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     X = np.ascontiguousarray(P[inside])
     if len(X) == 0:
         raise UsageError(f"--grid {grid}: no grid point falls inside the domain; use a finer grid")
-    if exact and not (d_all[inside] > 2 * eps).any():  # known before any walk: refused now, not after them
-        deepest = float(d_all[inside].max())
+    depth = d_all[inside]
+    # the points the error metrics use, and the fit's candidates: within 2 epsilon of the
+    # boundary many walks stop at once
+    deep = depth > 2 * eps
+    if exact and not deep.any():  # known before any walk: refused now, not after them
+        deepest = float(depth.max())
         raise InputError(str(domain.source), f"--exact: no grid point lies farther than 2 x epsilon ({2 * eps:.3g}) "
                          f"from the boundary (the farthest is {deepest:.3g} from it); --epsilon is in domain "
                          f"units (try {deepest / 500:.2g}, as 0.001 is to a unit square), or use a finer --grid")
@@ -202,8 +206,7 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     ks = sigma = None
     if method != "naive":
         t0 = time.perf_counter()
-        far = X[problem.distance(X) > 2 * eps]
-        cand = far if len(far) else X
+        cand = X[deep] if deep.any() else X
         ks = make_kernels(method, domain, kernels, problem.distance)
         F = fit_points(cand, fit_points_n or FIT_POINTS_PER_KERNEL * ks.M)
         u_fit, _, st = problem.estimate_chunked(F, fit_walks, pass_seed(seed, _TAG_FIT),
@@ -265,18 +268,19 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     se = np.sqrt(var / walks) if walks > 1 else np.full(len(var), np.nan)  # one walk: no spread to measure
     # over the points the error metrics use: within 2 epsilon of the boundary many walks stop
     # at once, with a standard error of 0 (on a 1 cm square, 112 of 256 points halved the mean)
-    far = d_all[inside] > 2 * eps
-    metrics["mean_standard_error"] = float(se[far].mean() if far.any() else se.mean())
+    se_deep = se[deep] if deep.any() else se
+    metrics["mean_standard_error"] = float(se_deep.mean())
     # the spread rmse should come to when the estimates are unbiased: where the standard error
     # varies over the grid, the plain mean understates it (a 1:1000 strip: rmse 3.8 times the mean)
-    metrics["rms_standard_error"] = float(np.sqrt(np.mean(se[far] ** 2) if far.any() else np.mean(se ** 2)))
+    metrics["rms_standard_error"] = float(np.sqrt(np.mean(se_deep**2)))
 
     shape = (gs.ny, gs.nx)
     U = np.full(len(P), np.nan)
     U[inside] = mean
     SE = np.full(len(P), np.nan)
     SE[inside] = se
-    scored = inside & (d_all > 2 * eps)
+    scored = np.zeros(len(P), dtype=bool)
+    scored[inside] = deep
     exact_img = None
     if exact:
         ue = np.full(len(P), np.nan)
@@ -289,8 +293,7 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
             rmse = top * float(np.sqrt(np.mean((err / top) ** 2)))
         metrics.update({"rmse": rmse, "max_abs_error": top,
                         "bias": float(np.mean(err)), "error_points": int(len(err)),
-                        "declared_laplacian": declared_laplacian(boundary, X, d_all[inside],
-                                                                 float(np.linalg.norm(hi - lo)))})
+                        "declared_laplacian": declared_laplacian(boundary, X, depth, float(np.linalg.norm(hi - lo)))})
         exact_img = ue.reshape(shape)
     if shift is not None:
         gs = GridSpec(float(gs.x0 + shift[0]), float(gs.y1 + shift[1]), gs.h, gs.nx, gs.ny)
@@ -338,8 +341,9 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) 
     singularities, up to a few 1e-6 for a dipole centred in a hole of 0.01
     (its stencils' rounding and s⁴ terms), of order 1 for one that is not
     (x² + y² on the unit square: 4; log r with r = 0 inside the domain: 1e-3
-    to 0.07, depending on how near a grid point comes). Points nearer the boundary than 40 steps are left
-    out (a log r beside its hole); NaN when none is left."""
+    to 0.07, depending on how near a grid point comes). Points nearer the
+    boundary than 40 steps are left out (a log r beside its hole); NaN when
+    none is left."""
     s = LAPLACIAN_STEP * diagonal
     P = X[depth > 40 * s]
     if len(P) > 4096:  # an even subsample: the check stays cheap on any grid
