@@ -466,6 +466,13 @@ def _note_kept_seams(run, mesh, name: str) -> None:
                  "merged)")
 
 
+def _refuse_scored_checks(run, name: str) -> None:
+    """A --check on the detection scores of an input ``name`` without an 'outlier'
+    property is refused before the work (there is nothing to score against)."""
+    run.refuse_unmeasurable_checks(SCORED_METRICS, f"{name} has no 'outlier' property to score against "
+                                                   "(perturb --outliers writes one)")
+
+
 def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> None:
     if k < 4:
         raise UsageError(f"--k {k}: must be at least 4")
@@ -473,8 +480,7 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
     # (a k beyond the points is refused by the method, naming the count)
     require_memory(OUTLIER_BYTES * len(cloud.V) * min(k, len(cloud.V)), f"--k {k} on {len(cloud.V)} points")
     if "outlier" not in cloud.vertex_fields:
-        run.refuse_unmeasurable_checks(SCORED_METRICS, f"{cloud.log.path or input} has no 'outlier' property to "
-                                                       "score against (perturb --outliers writes one)")
+        _refuse_scored_checks(run, cloud.log.path or input)
     from geoproc.denoise.outliers import detection_scores, rpca_outliers
 
     path = cloud.log.path or None
@@ -540,8 +546,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
     require_memory(ANIMATION_OUTLIER_BYTES * anim.V.size,
                    f"--outliers on {anim.n_frames} frames of {anim.V.shape[1]} points")
     if "outlier" not in anim.fields:
-        run.refuse_unmeasurable_checks(SCORED_METRICS, f"{anim.path} has no 'outlier' property to score against "
-                                                       "(perturb --outliers writes one)")
+        _refuse_scored_checks(run, anim.path)
     from geoproc.denoise.outliers import detection_scores, rpca_animation_outliers
 
     with run.timer("outliers"):
