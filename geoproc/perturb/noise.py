@@ -92,13 +92,7 @@ def point_cloud_normals(P: np.ndarray, k: int = 16) -> np.ndarray:
     the surface normal."""
     from scipy.spatial import cKDTree
 
-    from geoproc.mesh.spacing import COPY_DISTANCE, near_copy_groups
-
-    U, inverse = unique_rows(P)
-    dist, idx = cKDTree(U).query(U, k=min(k, len(U)), workers=-1)
-    far = float(np.median(dist[:, -1]))
-    first, group = (near_copy_groups(idx, dist, COPY_DISTANCE * far) if far > 0
-                    else (np.arange(len(U)), np.arange(len(U))))
+    U, inverse, _, first, group = _copy_groups(P, k)
     R = U[first]
     k = min(k, len(R))
     _, idx = cKDTree(R).query(R, k=k, workers=-1)
@@ -117,24 +111,37 @@ def noise_scale(V: np.ndarray, F: np.ndarray) -> float:
     the unit 2.6e-8 of the cloud's spacing). Each group of near copies counts
     once in the mean, as a point stored many times does (five near copies of
     a dense half had weighted that half six times)."""
-    from scipy.spatial import cKDTree
-
-    from geoproc.mesh.spacing import COPY_DISTANCE, near_copy_groups, nearest_distinct_distances
+    from geoproc.mesh.spacing import nearest_distinct_distances
     from geoproc.mesh.topology import mean_edge_length
 
     V, F = mesh_arrays(V, F, allow_point_cloud=True)
     if len(F):
         return mean_edge_length(V, F)
-    U = unique_rows(V)[0]
+    U, _, dist, first, _ = _copy_groups(V, 16)
+    return float(nearest_distinct_distances(dist)[first].mean()) if len(U) >= 2 else 0.0
+
+
+def _copy_groups(P: np.ndarray, k: int):
+    """The distinct points U of a cloud P (n, 3) and each point's row there
+    (``inverse``), their distances (len(U), min(k, len(U))) to their nearest
+    points (themselves first), and their groups of near copies
+    (:func:`geoproc.mesh.spacing.near_copy_groups`, closer than
+    ``COPY_DISTANCE`` of the median distance to the farthest listed neighbour):
+    each group's first point in U and each point's group. All points at one
+    place, or fewer than two distinct points (no distances then): every point
+    its own group."""
+    from scipy.spatial import cKDTree
+
+    from geoproc.mesh.spacing import COPY_DISTANCE, near_copy_groups
+
+    U, inverse = unique_rows(P)
     if len(U) < 2:
-        return 0.0
-    d, idx = cKDTree(U).query(U, k=min(len(U), 16), workers=-1)
-    nearest = nearest_distinct_distances(d)
-    far = float(np.median(d[:, -1]))
-    if not far > 0:
-        return float(nearest.mean())
-    first, _ = near_copy_groups(idx, d, COPY_DISTANCE * far)
-    return float(nearest[first].mean())
+        return U, inverse, None, np.arange(len(U)), np.arange(len(U))
+    dist, idx = cKDTree(U).query(U, k=min(k, len(U)), workers=-1)
+    far = float(np.median(dist[:, -1]))
+    first, group = (near_copy_groups(idx, dist, COPY_DISTANCE * far) if far > 0
+                    else (np.arange(len(U)), np.arange(len(U))))
+    return U, inverse, dist, first, group
 
 
 def perturb_positions(
