@@ -200,10 +200,9 @@ def vertex_rank(V: np.ndarray, F: np.ndarray, rounds: int = RANK_ROUNDS) -> np.n
         a, b = np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]]
         qq = np.r_[q, q]
         for _ in range(rounds):
-            with np.errstate(over="ignore"):
-                h = _mix64(_mix64(color[b].astype(np.uint64)) ^ qq)
-                summed = np.zeros(n, dtype=np.uint64)
-                np.add.at(summed, a, h)
+            h = _mix64(_mix64(color[b].astype(np.uint64)) ^ qq)
+            summed = np.zeros(n, dtype=np.uint64)
+            np.add.at(summed, a, h)  # (unsigned: wraps)
             new = _dense_classes(color, summed)
             if new.max() == color.max():  # no class split: the refinement is stable
                 break
