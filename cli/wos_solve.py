@@ -124,6 +124,11 @@ def wos_solve(
     image: Annotated[str | None, typer.Option("--image", help="Colormapped PNG of the solution "
                                               "with contour lines.", metavar="U.png",
                                               show_default=False)] = None,
+    stderr_image: Annotated[str | None, typer.Option(
+        "--stderr-image", help="Standard error of each pixel's estimate (the walks' sample standard "
+        "deviation over sqrt(--walks), in the solution's units) as a one-channel float EXR on the "
+        "solution's grid, NaN outside; needs --walks 2 or more.", metavar="SE.exr",
+        show_default=False)] = None,
     report: ReportOpt = None,
     check: CheckOpt = None,
     quiet: QuietOpt = False,
@@ -138,12 +143,13 @@ def wos_solve(
     """
     fitted = method != Method.naive  # the control-variate fit's options (refused with naive)
     params = {"domain": domain, "output": output, "image": image, "error_image": error_image,
+              "stderr_image": stderr_image,
               "boundary": boundary, "neumann": neumann, "method": method.value,
               "walks": walks, "grid": grid, "epsilon": epsilon, "kernels": kernels if fitted else None,
               "fit_walks": fit_walks if fitted else None, "fit_points": fit_points if fitted else None,
               "ridge": ridge if fitted else None, "seed": seed, "exact": exact}
     with command_run("wos-solve", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output, image, error_image], inputs=[domain], metrics=METRICS,
+                     outputs=[output, image, error_image, stderr_image], inputs=[domain], metrics=METRICS,
                      needs=_metric_needs(exact, method)) as run:
         require_extension(output, ".exr", "-o")
         if method == Method.naive:
@@ -151,6 +157,11 @@ def wos_solve(
                            "only with a control variate (--method cv-green, cv-angle or npass)")
         if image:
             require_extension(image, ".png", "--image")
+        if stderr_image:
+            require_extension(stderr_image, ".exr", "--stderr-image")
+            if walks < 2:
+                raise UsageError("--stderr-image needs --walks 2 or more (one walk per point has no "
+                                 "spread to measure)")
         if error_image:
             require_extension(error_image, ".png", "--error-image")
             if not exact:
@@ -232,6 +243,8 @@ def wos_solve(
             except UsageError as exc:  # boundary data too large for float32: name the domain
                 raise UsageError(f"{domain}: {exc}") from None
             run.write_bytes(output, encoded)
+            if stderr_image:
+                run.write_bytes(stderr_image, exr_bytes(res.stderr))
             fin = res.U[np.isfinite(res.U)]
             lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (0.0, 0.0)
             steps = float32_steps(lo, hi)

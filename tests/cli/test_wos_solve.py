@@ -425,3 +425,29 @@ def test_data_the_exr_cannot_hold_and_other_input_edges(cli, tmp_path):
     assert p.returncode == 0 and "3 kernels used, not 2: cv-angle shares them among the 3" in p.stderr, p.stderr
     r = json.loads(rep.read_text())
     assert r["params"]["fit_points"] == r["metrics"]["fit_points"] > 0
+
+
+def test_stderr_image_is_the_spread_of_the_estimates_over_seeds(cli, inputs, tmp_path):
+    # the written standard errors against the spread of the estimate over 48 other seeds
+    from geoproc.wos.expression import parse_expression
+    from geoproc.wos.load import load_domain
+    from geoproc.wos.solve import solve_laplace
+
+    se_exr = tmp_path / "se.exr"
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "16", "--grid", "8", "--seed", "3",
+            "-o", tmp_path / "u.exr", "--stderr-image", se_exr, "--quiet")
+    assert p.returncode == 0, p.stderr
+    SE = read_exr(str(se_exr))
+    assert SE.shape == (8, 8) and SE.dtype == np.float32
+    U = read_exr(str(tmp_path / "u.exr"))
+    assert np.array_equal(np.isnan(SE), np.isnan(U)) and np.isfinite(SE).sum() > 30
+    dom = load_domain(str(inputs / "disk.json"))
+    runs = np.stack([solve_laplace(dom, parse_expression("x"), walks=16, grid=8, seed=s).U for s in range(100, 148)])
+    inside = np.isfinite(SE) & (SE > 0)
+    spread = np.mean(runs[:, inside].var(axis=0, ddof=1))
+    assert abs(spread / np.mean(SE[inside].astype(float) ** 2) - 1) < 0.15
+    # one walk per point has no spread: refused before the walks
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--walks", "1", "--grid", "8",
+            "-o", tmp_path / "v.exr", "--stderr-image", tmp_path / "s1.exr")
+    assert p.returncode == 2 and "--stderr-image needs --walks 2 or more" in p.stderr
+    assert not (tmp_path / "v.exr").exists() and not (tmp_path / "s1.exr").exists()
