@@ -44,7 +44,7 @@ def mesh_info(mesh: Mesh) -> dict:
         ``unreferenced_vertices, mean_edge_length`` (length unit),
         ``bbox_diagonal`` (length unit; of the vertices the faces use, of every
         point for a point cloud), ``vertex_properties, face_properties``
-        (names), ``unread_properties`` (PLY properties not read, as
+        (names), ``unread_properties`` (what the file stores that is not read, as
         :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`), ``point_cloud``.
         Topology entries are None for a point cloud, and ``genus`` to
         ``consistently_oriented`` when no face has three distinct corners.

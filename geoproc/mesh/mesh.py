@@ -36,6 +36,8 @@ class LoadLog:
         the face's vertex indices), face properties when the file also
         holds triangle strips, and other elements than vertex, face and
         tristrips with rows (``"element edge"``). Only scalar properties travel.
+        For OBJ and OFF, what they store beyond positions and faces:
+        ``"texture coordinates (vt)"``, ``"vertex colours (C)"``...
     """
 
     path: str = ""
@@ -65,10 +67,13 @@ class Mesh:
     F : (m, 3) int64 array
         Triangles as vertex indices, counter-clockwise seen from outside; shape
         (0, 3) for a point cloud.
-    vertex_fields : dict of str to (n,) or (n, k) float64 array
-        Named per-vertex values (PLY vertex properties other than x, y, z).
-    face_fields : dict of str to (m,) or (m, k) float64 array
-        Named per-face values (PLY face properties other than the index list).
+    vertex_fields : dict of str to (n,) or (n, k) numeric array
+        Named per-vertex values (PLY vertex properties other than x, y, z), in
+        the type they were stored in (uint8 colours, float32, ...) or float64
+        when computed; convert before arithmetic.
+    face_fields : dict of str to (m,) or (m, k) numeric array
+        Named per-face values (PLY face properties other than the index list),
+        typed as ``vertex_fields``.
     log : LoadLog
         How the mesh was read and cleaned.
     """

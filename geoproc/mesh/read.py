@@ -1,7 +1,7 @@
 """Read OBJ, PLY (ASCII and binary), OFF and STL files into a :class:`Mesh`.
 
-PLY keeps every named scalar vertex and face property (positions and fields
-as float64; list properties are named in ``mesh.log.unread_properties``):
+PLY keeps every named scalar vertex and face property (positions as float64,
+fields in their stored type; list properties are named in ``mesh.log.unread_properties``):
 the usual layout (faces as index lists of one length) is read vectorized by
 :mod:`geoproc.mesh.ply_uniform`, anything else by plyfile. OBJ and ASCII OFF
 are parsed here, vectorized; STL goes through trimesh with
@@ -118,9 +118,9 @@ def read_mesh_bytes(data: bytes, fmt: str, path: str = "-", clean: bool = True) 
     if fmt == "ply":
         mesh, polys, unread = _parse_ply(data, path)
     elif fmt == "obj":
-        mesh, polys = _parse_obj(data, path)
+        mesh, polys, unread = _parse_obj(data, path)
     elif fmt == "off":
-        mesh, polys = _parse_off(data, path)
+        mesh, polys, unread = _parse_off(data, path)
     else:
         mesh, polys = _parse_with_trimesh(data, fmt, path)
     mesh.log = LoadLog(
@@ -220,6 +220,13 @@ def _scalar_property(dtype: np.dtype, name: str) -> bool:
     return dtype[name].shape == () and dtype[name].kind in "fiub"
 
 
+def _field_dtype(stored: np.dtype) -> np.dtype:
+    """The in-memory type of a PLY property read as a field: its stored type in
+    native byte order (uchar colours stay uint8, a float stays float32), so that
+    it is written back as stored."""
+    return stored.newbyteorder("=")
+
+
 def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     """The mesh, its polygon count (as :func:`_fans`) and the properties not read
     (see :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`)."""
@@ -251,7 +258,7 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     with np.errstate(invalid="ignore"):  # a signalling NaN stored as float32 widens quietly (refused below)
         V = np.column_stack([np.asarray(vert[a], dtype=np.float64) for a in "xyz"])
         vfields = {  # copies: the vectorized reader's rows are read-only views of the file's bytes
-            n: np.array(vert[n], dtype=np.float64)
+            n: np.array(vert[n], dtype=_field_dtype(vert.dtype[n]))
             for n in vert.dtype.names
             if n not in ("x", "y", "z") and _scalar_property(vert.dtype, n)
         }
@@ -275,7 +282,7 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
             F, polys = _fans(flat.astype(np.int64), counts)
         with np.errstate(invalid="ignore"):
             ffields = {  # a polygon's values go to each triangle of its fan
-                n: np.repeat(np.asarray(fdata[n], dtype=np.float64), counts - 2)
+                n: np.repeat(np.asarray(fdata[n], dtype=_field_dtype(fdata.dtype[n])), counts - 2)
                 for n in fdata.dtype.names
                 if n != key and _scalar_property(fdata.dtype, n)
             }
@@ -541,7 +548,7 @@ def _require_integer_indices(flat: np.ndarray, counts: np.ndarray, path: str, wh
 _BLANKS = bytes.maketrans(b"\t\v\f", b"   ")  # tab, vertical tab, form feed: blanks as space
 
 
-def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
+def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     """Parse the positions (``v``) and faces (``f``) of an OBJ file.
 
     Texture and normal references of face corners are ignored, so a mesh with
@@ -551,7 +558,8 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
     statements (``vt``, ``vn``, ``l``, ``g``, ``usemtl``...) are skipped.
     Polygons are split into fans.
 
-    Returns the mesh and the number of faces with more than three corners.
+    Returns the mesh, the number of faces with more than three corners and
+    what is not read (:func:`_obj_unread`).
     """
     if b"#" in data:
         data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
@@ -601,9 +609,24 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int]:
         raise InputError(path, f"face index out of range: face {int(line_of[k])} references vertex {int(given)}, "
                                f"but the file has {len(V)} vertices (1-based)")
     if (counts == 3).all():
-        return Mesh(V, idx.reshape(-1, 3)), 0
+        return Mesh(V, idx.reshape(-1, 3)), 0, _obj_unread(data)
     F, polygons = _fans(idx, counts)
-    return Mesh(V, F), polygons
+    return Mesh(V, F), polygons, _obj_unread(data)
+
+
+_OBJ_UNREAD = (
+    (rb"^[ \t]*vt[ \t]", "texture coordinates (vt)"),
+    (rb"^[ \t]*vn[ \t]", "vertex normals (vn)"),
+    (rb"^[ \t]*v[ \t]+\S+[ \t]+\S+[ \t]+\S+[ \t]+\S", "values after x y z on v lines (colours)"),
+    (rb"^[ \t]*(usemtl|mtllib)[ \t]", "materials (usemtl, mtllib)"),
+)
+
+
+def _obj_unread(data: bytes) -> list[str]:
+    """What an OBJ (comments removed) stores that is not read: texture
+    coordinates, normals, values after a vertex's position, materials
+    (see :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`)."""
+    return [what for pattern, what in _OBJ_UNREAD if re.search(pattern, data, flags=re.M)]
 
 
 def _obj_vertices(lines: list, path: str) -> np.ndarray:
@@ -673,7 +696,7 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
 _OFF_KEYWORD = re.compile(rb"(?P<st>ST)?(?P<cn>C|N|CN|NC)?(?P<w>4)?(?P<n>n)?OFF")
 
 
-def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
+def _parse_off(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     """Parse an ASCII OFF file: any keyword ``[ST][C][N][4][n]OFF`` or MeshLab's ``NCOFF`` (texture
     coordinates, normals and colours after the position are ignored; 4OFF
     positions are divided by w; nOFF must be 3-D), or none (a first line of
@@ -685,7 +708,8 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
     lines otherwise (and that has no per-vertex colours, whose count a line
     end would tell) is read as such a stream (:func:`_off_free_form`).
 
-    Returns the mesh and the number of faces with more than three corners.
+    Returns the mesh, the number of faces with more than three corners and
+    what is not read (:func:`_off_unread`).
     Raises InputError for binary OFF, a file shorter than its header says, a
     short face line or a coordinate that is not a number.
     """
@@ -725,8 +749,10 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
     if nv < 0 or nf < 0:
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}: "
                                "counts cannot be negative")
+    unread = _off_unread(kind, lines[start:], nv, nf)
     try:
-        return _off_by_lines(lines[start:], nv, nf, path, homogeneous)
+        mesh, polygons = _off_by_lines(lines[start:], nv, nf, path, homogeneous)
+        return mesh, polygons, unread
     except InputError:
         if kind is not None and b"C" in (kind.group("cn") or b""):  # colours: their count ends with the line
             raise
@@ -739,7 +765,29 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int]:
             raise
         V, faces = free
     F, polygons = _fan_triangulate(faces) if faces else (np.zeros((0, 3), dtype=np.int64), 0)
-    return Mesh(V, F), polygons
+    return Mesh(V, F), polygons, unread
+
+
+def _off_unread(kind: re.Match | None, lines: list, nv: int, nf: int) -> list[str]:
+    """What an OFF stores that is not read, from its keyword (texture
+    coordinates ``ST``, colours ``C``, normals ``N``) and, for colours the
+    keyword does not announce, its first face line (values after the corners)
+    and first vertex line (values after the position and what the keyword
+    names); ``lines`` follow the header, one vertex or face per line."""
+    cn = (kind.group("cn") or b"") if kind is not None else b""
+    unread = ["vertex texture coordinates (ST)"] if kind is not None and kind.group("st") else []
+    unread += ["vertex normals (N)"] if b"N" in cn else []
+    unread += ["vertex colours (C)"] if b"C" in cn else []
+    if not cn and nv and len(lines) > nv:
+        homogeneous = kind is not None and kind.group("w") is not None
+        expected = 3 + homogeneous + 2 * bool(kind is not None and kind.group("st"))
+        if len(lines[0].split()) > expected:
+            unread.append("values after each vertex's position (colours)")
+    if nf and len(lines) > nv:
+        tokens = lines[nv].split()
+        if tokens and tokens[0].isdigit() and len(tokens) > 1 + int(tokens[0]):
+            unread.append("face colours")
+    return unread
 
 
 def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -> tuple[Mesh, int]:

@@ -382,3 +382,14 @@ def test_properties_a_geometry_format_drops_are_noted(cli, fixture_dir, tmp_path
     assert "note: " + str(tmp_path / "p.obj") + ": .obj keeps geometry only; not written: distance" in p.stderr
     p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "p.ply")
     assert p.returncode == 0 and "keeps geometry only" not in p.stderr
+
+
+def test_what_an_obj_input_stores_beyond_its_geometry_is_noted(cli, tmp_path):
+    # texture coordinates and colours of an OBJ had been dropped without a word
+    src = tmp_path / "t.obj"
+    src.write_bytes(b"v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nv 0 0 1 1 1 1\nvt 0 0\n"
+                    b"f 1/1 3/1 2/1\nf 1/1 2/1 4/1\nf 1/1 4/1 3/1\nf 2/1 3/1 4/1\n")
+    p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "p.ply")
+    assert p.returncode == 0, p.stderr
+    assert (f"note: {src}: not carried (only scalar PLY properties travel): texture coordinates (vt), "
+            "values after x y z on v lines (colours)") in p.stderr

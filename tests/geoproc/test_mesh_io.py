@@ -885,3 +885,52 @@ def test_malformed_numbers_are_one_error_without_warnings(fmt, data, fragment):
         with pytest.raises(InputError) as err:
             read_mesh_bytes(data, fmt, f"m.{fmt}")
     assert fragment in err.value.problem
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_ply_fields_keep_their_stored_types(tmp_path, sphere, binary):
+    # uchar colours had been written back as double, which MeshLab and trimesh do not read as colours
+    import plyfile
+    import pymeshlab
+
+    n, m = len(sphere.V), len(sphere.F)
+    rng = np.random.default_rng(1)
+    rgb = rng.integers(0, 256, (n, 3)).astype(np.uint8)
+    sphere.vertex_fields = {"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2],
+                            "label": rng.integers(-5, 5, n).astype(np.int32),
+                            "quality": rng.random(n).astype(np.float32), "distance": rng.random(n),
+                            "flag": rng.random(n) > 0.5, "big": np.arange(n, dtype=np.int64)}
+    sphere.face_fields = {"red": np.full(m, 7, np.uint8), "part": np.arange(m, dtype=np.uint16)}
+    path = tmp_path / "c.ply"
+    save_mesh(path, sphere, binary=binary)
+    ply = plyfile.PlyData.read(str(path))
+    types = {p.name: p.val_dtype for p in ply["vertex"].properties}
+    assert [types[k] for k in ("x", "red", "label", "quality", "distance", "flag", "big")] == \
+        ["f8", "u1", "i4", "f4", "f8", "u1", "f8"]
+    assert {p.name: p.val_dtype for p in ply["face"].properties if p.name != "vertex_indices"} == \
+        {"red": "u1", "part": "u2"}
+    back = load_mesh(path, clean=False)
+    for k, v in sphere.vertex_fields.items():
+        assert np.array_equal(back.vertex_fields[k], v), k
+    assert back.vertex_fields["red"].dtype == np.uint8 and back.vertex_fields["quality"].dtype == np.float32
+    assert np.array_equal(back.face_fields["part"], sphere.face_fields["part"])
+    ms = pymeshlab.MeshSet()
+    ms.load_new_mesh(str(path))
+    assert ms.current_mesh().has_vertex_color()
+    assert np.allclose(ms.current_mesh().vertex_color_matrix()[:, :3] * 255, rgb, atol=0.5)
+
+
+def test_obj_and_off_name_what_they_do_not_carry(tmp_path):
+    obj = b"mtllib a.mtl\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\n"
+    assert read_mesh_bytes(obj, "obj", "a.obj").log.unread_properties == [
+        "texture coordinates (vt)", "vertex normals (vn)", "values after x y z on v lines (colours)",
+        "materials (usemtl, mtllib)"]
+    assert read_mesh_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "obj").log.unread_properties == []
+    coff = b"COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n3 0 1 2 9 9 9\n"
+    assert read_mesh_bytes(coff, "off", "c.off").log.unread_properties == ["vertex colours (C)", "face colours"]
+    noff = b"NOFF\n3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n"
+    assert read_mesh_bytes(noff, "off", "n.off").log.unread_properties == ["vertex normals (N)"]
+    plain = b"OFF\n3 1 0\n0 0 0 9 9 9\n1 0 0 9 9 9\n0 1 0 9 9 9\n3 0 1 2\n"
+    assert read_mesh_bytes(plain, "off", "p.off").log.unread_properties == [
+        "values after each vertex's position (colours)"]
+    assert read_mesh_bytes(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "off").log.unread_properties == []
