@@ -48,7 +48,8 @@ def morse_simplify(
     field: Annotated[str, typer.Option(
         "--field", "-f",
         help="The vertex function: a per-vertex PLY property (e.g. 'distance' from geoproc geodesic), "
-        "x, y or z, a .npy file with one value per vertex, mean-curvature or gaussian-curvature (libigl).",
+        "x, y or z, a .npy file with one value per vertex, mean-curvature (1/length) or gaussian-curvature "
+        "(1/length^2; both libigl).",
         metavar="SPEC", show_default=False)],
     persistence: Annotated[float, typer.Option(
         "--persistence", "-p",

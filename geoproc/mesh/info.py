@@ -30,7 +30,7 @@ def mesh_info(mesh: Mesh) -> dict:
     Returns
     -------
     dict
-        ``vertices, faces, edges`` (unique undirected), ``components`` (edge-connected,
+        ``vertices, faces, edges`` (unique undirected), ``components`` (vertices joined by edges, a bowtie is one;
         over referenced vertices), ``boundary_edges, boundary_loops``,
         ``euler_characteristic`` (V - E + F, V counting referenced vertices;
         the topology entries count the faces with three distinct corners

@@ -124,9 +124,9 @@ class WalkProblem:
     def __init__(self, domain: Domain, boundary: Expression | None, flux: Expression | None,
                  eps: float):
         if boundary is None and domain.values is None:
-            raise UsageError(f"{domain.source}: give --boundary 'EXPR' or per-vertex 'values' in the domain JSON"
-                             if str(domain.source).lower().endswith(".json") else
-                             f"{domain.source}: give --boundary 'EXPR' (a mask carries no boundary values)")
+            raise UsageError(f"{domain.source}: give --boundary 'EXPR' (a mask carries no boundary values)"
+                             if domain.traced else
+                             f"{domain.source}: give --boundary 'EXPR' or per-vertex 'values' in the domain JSON")
         if flux is not None and not domain.has_neumann:
             raise UsageError(f"--neumann given but {domain.source} marks no Neumann loops "
                              "(add \"neumann\": [loop indices] to the JSON)")

@@ -265,6 +265,13 @@ def test_a_mask_without_boundary_expression_is_told_that_a_mask_has_no_values(cl
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 2 and len(lines) == 1 and not (tmp_path / "u.exr").exists()
     assert "square.png: give --boundary 'EXPR' (a mask carries no boundary values)" in lines[0]
+    # a JSON domain without values, from standard input or under another name, had been told the same
+    square = '{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}'
+    (tmp_path / "square.txt").write_text(square)
+    for args, kw, name in ((["-"], {"stdin": square.encode()}, "-"), ([tmp_path / "square.txt"], {}, "square.txt")):
+        p = cli("wos-solve", *args, "--grid", "8", "--walks", "2", "-o", tmp_path / "u.exr", **kw)
+        assert p.returncode == 2 and not (tmp_path / "u.exr").exists(), p.stderr
+        assert f"{name}: give --boundary 'EXPR' or per-vertex 'values' in the domain JSON" in p.stderr, p.stderr
 
 
 def test_naive_reports_no_fit_parameters(cli, inputs, tmp_path):
