@@ -347,10 +347,14 @@ class Run:
         ext = write_format(name)
         if len(mesh.F) == 0 and ext != "ply":
             raise UsageError(f"{name}: a point cloud (no faces) is written as .ply only")
-        dropped = [*mesh.vertex_fields, *mesh.face_fields] if ext != "ply" else []
+        dropped = ([f"vertex {k}" for k in mesh.vertex_fields] + [f"face {k}" for k in mesh.face_fields]
+                   if ext != "ply" else [])
         if dropped:
             self.note(f"{name}: .{ext} keeps geometry only; not written: {', '.join(dropped)} "
                       "(a .ply output keeps them)")
+        if ext == "stl" and len(mesh.F):
+            self.note(f"{name}: STL stores each triangle's corners as 32-bit floats, so positions read back "
+                      "rounded (to about 6e-8 of their size) and vertices numbered anew (a .ply output keeps both)")
         big = float(np.abs(mesh.V).max()) if ext == "stl" and mesh.V.size else 0.0
         if big > STL_MAX_COORDINATE:
             raise UsageError(f"{name}: STL stores 32-bit floats, which end at {STL_MAX_COORDINATE:.4g}; "

@@ -379,7 +379,11 @@ def test_properties_a_geometry_format_drops_are_noted(cli, fixture_dir, tmp_path
     assert cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", src, "-q").returncode == 0
     p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "p.obj")
     assert p.returncode == 0
-    assert "note: " + str(tmp_path / "p.obj") + ": .obj keeps geometry only; not written: distance" in p.stderr
+    assert "note: " + str(tmp_path / "p.obj") + ": .obj keeps geometry only; not written: vertex distance" in p.stderr
+    # STL's float32 corners: positions rounded and vertices renumbered when read back, said
+    p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "p.stl")
+    assert p.returncode == 0 and "p.stl: STL stores each triangle's corners as 32-bit floats" in p.stderr, p.stderr
+    assert "STL stores" not in cli("perturb", src, "--seed", "1", "-o", tmp_path / "q.obj").stderr
     p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "p.ply")
     assert p.returncode == 0 and "keeps geometry only" not in p.stderr
 
