@@ -255,14 +255,20 @@ def subdivision_values(result: BarycentricSimplification, F: np.ndarray, values:
     Parameters
     ----------
     result : the output of :func:`barycentric_simplify`; F : (m, 3) the input triangles;
-    values : (n,) or (n, c) float64 per input vertex.
+    values : (n,) or (n, c) numeric array per input vertex.
 
     Returns
     -------
-    (n + k + m,) or (n + k + m, c) float64.
+    (n + k + m,) or (n + k + m, c), in the type of ``values``: integer averages
+    are rounded to the nearest integer (uchar colours stay colours), float32
+    stays float32, anything else is float64.
     """
-    values = np.asarray(values, dtype=np.float64)
-    return np.concatenate([values, values[result.E].mean(axis=1), values[F].mean(axis=1)])
+    a = np.asarray(values)
+    wide = a.astype(np.float64)
+    mixed = np.concatenate([wide, wide[result.E].mean(axis=1), wide[F].mean(axis=1)])
+    if a.dtype.kind in "iu":  # a mean of values in the type's range stays in it
+        return np.rint(mixed).astype(a.dtype)
+    return mixed.astype(np.float32) if a.dtype == np.float32 else mixed
 
 
 def barycentric_subdivision(V: np.ndarray, F: np.ndarray, E: np.ndarray, FE: np.ndarray) -> tuple[np.ndarray,

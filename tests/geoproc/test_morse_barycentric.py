@@ -159,3 +159,18 @@ def test_constant_field_has_one_minimum(make_fixtures, P, value):
     V, F = make_fixtures.grid(8)
     r = check_barycentric(V, F, np.full(len(V), value), P, slack=1e-12)
     assert len(r.critical) == 1 and r.dim[r.critical[0]] == 0
+
+
+def test_subdivision_values_keep_the_stored_type():
+    # uchar colours averaged onto the subdivision had come back as float64 fractions
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.2]], float)
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    res = barycentric_simplify(V, F, V[:, 0] + 0.1 * V[:, 1], 0.0)
+    red = np.array([0, 255, 100, 7], np.uint8)
+    got = subdivision_values(res, F, red)
+    assert got.dtype == np.uint8 and got[:4].tolist() == red.tolist()
+    expected = np.rint(subdivision_values(res, F, red.astype(float)))  # the float means, rounded
+    assert got.tolist() == expected.tolist() and 128 in got.tolist()  # (0 + 255) / 2 = 127.5 -> 128
+    q = np.array([0.1, 0.2, 0.3, 0.4], np.float32)
+    assert subdivision_values(res, F, q).dtype == np.float32
+    assert subdivision_values(res, F, q.astype(float)).dtype == np.float64
