@@ -252,6 +252,7 @@ class Run:
                 self.inputs[-1]["frames"] = [{"path": f, "sha256": h}
                                              for f, h in zip(anim.frame_files, anim.frame_sha256, strict=True)]
         if anim.unread:
+            self.inputs[-1]["not_carried"] = list(anim.unread)
             travel = ("per-vertex scalar properties of every frame" if anim.frame_files
                       else "real numeric arrays shaped (frames, n)")
             self.note(f"{name}: not carried (only {travel} travel): " + ", ".join(anim.unread))
@@ -273,6 +274,9 @@ class Run:
             self.note(f"{log.path}: " + ", ".join(notes) + " (--no-clean keeps the mesh as stored)"
                       if log.merged_vertices or log.removed_unreferenced else f"{log.path}: " + ", ".join(notes))
         if log.unread_properties:
+            entry = next((e for e in reversed(self.inputs) if e["path"] == log.path), None)
+            if entry is not None:  # in the report too: a note is silenced by --quiet
+                entry["not_carried"] = list(log.unread_properties)
             self.note(f"{log.path}: not carried (only scalar PLY properties travel): "
                       + ", ".join(log.unread_properties))
 

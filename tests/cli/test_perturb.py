@@ -316,9 +316,10 @@ def test_npz_members_not_carried_are_noted(cli, tmp_path):
     V = np.random.default_rng(0).random((3, 4, 3))
     src, out = tmp_path / "a.npz", tmp_path / "b.npz"
     np.savez(src, vertices=V, faces=np.array([[0, 1, 2], [0, 2, 3]]), scale=np.arange(3.0), tag=np.ones((3, 4)))
-    p = cli("perturb", src, "--noise", "0.1", "--seed", "1", "-o", out)
+    p = cli("perturb", src, "--noise", "0.1", "--seed", "1", "-o", out, "--report", tmp_path / "r.json")
     assert p.returncode == 0, p.stderr
     assert f"note: {src}: not carried (only real numeric arrays shaped (frames, n) travel): scale (3,)" in p.stderr
+    assert json.loads((tmp_path / "r.json").read_text())["inputs"][0]["not_carried"] == ["scale (3,)"]
     assert sorted(np.load(out).files) == ["faces", "tag", "vertices"]
     # a folder of frames: a face property and a vertex property of one frame only
     from geoproc.mesh import Mesh, save_mesh
@@ -397,3 +398,11 @@ def test_what_an_obj_input_stores_beyond_its_geometry_is_noted(cli, tmp_path):
     assert p.returncode == 0, p.stderr
     assert (f"note: {src}: not carried (only scalar PLY properties travel): texture coordinates (vt), "
             "values after x y z on v lines (colours)") in p.stderr
+    # and in the report, where --quiet silences the note
+    rep = tmp_path / "r.json"
+    p = cli("perturb", src, "--seed", "1", "-o", tmp_path / "q.ply", "--quiet", "--report", rep)
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    entry = json.loads(rep.read_text())["inputs"][0]
+    assert entry["not_carried"] == ["texture coordinates (vt)", "values after x y z on v lines (colours)"]
+    p = cli("perturb", tmp_path / "q.ply", "--seed", "1", "-o", tmp_path / "r.ply", "--report", rep)
+    assert "not_carried" not in json.loads(rep.read_text())["inputs"][0]
