@@ -277,8 +277,9 @@ class Run:
             entry = next((e for e in reversed(self.inputs) if e["path"] == log.path), None)
             if entry is not None:  # in the report too: a note is silenced by --quiet
                 entry["not_carried"] = list(log.unread_properties)
-            self.note(f"{log.path}: not carried (only scalar PLY properties travel): "
-                      + ", ".join(log.unread_properties))
+            travel = ("only scalar PLY properties travel" if log.format == "ply"
+                      else f"only positions and faces are read from {log.format.upper()}")
+            self.note(f"{log.path}: not carried ({travel}): " + ", ".join(log.unread_properties))
 
     def note_replaced(self, kind: str, names, existing) -> None:
         """Note the input's ``kind`` ("vertex" or "face") properties among ``names``
@@ -356,14 +357,28 @@ class Run:
         if dropped:
             self.note(f"{name}: .{ext} keeps geometry only; not written: {', '.join(dropped)} "
                       "(a .ply output keeps them)")
-        if ext == "stl" and len(mesh.F):
-            self.note(f"{name}: STL stores each triangle's corners as 32-bit floats, so positions read back "
-                      "rounded (to about 6e-8 of their size) and vertices numbered anew (a .ply output keeps both)")
         big = float(np.abs(mesh.V).max()) if ext == "stl" and mesh.V.size else 0.0
         if big > STL_MAX_COORDINATE:
             raise UsageError(f"{name}: STL stores 32-bit floats, which end at {STL_MAX_COORDINATE:.4g}; "
                              f"coordinates reach {big:.3g} (write .ply, .obj or .off)")
+        if ext == "stl" and len(mesh.F):
+            self._note_stl_changes(name, mesh)
         self._outputs.append((name, mesh_to_bytes(mesh, ext, binary=not ascii)))
+
+    def _note_stl_changes(self, name: str, mesh: Mesh) -> None:
+        """A note on what an STL output changes when read back: each triangle's
+        corners as 32-bit floats (positions rounded, where they are not float32
+        already) and the vertices numbered by their first use in the triangles
+        (where that is not already their order, or a vertex is unused)."""
+        V, F = mesh.V, mesh.F
+        rounded = bool((V.astype(np.float32).astype(np.float64) != V).any())
+        _, first = np.unique(F.reshape(-1), return_index=True)
+        in_order = len(first) == len(V) and bool((np.diff(first) > 0).all())
+        changes = (["positions rounded (to about 6e-8 of their size)"] * rounded
+                   + ["vertices numbered anew (in order of first use)"] * (not in_order))
+        if changes:
+            self.note(f"{name}: STL stores each triangle's corners as 32-bit floats; read back: "
+                      f"{' and '.join(changes)} (a .ply output keeps them)")
 
     def write_stdout(self, data: bytes) -> None:
         """Queue bytes for standard output; written only when the run succeeds."""

@@ -244,7 +244,8 @@ def wos_solve(
                 raise UsageError(f"{domain}: {exc}") from None
             run.write_bytes(output, encoded)
             if stderr_image:
-                run.write_bytes(stderr_image, exr_bytes(res.stderr))
+                # (bounded by the solution's range, which fits; below float32's range it reads 0)
+                run.write_bytes(stderr_image, exr_bytes(res.stderr, solution=False))
             fin = res.U[np.isfinite(res.U)]
             lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (0.0, 0.0)
             steps = float32_steps(lo, hi)

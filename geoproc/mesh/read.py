@@ -575,7 +575,7 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
         elif head == b"f " or line.strip() == b"f":
             flines.append(line.lstrip()[1:])
             seen.append(len(vlines))
-    V = _obj_vertices(vlines, path)
+    V, width = _obj_vertices(vlines, path)
     if not flines:
         if len(V):
             raise InputError(path, "mesh has no faces (vertices only; store a point cloud as PLY)")
@@ -609,52 +609,61 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
         raise InputError(path, f"face index out of range: face {int(line_of[k])} references vertex {int(given)}, "
                                f"but the file has {len(V)} vertices (1-based)")
     if (counts == 3).all():
-        return Mesh(V, idx.reshape(-1, 3)), 0, _obj_unread(data)
+        return Mesh(V, idx.reshape(-1, 3)), 0, _obj_unread(data, width)
     F, polygons = _fans(idx, counts)
-    return Mesh(V, F), polygons, _obj_unread(data)
+    return Mesh(V, F), polygons, _obj_unread(data, width)
 
 
 _OBJ_UNREAD = (
     (rb"^[ \t]*vt[ \t]", "texture coordinates (vt)"),
     (rb"^[ \t]*vn[ \t]", "vertex normals (vn)"),
-    (rb"^[ \t]*v[ \t]+\S+[ \t]+\S+[ \t]+\S+[ \t]+\S", "values after x y z on v lines (colours)"),
     (rb"^[ \t]*(usemtl|mtllib)[ \t]", "materials (usemtl, mtllib)"),
+    (rb"^[ \t]*[lp][ \t]", "polylines or points (l, p)"),
 )
 
 
-def _obj_unread(data: bytes) -> list[str]:
+def _obj_unread(data: bytes, width: int) -> list[str]:
     """What an OBJ (comments removed) stores that is not read: texture
-    coordinates, normals, values after a vertex's position, materials
+    coordinates, normals, materials, polylines and points, and colours
+    after a vertex's position (``width``, the most numbers on a ``v`` line,
+    is 6 or more; a fourth number alone is the weight w)
     (see :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`)."""
-    return [what for pattern, what in _OBJ_UNREAD if re.search(pattern, data, flags=re.M)]
+    text = data.replace(b"\r", b"\n") if b"\r" in data else data  # lines may end in CR alone
+    unread = [what for pattern, what in _OBJ_UNREAD[:2] if re.search(pattern, text, flags=re.M)]
+    unread += ["colours after x y z on v lines"] if width >= 6 else []
+    return unread + [what for pattern, what in _OBJ_UNREAD[2:] if re.search(pattern, text, flags=re.M)]
 
 
-def _obj_vertices(lines: list, path: str) -> np.ndarray:
-    """(n, 3) float64: the first three numbers of each OBJ ``v`` line (after the ``v``)."""
+def _obj_vertices(lines: list, path: str) -> tuple[np.ndarray, int]:
+    """(n, 3) float64: the first three numbers of each OBJ ``v`` line (after
+    the ``v``), and the most numbers on a line."""
     return _leading_numbers(lines, 3, path,  # numbered from 1, as OBJ faces count them
                             lambda i, line: f"OBJ vertex {i + 1} (1-based): 'v {line}' does not hold three numbers")
 
 
-def _leading_numbers(lines: list, k: int, path: str, problem) -> np.ndarray:
+def _leading_numbers(lines: list, k: int, path: str, problem) -> tuple[np.ndarray, int]:
     """(n, k) float64: the first k numbers of each line (bytes), extra values
-    ignored; one vectorized parse when every line has the same count.
+    ignored, and the most values on a line (0 for no line); one vectorized
+    parse when every line has the same count.
 
     ``problem(i, text)`` words the InputError for line i that does not start
     with k numbers.
     """
     rows = uniform_rows(lines, integer=False)
     if rows is not None and rows.shape[1] >= k:  # the common case
-        return rows[:, :k].copy()
+        return rows[:, :k].copy(), rows.shape[1]
     X = np.empty((len(lines), k), dtype=np.float64)
+    width = 0
     for i, line in enumerate(lines):
         try:
-            tokens = line.split()[:k]
+            tokens = line.split()
+            width = max(width, len(tokens))
             if len(tokens) < k:
                 raise ValueError
-            X[i] = [float(t) for t in tokens]
+            X[i] = [float(t) for t in tokens[:k]]
         except ValueError:
             raise InputError(path, problem(i, line.decode("latin-1").strip())) from None
-    return X
+    return X, width
 
 
 def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
@@ -749,50 +758,42 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     if nv < 0 or nf < 0:
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}: "
                                "counts cannot be negative")
-    unread = _off_unread(kind, lines[start:], nv, nf)
+    unread = _off_keyword_unread(kind)
+    cn = (kind.group("cn") or b"") if kind is not None else b""
+    per_vertex = 3 + homogeneous  # x y z [w], then the normal and texture coordinates the keyword names
+    if kind is not None:
+        per_vertex += 3 * (b"N" in cn) + 2 * (kind.group("st") is not None)
     try:
-        mesh, polygons = _off_by_lines(lines[start:], nv, nf, path, homogeneous)
-        return mesh, polygons, unread
+        mesh, polygons, width, face_colours = _off_by_lines(lines[start:], nv, nf, path, homogeneous)
+        if width > per_vertex + 4 * (b"C" in cn):  # a colour is 3 or 4 values
+            unread.append("values on vertex lines beyond those the keyword names (colours)")
+        return mesh, polygons, unread + ["face colours"] * face_colours
     except InputError:
         if kind is not None and b"C" in (kind.group("cn") or b""):  # colours: their count ends with the line
             raise
-        per_vertex = 3 + homogeneous  # x y z [w], then the normal and texture coordinates the keyword names
-        if kind is not None:
-            per_vertex += 3 * (b"N" in (kind.group("cn") or b"")) + 2 * (kind.group("st") is not None)
         lead = [b" ".join(counts[3:])] if len(counts) > 3 else []  # values after NVERTICES NFACES NEDGES
         free = _off_free_form(lead + lines[start:], nv, nf, per_vertex, homogeneous)
         if free is None:
             raise
-        V, faces = free
+        V, faces, face_colours = free
     F, polygons = _fan_triangulate(faces) if faces else (np.zeros((0, 3), dtype=np.int64), 0)
-    return Mesh(V, F), polygons, unread
+    return Mesh(V, F), polygons, unread + ["face colours"] * face_colours
 
 
-def _off_unread(kind: re.Match | None, lines: list, nv: int, nf: int) -> list[str]:
-    """What an OFF stores that is not read, from its keyword (texture
-    coordinates ``ST``, colours ``C``, normals ``N``) and, for colours the
-    keyword does not announce, its first face line (values after the corners)
-    and first vertex line (values after the position and what the keyword
-    names); ``lines`` follow the header, one vertex or face per line."""
+def _off_keyword_unread(kind: re.Match | None) -> list[str]:
+    """What an OFF's keyword says it stores and is not read: texture
+    coordinates ``ST``, normals ``N``, colours ``C``."""
     cn = (kind.group("cn") or b"") if kind is not None else b""
     unread = ["vertex texture coordinates (ST)"] if kind is not None and kind.group("st") else []
     unread += ["vertex normals (N)"] if b"N" in cn else []
-    unread += ["vertex colours (C)"] if b"C" in cn else []
-    if not cn and nv and len(lines) > nv:
-        homogeneous = kind is not None and kind.group("w") is not None
-        expected = 3 + homogeneous + 2 * bool(kind is not None and kind.group("st"))
-        if len(lines[0].split()) > expected:
-            unread.append("values after each vertex's position (colours)")
-    if nf and len(lines) > nv:
-        tokens = lines[nv].split()
-        if tokens and tokens[0].isdigit() and len(tokens) > 1 + int(tokens[0]):
-            unread.append("face colours")
-    return unread
+    return unread + (["vertex colours (C)"] if b"C" in cn else [])
 
 
-def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -> tuple[Mesh, int]:
+def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -> tuple[Mesh, int, int, bool]:
     """The vertices and faces of an OFF file after its header, one per line
-    (``lines`` without blank ones); see :func:`_parse_off`."""
+    (``lines`` without blank ones); see :func:`_parse_off`. Returns the mesh,
+    its polygon count, the most values on a vertex line and whether a face
+    line holds values after its corners (a colour)."""
     have = len(lines)
     if have < nv + nf:
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
@@ -801,12 +802,13 @@ def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
                          f"but {have} non-empty lines follow it (one per vertex, then one per face): "
                          "data after the declared faces")
-    V = _off_vertices(lines[:nv], path, homogeneous)
+    V, width = _off_vertices(lines[:nv], path, homogeneous)
     face_lines = lines[nv: nv + nf]
-    F = _off_triangles(face_lines)
-    if F is not None:
-        return Mesh(V, F), 0
+    T = uniform_rows(face_lines, integer=True)
+    if T is not None and T.shape[1] >= 4 and (T[:, 0] == 3).all():  # every line '3 a b c' (and a colour)
+        return Mesh(V, T[:, 1:4].copy()), 0, width, T.shape[1] > 4
     faces = []
+    coloured = False
     for i, line in enumerate(face_lines):
         tokens = line.split()
         try:
@@ -824,8 +826,9 @@ def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -
         if max(map(abs, face)) >= 2**62:
             raise InputError(path, f"face index out of range: OFF face {i} references vertex {max(face, key=abs)}")
         faces.append(face)
+        coloured |= len(tokens) > 1 + corners
     F, polygons = _fan_triangulate(faces) if faces else (np.zeros((0, 3), dtype=np.int64), 0)
-    return Mesh(V, F), polygons
+    return Mesh(V, F), polygons, width, coloured
 
 
 def _off_free_form(lines: list, nv: int, nf: int, per_vertex: int,
@@ -882,6 +885,7 @@ def _off_free_form(lines: list, nv: int, nf: int, per_vertex: int,
         return ints if all(abs(i) < 2**62 for i in ints) else None
 
     faces = []
+    coloured = False
     for _ in range(nf):
         count = take(1)
         if count is None or count[0] < 3:
@@ -890,34 +894,27 @@ def _off_free_form(lines: list, nv: int, nf: int, per_vertex: int,
         if face is None:
             return None
         faces.append(face)
+        coloured |= pos < len(cur)
         pos = len(cur)  # the rest of the line is the face's colour
     if nxt < len(lines):
         return None  # lines after the declared faces
-    return X[:, :3].copy(), faces
+    return X[:, :3].copy(), faces, coloured
 
 
-def _off_vertices(lines: list, path: str, homogeneous: bool = False) -> np.ndarray:
+def _off_vertices(lines: list, path: str, homogeneous: bool = False) -> tuple[np.ndarray, int]:
     """(n, 3) float64: the first three numbers of each OFF vertex line, or
-    with ``homogeneous`` (4OFF) the first four, x y z divided by w."""
+    with ``homogeneous`` (4OFF) the first four, x y z divided by w; and the
+    most values on a line."""
     words = "four" if homogeneous else "three"
-    X = _leading_numbers(lines, 4 if homogeneous else 3, path,
-                         lambda i, line: f"OFF vertex {i}: '{line}' does not start with {words} numbers")
+    X, width = _leading_numbers(lines, 4 if homogeneous else 3, path,
+                                lambda i, line: f"OFF vertex {i}: '{line}' does not start with {words} numbers")
     if not homogeneous:
-        return X
+        return X, width
     zero = np.flatnonzero(X[:, 3] == 0)
     if len(zero):
         raise InputError(path, f"4OFF vertex {int(zero[0])} has w = 0 (a point at infinity)")
     with np.errstate(over="ignore", invalid="ignore"):  # a w of 1e-320 overflows: the finite check names it
-        return X[:, :3] / X[:, 3:]
-
-
-def _off_triangles(lines: list) -> np.ndarray | None:
-    """(m, 3) int64 when every OFF face line is ``3 a b c`` (plus the same
-    number of colour values); None otherwise (the caller checks line by line)."""
-    T = uniform_rows(lines, integer=True)
-    if T is None or T.shape[1] < 4 or not (T[:, 0] == 3).all():
-        return None
-    return T[:, 1:4].copy()
+        return X[:, :3] / X[:, 3:], width
 
 
 def _binary_stl_triangles(data: bytes) -> int | None:

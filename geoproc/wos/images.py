@@ -22,14 +22,16 @@ def float32_steps(lo: float, hi: float) -> float:
     return (hi - lo) / float(np.spacing(big)) if big > 0 else 0.0
 
 
-def exr_bytes(U: np.ndarray) -> bytes:
+def exr_bytes(U: np.ndarray, solution: bool = True) -> bytes:
     """Encode a (H, W) float array as a one-channel float32 OpenEXR file (NaN kept).
 
-    Row 0 is the top of the image.
+    Row 0 is the top of the image. A ``solution`` beyond float32's range, or
+    one that float32 writes as 0 everywhere, is a UsageError; other arrays
+    (standard errors) are written as float32 rounds them.
     """
     import OpenImageIO as oiio
 
-    big = float(np.abs(U[np.isfinite(U)]).max(initial=0.0))
+    big = float(np.abs(U[np.isfinite(U)]).max(initial=0.0)) if solution else 0.0
     if big > EXR_MAX:
         raise UsageError(f"the solution reaches {big:.3g}, beyond the float32 range of EXR "
                          f"({EXR_MAX:.3g}); rescale the boundary data")

@@ -458,3 +458,9 @@ def test_stderr_image_is_the_spread_of_the_estimates_over_seeds(cli, inputs, tmp
             "-o", tmp_path / "v.exr", "--stderr-image", tmp_path / "s1.exr")
     assert p.returncode == 2 and "--stderr-image needs --walks 2 or more" in p.stderr
     assert not (tmp_path / "v.exr").exists() and not (tmp_path / "s1.exr").exists()
+    # standard errors below float32's range (a solution of 1e-43) are written, not refused as the solution
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "1e-43*x", "--walks", "8", "--grid", "8",
+            "-o", tmp_path / "w.exr", "--stderr-image", tmp_path / "s2.exr", "--quiet")
+    assert p.returncode == 0, p.stderr
+    SE = read_exr(str(tmp_path / "s2.exr"))
+    assert np.nanmax(SE) < 1e-43 and np.array_equal(np.isnan(SE), np.isnan(read_exr(str(tmp_path / "w.exr"))))

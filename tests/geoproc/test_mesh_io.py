@@ -921,16 +921,29 @@ def test_ply_fields_keep_their_stored_types(tmp_path, sphere, binary):
 
 
 def test_obj_and_off_name_what_they_do_not_carry(tmp_path):
-    obj = b"mtllib a.mtl\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\n"
+    obj = b"mtllib a.mtl\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\nl 1 2\n"
     assert read_mesh_bytes(obj, "obj", "a.obj").log.unread_properties == [
-        "texture coordinates (vt)", "vertex normals (vn)", "values after x y z on v lines (colours)",
-        "materials (usemtl, mtllib)"]
-    assert read_mesh_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "obj").log.unread_properties == []
+        "texture coordinates (vt)", "vertex normals (vn)", "colours after x y z on v lines",
+        "materials (usemtl, mtllib)", "polylines or points (l, p)"]
+    # lines ending in CR alone are lines too
+    cr = b"v 0 0 0\rv 1 0 0\rv 0 1 0\rvt 0 0\rvn 0 0 1\rf 1 2 3\r"
+    assert read_mesh_bytes(cr, "obj").log.unread_properties == ["texture coordinates (vt)", "vertex normals (vn)"]
+    # a weight w after x y z is not a colour; nothing else, nothing named
+    assert read_mesh_bytes(b"v 0 0 0 1\nv 1 0 0 1\nv 0 1 0 1\nf 1 2 3\n", "obj").log.unread_properties == []
     coff = b"COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n3 0 1 2 9 9 9\n"
     assert read_mesh_bytes(coff, "off", "c.off").log.unread_properties == ["vertex colours (C)", "face colours"]
     noff = b"NOFF\n3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n"
     assert read_mesh_bytes(noff, "off", "n.off").log.unread_properties == ["vertex normals (N)"]
+    # colours after the normals the keyword names, and a colour on one face line of several
+    noff_rgb = b"NOFF\n3 2 0\n0 0 0 0 0 1 9 9 9\n1 0 0 0 0 1 9 9 9\n0 1 0 0 0 1 9 9 9\n3 0 1 2\n3 0 2 1 7 7 7\n"
+    assert read_mesh_bytes(noff_rgb, "off", "n.off", clean=False).log.unread_properties == [
+        "vertex normals (N)", "values on vertex lines beyond those the keyword names (colours)", "face colours"]
     plain = b"OFF\n3 1 0\n0 0 0 9 9 9\n1 0 0 9 9 9\n0 1 0 9 9 9\n3 0 1 2\n"
     assert read_mesh_bytes(plain, "off", "p.off").log.unread_properties == [
-        "values after each vertex's position (colours)"]
+        "values on vertex lines beyond those the keyword names (colours)"]
     assert read_mesh_bytes(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "off").log.unread_properties == []
+    # values wrapped over lines (read as a stream): no colour there, a face colour where one ends a face line
+    free = b"OFF\n3 3 0\n0 0 0 1 0 0 0 1 0\n3 0 1 2\n3 0 2 1\n3 1 0 2\n"
+    assert read_mesh_bytes(free, "off", "f.off", clean=False).log.unread_properties == []
+    free_c = b"OFF\n3 2 0\n0 0 0 1 0 0 0 1 0\n3 0 1 2\n3 0 2 1 5 5 5\n"
+    assert read_mesh_bytes(free_c, "off", "f.off", clean=False).log.unread_properties == ["face colours"]
