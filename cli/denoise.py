@@ -392,7 +392,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     out.face_fields["feature"] = res.feature
     run.metrics.update({"vertices": len(res.V), "faces": len(mesh.F),
                         "feature_faces": int(res.feature.sum())})
-    run.metrics.update({k: v for k, v in res.info.items() if np.isscalar(v)})
+    run.metrics.update({k: v for k, v in res.info.items() if v is None or np.isscalar(v)})  # None: did not act
     if res.info.get("scale_groups", 1) > 1:
         run.note(f"{path or input}: its parts are meshed at scales more than {SCALE_RATIO:g} times apart; "
                  f"denoised in {res.info['scale_groups']} groups, each with the schedule its own noise gives "
@@ -442,6 +442,10 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
             why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so "
                    f"nothing was filtered; give {' and '.join(auto)} to filter anyway")
         run.note(f"{', '.join(unused)} not used: {why}")
+    elif not rounds and dp.outer_iterations is None:  # nothing given, nothing done: said (it had been silent)
+        auto = [opt for opt, key, value in counts if value is None and info.get(key) == 0]
+        run.note(f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}): nothing "
+                 f"was filtered and the positions are written unchanged; give {' and '.join(auto)} to filter anyway")
     if (filtered and "--method" in given and "--guidance-mix" not in given and dp.guidance_mix is None
             and info.get("guidance_mix") == 1.0 and not info.get("crease_repair")):
         run.note("--method guided: at this noise level on this mesh the guidance is blended away "
@@ -602,7 +606,7 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
         V, info = denoise_animation(anim.V, anim.F, method, dp, progress=update, coherence=coherence)
     run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]), "faces": len(anim.F),
                         "vertex_iterations": dp.vertex_iterations, "fidelity": dp.fidelity})
-    run.metrics.update({k: v for k, v in info.items() if np.isscalar(v)})
+    run.metrics.update({k: v for k, v in info.items() if v is None or np.isscalar(v)})  # None: did not act
     if ref_V is not None:
         with run.timer("metrics"):
             per = [reference_metrics(V[t], anim.V[t], anim.F, ref_V[t]) for t in range(anim.n_frames)]

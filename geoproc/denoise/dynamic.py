@@ -300,11 +300,13 @@ def frame_schedule_summary(frame_info: list[dict]) -> dict:
     """The static step's noise estimate and schedule over the frames, from each
     frame's :func:`denoise_mesh` info: the mean of ``SCHEDULE_MEANS`` (the
     roughness, the kernel widths, the guidance mix) and the largest of
-    ``SCHEDULE_LARGEST`` (rounds, passes per round); entries no frame has are
-    left out."""
+    ``SCHEDULE_LARGEST`` (rounds, passes per round), over the frames where
+    they acted (not None); None where they acted on no frame (every frame
+    clean); entries no frame has are left out."""
     out: dict = {}
     for key in SCHEDULE_MEANS + SCHEDULE_LARGEST:
+        if not any(key in i for i in frame_info):
+            continue
         values = [i[key] for i in frame_info if i.get(key) is not None]
-        if values:
-            out[key] = float(np.mean(values)) if key in SCHEDULE_MEANS else int(max(values))
+        out[key] = (float(np.mean(values)) if key in SCHEDULE_MEANS else int(max(values))) if values else None
     return out

@@ -665,16 +665,20 @@ def filter_and_fit(
         done += 1
         if progress is not None:
             progress(done / total)
+    # values that did not act are None (left out of a report): the filter's when no pass
+    # ran, the vertex fit's when no round ran (a clean mesh had reported sigma_r 0.1)
+    filtered = outer > 0 and (inner > 0 or fine)
+    fitted = outer > 0
     info = {
-        "guidance_mix": mix,
+        "guidance_mix": mix if filtered else None,
         "outer_iterations": outer,
         "normal_iterations": inner,
-        "vertex_iterations": p.vertex_iterations,
-        "fidelity": p.fidelity,
-        "sigma_r": sigma_r,
-        "sigma_s": plan.spatial_scale,  # in centroid spacings, the unit of --sigma-s
-        "sigma_s_length": sigma_s,
-        "unfold_rounds": p.unfold_rounds,
+        "vertex_iterations": p.vertex_iterations if fitted else None,
+        "fidelity": p.fidelity if fitted else None,
+        "sigma_r": sigma_r if filtered else None,
+        "sigma_s": plan.spatial_scale if filtered else None,  # in centroid spacings, the unit of --sigma-s
+        "sigma_s_length": sigma_s if filtered else None,
+        "unfold_rounds": p.unfold_rounds if fitted else None,
         "folded_faces": folded,
         "crease_repair": bool(strong) and outer > 0,  # it runs in the last round
         "crease_bisected_faces": int(changed.sum()),

@@ -102,7 +102,24 @@ def test_shape_statistics_are_reported_whenever_measured(cli, cube_pair, tmp_pat
     a, b, c = reports
     assert a["coarseness_deg"] > 0 and a["dihedral_tail_ratio"] > 1
     assert b["coarseness_deg"] == a["coarseness_deg"] and b["dihedral_tail_ratio"] == a["dihedral_tail_ratio"]
-    assert "coarseness_deg" not in c and "dihedral_tail_ratio" not in c and c["outer_iterations"] == 0
+    assert c["coarseness_deg"] is None and c["dihedral_tail_ratio"] is None and c["outer_iterations"] == 0
+
+
+def test_a_clean_mesh_is_said_to_be_written_unchanged_with_no_filter_values(cli, cube_pair, tmp_path):
+    # nothing was filtered, without a word, and the report gave sigma_r 0.1 and guidance_mix 1 that did not act
+    _, clean = cube_pair
+    rep, out = tmp_path / "r.json", tmp_path / "o.ply"
+    p = cli("denoise", clean, "-o", out, "--report", rep)
+    assert p.returncode == 0, p.stderr
+    assert "the mesh reads as clean (roughness" in p.stderr and "positions are written unchanged" in p.stderr
+    assert np.array_equal(load_mesh(out).V, load_mesh(clean).V)
+    m = _metrics(rep)
+    assert m["outer_iterations"] == 0
+    for key in ("sigma_r", "sigma_s", "sigma_s_length", "guidance_mix", "vertex_iterations", "fidelity",
+                "unfold_rounds"):
+        assert m[key] is None, key
+    p = cli("denoise", clean, "-o", out, "--report", rep, "--check", "sigma_r<=1")
+    assert p.returncode == 1 and "sigma_r<=1 (not measured in this run" in p.stderr, p.stderr
 
 
 def test_the_reported_schedule_given_back_reproduces_the_run(cli, cube_pair, tmp_path):
