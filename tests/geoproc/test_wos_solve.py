@@ -684,3 +684,17 @@ def test_the_report_places_the_grid_in_the_domains_coordinates(offset):
     x = m["grid_left"] + (cols + 0.5) * m["pixel_size"] - ox
     y = m["grid_top"] - (rows + 0.5) * m["pixel_size"] - oy
     assert np.allclose(res.exact, x + 2 * y, rtol=0, atol=1e-12)  # the declared function at each pixel's centre
+
+
+@pytest.mark.parametrize("w,h,n", [(3.0, 1.0, 16), (1.0, 3.0, 16), (1.0, 1.0, 16), (2.0, 1.0, 7), (1.0, 1e-3, 8)])
+def test_grid_covers_the_whole_bounding_box(w, h, n):
+    # rounded to the nearest count, a 3 x 1 box at n = 16 had 5 rows, covering 0.9375 of its height
+    from geoproc.wos.solve import grid_over
+
+    dom = build_domain([np.array([[0, 0], [w, 0], [w, h], [0, h]], float)])
+    g = grid_over(dom, n)
+    assert max(g.nx, g.ny) == n and g.h == pytest.approx(max(w, h) / n)
+    left, top, right, bottom = g.x0, g.y1, g.x0 + g.nx * g.h, g.y1 - g.ny * g.h
+    assert left <= 0 and right >= w and bottom <= 0 and top >= h
+    assert g.nx * g.h - w < g.h and g.ny * g.h - h < g.h  # no whole pixel beyond the box
+    assert left + right == pytest.approx(w) and top + bottom == pytest.approx(h)  # centred
