@@ -295,7 +295,8 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
             rmse = top * float(np.sqrt(np.mean((err / top) ** 2)))
         metrics.update({"rmse": rmse, "max_abs_error": top,
                         "bias": float(np.mean(err)), "error_points": int(len(err)),
-                        "declared_laplacian": declared_laplacian(boundary, X, depth, float(np.linalg.norm(hi - lo)))})
+                        "declared_laplacian": declared_laplacian(boundary, X, depth, float(np.linalg.norm(hi - lo))),
+                        "declared_mean_value_gap": declared_mean_value_gap(boundary, X, depth)})
         exact_img = ue.reshape(shape)
     if shift is not None:
         gs = GridSpec(float(gs.x0 + shift[0]), float(gs.y1 + shift[1]), gs.h, gs.nx, gs.ny)
@@ -342,8 +343,9 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) 
     there. Dimensionless: 1e-9 or less for a harmonic function far from its
     singularities, up to a few 1e-6 for a dipole centred in a hole of 0.01
     (its stencils' rounding and s⁴ terms), of order 1 for one that is not
-    (x² + y² on the unit square: 4; log r with r = 0 inside the domain: 1e-3
-    to 0.07, depending on how near a grid point comes). Points nearer the
+    (x² + y² on the unit square: 4; log r with r = 0 inside the unit disk:
+    5e-6 to 40, depending on how near a grid point comes, which
+    :func:`declared_mean_value_gap` does not depend on). Points nearer the
     boundary than 40 steps are left out (a log r beside its hole); NaN when
     none is left."""
     s = LAPLACIAN_STEP * diagonal
@@ -363,6 +365,46 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) 
         lap = (4 * stencil(s) - stencil(2 * s)) / 3
         span = float(np.ptp(u))
         return float(np.max(np.abs(lap)) * diagonal**2 / span) if span > 0 else float(np.max(np.abs(lap)) > 0)
+
+
+MEAN_VALUE_NODES = 64
+"""Points on each circle of :func:`declared_mean_value_gap` (the trapezoid rule on a
+circle of half the distance to the boundary is exact to about 2^-64 for a harmonic function)."""
+
+MEAN_VALUE_POINTS = 16384
+"""At most this many grid points (an even subsample) centre circles in :func:`declared_mean_value_gap`."""
+
+
+def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray) -> float:
+    """How far the declared solution ``expr`` is from harmonic, by the mean
+    value property: at each grid point x of X (k, 2) (an even subsample of
+    at most :data:`MEAN_VALUE_POINTS`), the mean of ``expr`` over the circle
+    of radius depth(x) / 2 (``depth``: distance to the boundary, (k,)) minus
+    its value at x; the largest gap over the range of ``expr`` at those
+    points. Dimensionless: rounding (about 1e-15 times the function's size
+    over its range) for a harmonic function, whatever lies outside the
+    domain; of order 1 for one that is not, including one harmonic but for a
+    singular point inside (log r with r = 0 in the domain, which the
+    Laplacian's stencils only see when a grid point comes near it). inf
+    where ``expr`` is not finite on a circle; NaN when no point is inside."""
+    keep = depth > 0
+    P, rho = X[keep], 0.5 * depth[keep]
+    if len(P) > MEAN_VALUE_POINTS:
+        step = len(P) // MEAN_VALUE_POINTS + 1
+        P, rho = P[::step], rho[::step]
+    if not len(P):
+        return float("nan")
+    u = evaluate(expr, P[:, 0], P[:, 1])
+    t = 2 * np.pi * np.arange(MEAN_VALUE_NODES) / MEAN_VALUE_NODES
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        cx = P[:, 0:1] + rho[:, None] * np.cos(t)
+        cy = P[:, 1:2] + rho[:, None] * np.sin(t)
+        ring = evaluate(expr, cx.ravel(), cy.ravel()).reshape(cx.shape)
+        if not np.isfinite(ring).all():
+            return float("inf")
+        gap = float(np.max(np.abs(ring.mean(axis=1) - u)))
+    span = float(np.ptp(u))
+    return gap / span if span > 0 else float(gap > 0)
 
 
 def _declared_solution(boundary, X: np.ndarray, domain: Domain) -> np.ndarray:

@@ -21,7 +21,7 @@ wf = _load_wos_fixtures()
 def inputs(tmp_path_factory):
     d = tmp_path_factory.mktemp("wos")
     files = {
-        "disk": wf.disk(128), "rect": wf.rectangle_neumann(), "glyph": wf.glyph("B", 128),
+        "disk": wf.disk(128), "annulus": wf.annulus(128), "rect": wf.rectangle_neumann(), "glyph": wf.glyph("B", 128),
         "bowtie": {"loops": [[[0, 0], [1, 1], [1, 0], [0, 1]]]},
         "open": {"loops": [[[0, 0], [1, 0]]]},
         "flat": {"loops": [[[0, 0], [1, 0], [2, 0]]]},
@@ -195,9 +195,20 @@ def test_a_declared_solution_that_is_not_harmonic_gets_a_note(cli, inputs, tmp_p
         p = cli("wos-solve", inputs / "disk.json", "--boundary", boundary, "--exact", "--grid", "24", "--walks",
                 "2", "-o", tmp_path / "u.exr", "--report", rep)
         assert p.returncode == 0, p.stderr
-        defect = json.loads(rep.read_text())["metrics"]["declared_laplacian"]
+        m = json.loads(rep.read_text())["metrics"]
+        defect, gap = m["declared_laplacian"], m["declared_mean_value_gap"]
         assert (defect < 1e-6) if harmonic else (defect > 1.0), (boundary, defect)
+        assert (gap < 1e-12) if harmonic else (gap > 0.1), (boundary, gap)  # x^2 + y^2: rho^2 / range
         assert ("--boundary is not harmonic" in p.stderr) != harmonic
+    # harmonic but for a point inside (log r with r = 0 at the disk's centre), or across a cut
+    # (atan2 in the annulus): the stencils, at grid points away from the point, read harmonic
+    for domain, boundary in (("disk.json", "log(sqrt(x*x + y*y))"), ("annulus.json", "atan2(y, x)")):
+        p = cli("wos-solve", inputs / domain, "--boundary", boundary, "--exact", "--grid", "16", "--walks", "2",
+                "-o", tmp_path / "u.exr", "--report", rep)
+        assert p.returncode == 0, p.stderr
+        m = json.loads(rep.read_text())["metrics"]
+        assert m["declared_laplacian"] < 1e-4 < 0.1 < m["declared_mean_value_gap"], (domain, m)
+        assert "its mean over circles inside the domain differs from its value at their centre" in p.stderr
 
 
 def test_output_to_standard_output_is_refused_in_words(cli, inputs, tmp_path):

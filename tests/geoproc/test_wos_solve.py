@@ -698,3 +698,22 @@ def test_grid_covers_the_whole_bounding_box(w, h, n):
     assert left <= 0 and right >= w and bottom <= 0 and top >= h
     assert g.nx * g.h - w < g.h and g.ny * g.h - h < g.h  # no whole pixel beyond the box
     assert left + right == pytest.approx(w) and top + bottom == pytest.approx(h)  # centred
+
+
+def test_declared_mean_value_gap_tells_harmonic_functions_from_others():
+    # the mean value property on circles of half the depth: analytic references, no walks
+    from geoproc.wos.solve import declared_mean_value_gap
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-0.7, 0.7, (500, 2))
+    X = X[np.hypot(X[:, 0], X[:, 1]) < 0.7]
+    depth = 1 - np.hypot(X[:, 0], X[:, 1])  # the unit disk
+    gap = {e: declared_mean_value_gap(parse_expression(e), X, depth)
+           for e in ("x**3 - 3*x*y**2", "exp(x)*cos(y)", "(x-1.5)/((x-1.5)**2 + y*y)", "x*x + y*y",
+                     "log(sqrt((x-0.05)**2 + y*y))")}
+    assert max(gap[e] for e in ("x**3 - 3*x*y**2", "exp(x)*cos(y)", "(x-1.5)/((x-1.5)**2 + y*y)")) < 1e-13, gap
+    # x^2 + y^2: the circle's mean exceeds the centre's value by rho^2, rho = depth / 2
+    expected = np.max((depth / 2) ** 2) / np.ptp(X[:, 0] ** 2 + X[:, 1] ** 2)
+    assert gap["x*x + y*y"] == pytest.approx(expected, rel=1e-9)
+    assert gap["log(sqrt((x-0.05)**2 + y*y))"] > 0.1  # a singular point inside the disk
+    assert np.isnan(declared_mean_value_gap(parse_expression("x"), X[:0], depth[:0]))
