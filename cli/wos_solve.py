@@ -96,7 +96,8 @@ def wos_solve(
     walks: Annotated[int, typer.Option("--walks", help="Walks per grid point (1 to 10^7).", min=1,
                                        max=10**7)] = 128,
     grid: Annotated[int, typer.Option("--grid", help="Pixels along the bounding box's longer "
-                                      "side (1 to 8192); the shorter side gets as many as cover it.", min=1, max=8192)] = 256,
+                                      "side (1 to 8192); the shorter side gets as many as cover it.",
+                                      min=1, max=8192)] = 256,
     epsilon: Annotated[float, typer.Option("--epsilon", help="Stopping distance to the Dirichlet "
                                            "boundary, > 0, in domain length units (the default suits a domain "
                                            "about 1 across; a note says when it is over 1 % of the "
