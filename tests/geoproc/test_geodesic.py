@@ -1346,9 +1346,9 @@ def test_doubled_cover_operators_fold_onto_the_mesh(make_fixtures):
 def test_doubled_cover_holds_an_edge_between_two_boundary_vertices_twice():
     # a grid sheared by x += 2 y: its corner triangles join two boundary vertices by an
     # interior edge, which the cover holds twice (as a mesh it would be non-manifold, and the
-    # intrinsic operators fell back to the extrinsic ones: heat's mean error 14.99 % of the
+    # intrinsic operators fell back to the extrinsic ones: heat's mean error 15.00 % of the
     # largest distance; with the mesh's own flips and its negative weights kept, 0.29 %; now
-    # 0.22 %, potpourri3d 0.38 %)
+    # 0.19 %, potpourri3d 0.38 %)
     n = 41
     ys, xs = np.divmod(np.arange(n * n), n)
     V = np.c_[xs + 2.0 * ys, ys, np.zeros(n * n)] / (n - 1)
