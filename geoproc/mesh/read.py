@@ -294,6 +294,7 @@ def _parse_ply(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
         flat, counts = _index_lists(sdata, "vertex_indices", path, "tristrips")
         _require_integer_indices(flat, counts, path, "tristrips row")
         F = np.concatenate([F, _strip_triangles(flat, counts)])
+        unread += [f"tristrips {n}" for n in sdata.dtype.names if n != "vertex_indices"]
         unread += [f"face {n}" for n in ffields]
         ffields = {}  # per-face properties belong to the face element alone
     unread += [f"element {name}" for name, rows in elements.items()
@@ -448,6 +449,9 @@ def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
         raise InputError(path, f"PLY list property '{counted.group(2).decode('ascii', 'replace')}' has a count "
                                f"of type {counted.group(1).decode()}: a list's count is its length, of an "
                                "integer type (uchar, ushort, uint, int)")
+    if re.search(rb"^format\s+ascii\b", head, re.M) and b"_" in data[len(head) + len(b"end_header"):]:
+        # Python's number parsing, which plyfile's is, reads 1_0 as 10; OBJ and OFF refuse it too
+        raise InputError(path, "unparseable PLY: '_' inside a number")
     stream = _NonNegativeReads(data)
     try:
         with warnings.catch_warnings():  # plyfile warns (multi-line) about empty list rows
@@ -561,6 +565,8 @@ def _parse_obj(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     Returns the mesh, the number of faces with more than three corners and
     what is not read (:func:`_obj_unread`).
     """
+    if b"\r" in data:  # lines ending in CR LF or in CR alone: as LF, for the line-anchored patterns below
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     if b"#" in data:
         data = re.sub(rb"#[^\r\n]*", b"", data)  # comments, also at the end of a v or f line
     if b"\\" in data:
@@ -623,47 +629,48 @@ _OBJ_UNREAD = (
 
 
 def _obj_unread(data: bytes, width: int) -> list[str]:
-    """What an OBJ (comments removed) stores that is not read: texture
+    """What an OBJ (comments removed, lines ending in LF) stores that is not read: texture
     coordinates, normals, materials, polylines and points, and colours
     after a vertex's position (``width``, the most numbers on a ``v`` line,
     is 6 or more; a fourth number alone is the weight w)
     (see :attr:`geoproc.mesh.mesh.LoadLog.unread_properties`)."""
-    text = data.replace(b"\r", b"\n") if b"\r" in data else data  # lines may end in CR alone
-    unread = [what for pattern, what in _OBJ_UNREAD[:2] if re.search(pattern, text, flags=re.M)]
+    unread = [what for pattern, what in _OBJ_UNREAD[:2] if re.search(pattern, data, flags=re.M)]
     unread += ["colours after x y z on v lines"] if width >= 6 else []
-    return unread + [what for pattern, what in _OBJ_UNREAD[2:] if re.search(pattern, text, flags=re.M)]
+    return unread + [what for pattern, what in _OBJ_UNREAD[2:] if re.search(pattern, data, flags=re.M)]
 
 
 def _obj_vertices(lines: list, path: str) -> tuple[np.ndarray, int]:
     """(n, 3) float64: the first three numbers of each OBJ ``v`` line (after
     the ``v``), and the most numbers on a line."""
-    return _leading_numbers(lines, 3, path,  # numbered from 1, as OBJ faces count them
-                            lambda i, line: f"OBJ vertex {i + 1} (1-based): 'v {line}' does not hold three numbers")
+    X, _, width = _leading_numbers(lines, 3, path,  # numbered from 1, as OBJ faces count them
+                                   lambda i, line: f"OBJ vertex {i + 1} (1-based): 'v {line}' does not hold "
+                                                   "three numbers")
+    return X, width
 
 
-def _leading_numbers(lines: list, k: int, path: str, problem) -> tuple[np.ndarray, int]:
+def _leading_numbers(lines: list, k: int, path: str, problem) -> tuple[np.ndarray, int, int]:
     """(n, k) float64: the first k numbers of each line (bytes), extra values
-    ignored, and the most values on a line (0 for no line); one vectorized
-    parse when every line has the same count.
+    ignored, and the fewest and the most values on a line (0 for no line);
+    one vectorized parse when every line has the same count.
 
     ``problem(i, text)`` words the InputError for line i that does not start
     with k numbers.
     """
     rows = uniform_rows(lines, integer=False)
     if rows is not None and rows.shape[1] >= k:  # the common case
-        return rows[:, :k].copy(), rows.shape[1]
+        return rows[:, :k].copy(), rows.shape[1], rows.shape[1]
     X = np.empty((len(lines), k), dtype=np.float64)
-    width = 0
+    narrow, width = (1 << 62 if lines else 0), 0
     for i, line in enumerate(lines):
         try:
             tokens = line.split()
-            width = max(width, len(tokens))
+            narrow, width = min(narrow, len(tokens)), max(width, len(tokens))
             if len(tokens) < k:
                 raise ValueError
             X[i] = [float(t) for t in tokens[:k]]
         except ValueError:
             raise InputError(path, problem(i, line.decode("latin-1").strip())) from None
-    return X, width
+    return X, narrow, width
 
 
 def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
@@ -689,6 +696,9 @@ def _parse_with_trimesh(data: bytes, fmt: str, path: str) -> tuple[Mesh, int]:
         log.setLevel(level)
     V = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     F = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
+    uneven = _ascii_stl_uneven_facet(data) if fmt == "stl" else None
+    if uneven is not None:  # trimesh reads the corners in threes whatever the facets hold
+        raise InputError(path, f"unparseable STL: ASCII facet {uneven[0]} lists {uneven[1]} vertices; each facet has 3")
     if V.size == 0 and fmt == "stl" and _stl_without_facets(data):
         raise InputError(path, "mesh has no vertices (an STL of no facets)")
     if V.size == 0 and len(data.strip()) > 0:
@@ -764,7 +774,7 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
     if kind is not None:
         per_vertex += 3 * (b"N" in cn) + 2 * (kind.group("st") is not None)
     try:
-        mesh, polygons, width, face_colours = _off_by_lines(lines[start:], nv, nf, path, homogeneous)
+        mesh, polygons, width, face_colours = _off_by_lines(lines[start:], nv, nf, path, homogeneous, per_vertex)
         if width > per_vertex + 4 * (b"C" in cn):  # a colour is 3 or 4 values
             unread.append("values on vertex lines beyond those the keyword names (colours)")
         return mesh, polygons, unread + ["face colours"] * face_colours
@@ -789,7 +799,8 @@ def _off_keyword_unread(kind: re.Match | None) -> list[str]:
     return unread + (["vertex colours (C)"] if b"C" in cn else [])
 
 
-def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -> tuple[Mesh, int, int, bool]:
+def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool,
+                  per_vertex: int = 3) -> tuple[Mesh, int, int, bool]:
     """The vertices and faces of an OFF file after its header, one per line
     (``lines`` without blank ones); see :func:`_parse_off`. Returns the mesh,
     its polygon count, the most values on a vertex line and whether a face
@@ -802,7 +813,7 @@ def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool) -
         raise InputError(path, f"OFF header declares {nv} vertices and {nf} face{'s' * (nf != 1)}, "
                          f"but {have} non-empty lines follow it (one per vertex, then one per face): "
                          "data after the declared faces")
-    V, width = _off_vertices(lines[:nv], path, homogeneous)
+    V, width = _off_vertices(lines[:nv], path, homogeneous, per_vertex)
     face_lines = lines[nv: nv + nf]
     T = uniform_rows(face_lines, integer=True)
     if T is not None and T.shape[1] >= 4 and (T[:, 0] == 3).all():  # every line '3 a b c' (and a colour)
@@ -901,13 +912,19 @@ def _off_free_form(lines: list, nv: int, nf: int, per_vertex: int,
     return X[:, :3].copy(), faces, coloured
 
 
-def _off_vertices(lines: list, path: str, homogeneous: bool = False) -> tuple[np.ndarray, int]:
+def _off_vertices(lines: list, path: str, homogeneous: bool = False,
+                  per_vertex: int = 3) -> tuple[np.ndarray, int]:
     """(n, 3) float64: the first three numbers of each OFF vertex line, or
     with ``homogeneous`` (4OFF) the first four, x y z divided by w; and the
-    most values on a line."""
+    most values on a line. InputError for a line of fewer than ``per_vertex``
+    values (what the keyword names: the caller then reads the values as a
+    stream wrapped over lines)."""
     words = "four" if homogeneous else "three"
-    X, width = _leading_numbers(lines, 4 if homogeneous else 3, path,
-                                lambda i, line: f"OFF vertex {i}: '{line}' does not start with {words} numbers")
+    X, narrow, width = _leading_numbers(lines, 4 if homogeneous else 3, path,
+                                        lambda i, line: f"OFF vertex {i}: '{line}' does not start with {words} numbers")
+    if narrow < per_vertex:
+        raise InputError(path, f"an OFF vertex line holds {narrow} values, fewer than the {per_vertex} "
+                               "its keyword names")
     if not homogeneous:
         return X, width
     zero = np.flatnonzero(X[:, 3] == 0)
@@ -949,6 +966,23 @@ def _stl_problem(data: bytes) -> str | None:
         return (f"a binary STL that declares {count} facet{'s' * (count != 1)} takes {need} bytes, "
                 f"but the file has {len(data)}")
     return None
+
+
+def _ascii_stl_uneven_facet(data: bytes) -> tuple[int, int] | None:
+    """For an ASCII STL (``solid`` first, no NUL byte), the first facet that
+    does not list three vertices and how many it lists; None when every one
+    does, or the file is binary."""
+    text = data.lstrip()
+    if text[:5].lower() != b"solid" or b"\0" in data[:4096]:
+        return None
+    words = np.array(re.findall(rb"^\s*(facet|vertex)\b", text.lower(), re.M))
+    if not len(words):
+        return None
+    facet = np.cumsum(words == b"facet") - 1
+    corner = (words == b"vertex") & (facet >= 0)
+    counts = np.bincount(facet[corner], minlength=int(facet[-1]) + 1)
+    bad = np.flatnonzero(counts != 3)
+    return (int(bad[0]), int(counts[bad[0]])) if len(bad) else None
 
 
 def _stl_without_facets(data: bytes) -> bool:

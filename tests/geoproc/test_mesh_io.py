@@ -947,3 +947,37 @@ def test_obj_and_off_name_what_they_do_not_carry(tmp_path):
     assert read_mesh_bytes(free, "off", "f.off", clean=False).log.unread_properties == []
     free_c = b"OFF\n3 2 0\n0 0 0 1 0 0 0 1 0\n3 0 1 2\n3 0 2 1 5 5 5\n"
     assert read_mesh_bytes(free_c, "off", "f.off", clean=False).log.unread_properties == ["face colours"]
+
+
+def test_reader_cases_found_by_fuzzing():
+    def read(data, fmt):
+        return read_mesh_bytes(data, fmt, f"f.{fmt}", clean=False)
+
+    # an ASCII PLY element of no properties: an internal error (exit 3), now the missing x
+    with pytest.raises(InputError, match="PLY vertex element has no 'x' property"):
+        read(b"ply\nformat ascii 1.0\nelement vertex 1\nend_header\n\n", "ply")
+    # lines ending in CR alone: '1_0' had been read as 10, and a continued face line refused
+    with pytest.raises(InputError, match="'_' inside a number"):
+        read(b"v 0 0 0\rv 1_0 0 0\rv 0 1 0\rf 1 2 3\r", "obj")
+    assert read(b"v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 \\\r3\r", "obj").F.tolist() == [[0, 1, 2]]
+    # so too an ASCII PLY read by plyfile (a list property besides the faces' sends it there)
+    ply = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+           b"element face 1\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\n"
+           b"end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2 2 0 0\n")
+    assert read(ply, "ply").F.tolist() == [[0, 1, 2]]
+    with pytest.raises(InputError, match="'_' inside a number"):
+        read(ply.replace(b"\n1 0 0\n", b"\n1_0 0 0\n"), "ply")
+    # an ASCII STL facet of four corners had shifted the next facet's corners
+    stl = (b"solid a\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   vertex 0 1 0\n"
+           b"   vertex 5 5 5\n  endloop\n endfacet\n facet normal 0 0 1\n  outer loop\n   vertex 1 1 0\n"
+           b"   vertex 1 0 0\n  endloop\n endfacet\nendsolid a\n")
+    with pytest.raises(InputError, match="ASCII facet 0 lists 4 vertices; each facet has 3"):
+        read(stl, "stl")
+    # NOFF lines shorter than the keyword's six values: read as the stream they are
+    m = read(b"NOFF\n3 1 0\n0 0 0 0 0 1 2 0 0\n0 0 1 0 2 0\n0 0 1\n3 0 1 2\n", "off")
+    assert m.V.tolist() == [[0, 0, 0], [2, 0, 0], [0, 2, 0]] and m.log.unread_properties == ["vertex normals (N)"]
+    # a tristrips element's own other properties are named as not read
+    strips = (b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+              b"element tristrips 1\nproperty list int int vertex_indices\nproperty uchar q\nend_header\n"
+              b"0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3 7\n")
+    assert read(strips, "ply").log.unread_properties == ["tristrips q"]
