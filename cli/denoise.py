@@ -394,9 +394,11 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
                         "feature_faces": int(res.feature.sum())})
     run.metrics.update({k: v for k, v in res.info.items() if v is None or np.isscalar(v)})  # None: did not act
     if res.info.get("scale_groups", 1) > 1:
+        which = ("the largest group that was filtered" if res.info.get("outer_iterations")
+                 else "the largest group; none was filtered, each reads as clean")
         run.note(f"{path or input}: its parts are meshed at scales more than {SCALE_RATIO:g} times apart; "
                  f"denoised in {res.info['scale_groups']} groups, each with the schedule its own noise gives "
-                 "(the schedule's metrics are those of the largest group that was filtered)")
+                 f"(the schedule's metrics are those of {which})")
     _note_unused_filter_options(run, res.info, dp, given)
     if ref_V is not None:
         with run.timer("metrics"):
@@ -442,6 +444,11 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
             why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so "
                    f"nothing was filtered; give {' and '.join(auto)} to filter anyway")
         run.note(f"{', '.join(unused)} not used: {why}")
+    elif rounds and not filtered and dp.outer_iterations and dp.normal_iterations is None:
+        # --rounds given, the passes left to the schedule, which gives none on a clean mesh
+        run.note(f"no filter pass ran: the mesh reads as clean (roughness "
+                 f"{info.get('noise_roughness', float('nan')):.3g}), so --normal-iterations defaults to 0 and "
+                 f"the {rounds} rounds only fitted the vertices; give --normal-iterations to filter")
     elif not rounds and dp.outer_iterations is None:  # nothing given, nothing done: said (it had been silent)
         auto = [opt for opt, key, value in counts if value is None and info.get(key) == 0]
         run.note(f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}): nothing "
@@ -607,6 +614,8 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]), "faces": len(anim.F),
                         "vertex_iterations": dp.vertex_iterations, "fidelity": dp.fidelity})
     run.metrics.update({k: v for k, v in info.items() if v is None or np.isscalar(v)})  # None: did not act
+    if not info.get("outer_iterations"):  # no frame's static step ran a round: its fit did not act
+        run.metrics.update({"vertex_iterations": None, "fidelity": None})
     if ref_V is not None:
         with run.timer("metrics"):
             per = [reference_metrics(V[t], anim.V[t], anim.F, ref_V[t]) for t in range(anim.n_frames)]

@@ -177,7 +177,7 @@ def _ascii_element(body: bytes, lines: tuple[np.ndarray, np.ndarray], start: int
     counted from the byte classes, and the numbers are read at once."""
     line_start, line_end = lines
     stop = start + e.count
-    if stop > len(line_start) or not e.scalars:  # (an element of no properties: plyfile's to read)
+    if stop > len(line_start) or (e.count and not e.scalars):  # (rows of no properties: plyfile's to read)
         return None
     k = 0
     if e.list_types is not None and e.count:

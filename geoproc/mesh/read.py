@@ -443,13 +443,14 @@ def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
 
     # a list's count is its length: plyfile read an ASCII count of 3.99 under a float
     # count type as 3 (the vectorized reader leaves such headers to this one)
-    head = data[:data.find(b"end_header")] if b"end_header" in data else b""
+    end = re.search(rb"^end_header[ \t]*(\r\n|\n|\r)", data, re.M)  # its own line (not a comment's words)
+    head = data[:end.start()] if end else b""
     counted = re.search(rb"^property\s+list\s+(float|double|float32|float64)\s+\S+\s+(\S+)", head, re.M)
     if counted:
         raise InputError(path, f"PLY list property '{counted.group(2).decode('ascii', 'replace')}' has a count "
                                f"of type {counted.group(1).decode()}: a list's count is its length, of an "
                                "integer type (uchar, ushort, uint, int)")
-    if re.search(rb"^format\s+ascii\b", head, re.M) and b"_" in data[len(head) + len(b"end_header"):]:
+    if end and re.search(rb"^format\s+ascii\b", head, re.M) and b"_" in data[end.end():]:
         # Python's number parsing, which plyfile's is, reads 1_0 as 10; OBJ and OFF refuse it too
         raise InputError(path, "unparseable PLY: '_' inside a number")
     stream = _NonNegativeReads(data)
@@ -922,7 +923,7 @@ def _off_vertices(lines: list, path: str, homogeneous: bool = False,
     words = "four" if homogeneous else "three"
     X, narrow, width = _leading_numbers(lines, 4 if homogeneous else 3, path,
                                         lambda i, line: f"OFF vertex {i}: '{line}' does not start with {words} numbers")
-    if narrow < per_vertex:
+    if lines and narrow < per_vertex:
         raise InputError(path, f"an OFF vertex line holds {narrow} values, fewer than the {per_vertex} "
                                "its keyword names")
     if not homogeneous:
@@ -975,7 +976,10 @@ def _ascii_stl_uneven_facet(data: bytes) -> tuple[int, int] | None:
     text = data.lstrip()
     if text[:5].lower() != b"solid" or b"\0" in data[:4096]:
         return None
-    words = np.array(re.findall(rb"^\s*(facet|vertex)\b", text.lower(), re.M))
+    # the words as trimesh reads them (separated by white space, anywhere on a line: 'outer loop
+    # vertex 0 0 0' is a corner), leaving out the solids' names
+    body = re.sub(rb"^[ \t]*(end)?solid\b[^\r\n]*", b"", text.lower(), flags=re.M)
+    words = np.array(re.findall(rb"\s(facet|vertex)(?=\s)", body))
     if not len(words):
         return None
     facet = np.cumsum(words == b"facet") - 1

@@ -330,6 +330,18 @@ def far_from_origin_shift(domain: Domain) -> np.ndarray | None:
     return centre if float(np.abs(centre).max()) > FAR_FROM_ORIGIN * diagonal else None
 
 
+ROUNDING_MARGIN = 32.0
+""":func:`declared_laplacian` and :func:`declared_mean_value_gap` leave out this many
+machine epsilons of the function's size (over the stencil's step squared for the
+Laplacian): what rounding the function's values alone can give."""
+
+_EPS = float(np.finfo(np.float64).eps)
+
+UNRESOLVED = 1e-5
+"""Where rounding alone can give more than this (relative, as the checks' values), a
+declared-function check cannot tell harmonic from not at the level that matters (a
+note at 1e-4) and is NaN: x*x - y*y 1e8 away from the origin for the Laplacian's stencils."""
+
 LAPLACIAN_STEP = 1e-3
 """Step of :func:`declared_laplacian`'s five-point stencil, in bounding-box diagonals."""
 
@@ -339,8 +351,10 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) 
     X (k, 2) whose distance to the boundary is ``depth`` (k,): the largest
     Laplacian, from five-point stencils of steps s and 2s (s =
     :data:`LAPLACIAN_STEP` diagonals) combined to cancel their s² truncation
-    (Richardson), times the diagonal squared, over the range of ``expr``
-    there. Dimensionless: 1e-9 or less for a harmonic function far from its
+    (Richardson), less what rounding of the values can give
+    (:data:`ROUNDING_MARGIN` epsilons of their size over the step squared),
+    times the diagonal squared, over the range of ``expr`` there (NaN where
+    rounding can give more than :data:`UNRESOLVED`). Dimensionless: 1e-9 or less for a harmonic function far from its
     singularities, up to a few 1e-6 for a dipole centred in a hole of 0.01
     (its stencils' rounding and s⁴ terms), of order 1 for one that is not
     (x² + y² on the unit square: 4; log r with r = 0 inside the unit disk:
@@ -362,9 +376,17 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) 
                 + evaluate(expr, x, y - t) - 4 * u) / (t * t)
 
     with np.errstate(over="ignore", invalid="ignore"):
-        lap = (4 * stencil(s) - stencil(2 * s)) / 3
+        lap = np.abs((4 * stencil(s) - stencil(2 * s)) / 3)
+        # what rounding the values alone gives (about 11 eps |f| / s^2), with a margin: far from
+        # the origin x*x - y*y had read 67 at 1e12 and got the note that it is not harmonic
+        floor = ROUNDING_MARGIN * _EPS * np.abs(u) / (s * s)
+        lap = np.maximum(lap - floor, 0.0)
         span = float(np.ptp(u))
-        return float(np.max(np.abs(lap)) * diagonal**2 / span) if span > 0 else float(np.max(np.abs(lap)) > 0)
+        if not span > 0:
+            return float(np.max(lap) > 0)
+        if float(np.max(floor)) * diagonal**2 / span > UNRESOLVED:  # rounding hides what matters
+            return float("nan")
+        return float(np.max(lap) * diagonal**2 / span)
 
 
 MEAN_VALUE_NODES = 64
@@ -380,10 +402,11 @@ def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray) -> float:
     value property: at each grid point x of X (k, 2) (an even subsample of
     at most :data:`MEAN_VALUE_POINTS`), the mean of ``expr`` over the circle
     of radius depth(x) / 2 (``depth``: distance to the boundary, (k,)) minus
-    its value at x; the largest gap over the range of ``expr`` at those
-    points. Dimensionless: rounding (about 1e-15 times the function's size
-    over its range) for a harmonic function, whatever lies outside the
-    domain; of order 1 for one that is not, including one harmonic but for a
+    its value at x, less what rounding of the values can give
+    (:data:`ROUNDING_MARGIN` epsilons of their size); the largest gap over
+    the range of ``expr`` at those points (NaN where rounding can give more
+    than :data:`UNRESOLVED`). Dimensionless: 0 for a harmonic function,
+    whatever lies outside the domain; of order 1 for one that is not, including one harmonic but for a
     singular point inside (log r with r = 0 in the domain, which the
     Laplacian's stencils only see when a grid point comes near it). inf
     where ``expr`` is not finite on a circle; NaN when no point is inside."""
@@ -402,9 +425,12 @@ def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray) -> float:
         ring = evaluate(expr, cx.ravel(), cy.ravel()).reshape(cx.shape)
         if not np.isfinite(ring).all():
             return float("inf")
-        gap = float(np.max(np.abs(ring.mean(axis=1) - u)))
+        floor = ROUNDING_MARGIN * _EPS * np.maximum(np.abs(u), np.abs(ring).max(axis=1))
+        gap = float(np.max(np.maximum(np.abs(ring.mean(axis=1) - u) - floor, 0.0)))
     span = float(np.ptp(u))
-    return gap / span if span > 0 else float(gap > 0)
+    if not span > 0:
+        return float(gap > 0)
+    return gap / span if float(np.max(floor)) / span <= UNRESOLVED else float("nan")
 
 
 def _declared_solution(boundary, X: np.ndarray, domain: Domain) -> np.ndarray:

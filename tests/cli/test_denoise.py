@@ -120,6 +120,22 @@ def test_a_clean_mesh_is_said_to_be_written_unchanged_with_no_filter_values(cli,
         assert m[key] is None, key
     p = cli("denoise", clean, "-o", out, "--report", rep, "--check", "sigma_r<=1")
     assert p.returncode == 1 and "sigma_r<=1 (not measured in this run" in p.stderr, p.stderr
+    # --rounds alone: the passes default to none on a clean mesh, which had not been said
+    p = cli("denoise", clean, "-o", out, "--rounds", "2")
+    assert p.returncode == 0 and "no filter pass ran: the mesh reads as clean" in p.stderr, p.stderr
+    # two clean parts at scales 1000 apart: the groups' note says none was filtered
+    cube = load_mesh(clean)
+    both = Mesh(np.vstack([cube.V, cube.V / 1000 + 5]), np.vstack([cube.F, cube.F + len(cube.V)]))
+    save_mesh(tmp_path / "two.ply", both)
+    p = cli("denoise", tmp_path / "two.ply", "-o", out)
+    assert p.returncode == 0 and "none was filtered, each reads as clean" in p.stderr, p.stderr
+    # a clean animation: no frame's static step fitted, so its fit's values are null too
+    frames = np.stack([cube.V + [t, 0, 0] for t in range(3)])
+    np.savez(tmp_path / "a.npz", vertices=frames, faces=cube.F)
+    p = cli("denoise", tmp_path / "a.npz", "--dynamic", "-o", tmp_path / "b.npz", "--report", rep)
+    assert p.returncode == 0, p.stderr
+    m = _metrics(rep)
+    assert m["outer_iterations"] == 0 and m["vertex_iterations"] is None and m["fidelity"] is None
 
 
 def test_the_reported_schedule_given_back_reproduces_the_run(cli, cube_pair, tmp_path):

@@ -209,6 +209,18 @@ def test_a_declared_solution_that_is_not_harmonic_gets_a_note(cli, inputs, tmp_p
         m = json.loads(rep.read_text())["metrics"]
         assert m["declared_laplacian"] < 1e-4 < 0.1 < m["declared_mean_value_gap"], (domain, m)
         assert "its mean over circles inside the domain differs from its value at their centre" in p.stderr
+    # far from the origin rounding of the values had read as a Laplacian of 67 (x*x - y*y, 1e12 away),
+    # and the note called it not harmonic; now what rounding hides is null, and said
+    loops = json.loads((inputs / "disk.json").read_text())["loops"]
+    for offset, lap_null, gap_null in ((1e8, True, False), (1e12, True, True)):
+        far = tmp_path / "far.json"
+        far.write_text(json.dumps({"loops": [[[x + offset, y] for x, y in loop] for loop in loops]}))
+        p = cli("wos-solve", far, "--boundary", "x*x - y*y", "--exact", "--grid", "16", "--walks", "2",
+                "-o", tmp_path / "u.exr", "--report", rep)
+        assert p.returncode == 0 and "not harmonic" not in p.stderr, p.stderr
+        m = json.loads(rep.read_text())["metrics"]
+        assert (m["declared_laplacian"] is None) == lap_null and (m["declared_mean_value_gap"] is None) == gap_null
+        assert ("cannot check that --boundary is harmonic" in p.stderr) == gap_null
 
 
 def test_output_to_standard_output_is_refused_in_words(cli, inputs, tmp_path):

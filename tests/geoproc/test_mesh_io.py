@@ -981,3 +981,14 @@ def test_reader_cases_found_by_fuzzing():
               b"element tristrips 1\nproperty list int int vertex_indices\nproperty uchar q\nend_header\n"
               b"0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3 7\n")
     assert read(strips, "ply").log.unread_properties == ["tristrips q"]
+    # ... and what those fixes first got wrong: a corner on the 'outer loop' line is a corner; an
+    # 'end_header' among a comment's words is not the header's end; an OFF of no vertices says so
+    loopline = stl.replace(b"   vertex 5 5 5\n", b"")
+    loopline = loopline.replace(b"  outer loop\n   vertex 1 1 0", b"  outer loop vertex 1 1 0")
+    assert read(loopline.replace(b"   vertex 1 0 0\n  endloop\n endfacet\nendsolid",
+                                 b"   vertex 1 0 0\n   vertex 0 0 1\n  endloop\n endfacet\nendsolid"),
+                "stl").F.shape == (2, 3)
+    commented = ply.replace(b"format ascii 1.0\n", b"format ascii 1.0\ncomment all up to end_header is text\n")
+    assert read(commented, "ply").F.tolist() == [[0, 1, 2]]
+    with pytest.raises(InputError, match="mesh has no vertices"):
+        read(b"COFF\n0 0 0\n", "off")
