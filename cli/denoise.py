@@ -394,8 +394,11 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
                         "feature_faces": int(res.feature.sum())})
     run.metrics.update({k: v for k, v in res.info.items() if v is None or np.isscalar(v)})  # None: did not act
     if res.info.get("scale_groups", 1) > 1:
-        which = ("the largest group that was filtered" if res.info.get("outer_iterations")
-                 else "the largest group; none was filtered, each reads as clean")
+        ran = res.info.get("outer_iterations") and res.info.get("normal_iterations")
+        which = ("the largest group that was filtered" if ran else
+                 "the largest group; none was filtered, each reads as clean"
+                 if dp.outer_iterations is None and dp.normal_iterations is None else
+                 "the largest group; no filter pass ran")
         run.note(f"{path or input}: its parts are meshed at scales more than {SCALE_RATIO:g} times apart; "
                  f"denoised in {res.info['scale_groups']} groups, each with the schedule its own noise gives "
                  f"(the schedule's metrics are those of {which})")
@@ -440,17 +443,17 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
         if zero:
             why = f"no filter pass ran ({' and '.join(opt + ' 0' for opt in zero)})"
         else:
-            auto = [opt for opt, key, value in counts if value is None and info.get(key) == 0]
+            auto = [opt for opt, _, value in counts if value is None]  # (a clean mesh: none of either)
             why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so "
                    f"nothing was filtered; give {' and '.join(auto)} to filter anyway")
         run.note(f"{', '.join(unused)} not used: {why}")
     elif rounds and not filtered and dp.outer_iterations and dp.normal_iterations is None:
         # --rounds given, the passes left to the schedule, which gives none on a clean mesh
         run.note(f"no filter pass ran: the mesh reads as clean (roughness "
-                 f"{info.get('noise_roughness', float('nan')):.3g}), so --normal-iterations defaults to 0 and "
-                 f"the {rounds} rounds only fitted the vertices; give --normal-iterations to filter")
+                 f"{info.get('noise_roughness', float('nan')):.3g}), so --normal-iterations defaults to 0 in "
+                 f"each of the {rounds} rounds; give --normal-iterations to filter")
     elif not rounds and dp.outer_iterations is None:  # nothing given, nothing done: said (it had been silent)
-        auto = [opt for opt, key, value in counts if value is None and info.get(key) == 0]
+        auto = [opt for opt, _, value in counts if value is None]
         run.note(f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}): nothing "
                  f"was filtered and the positions are written unchanged; give {' and '.join(auto)} to filter anyway")
     if (filtered and "--method" in given and "--guidance-mix" not in given and dp.guidance_mix is None
@@ -616,6 +619,9 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     run.metrics.update({k: v for k, v in info.items() if v is None or np.isscalar(v)})  # None: did not act
     if not info.get("outer_iterations"):  # no frame's static step ran a round: its fit did not act
         run.metrics.update({"vertex_iterations": None, "fidelity": None})
+        if dp.outer_iterations is None:
+            run.note("every frame reads as clean: the static step filtered none (give --rounds and "
+                     "--normal-iterations to filter anyway); the temporal coherence step still ran")
     if ref_V is not None:
         with run.timer("metrics"):
             per = [reference_metrics(V[t], anim.V[t], anim.F, ref_V[t]) for t in range(anim.n_frames)]

@@ -244,8 +244,8 @@ def wos_solve(
         elif exact and not any(v is not None and v == v for v in (lap, gap)):  # both NaN: rounding hides it
             run.note("--exact: cannot check that --boundary is harmonic: its values are so large for their range "
                      "over the domain that rounding them hides what the checks look for (declared_laplacian and "
-                     "declared_mean_value_gap are null); moving the domain nearer the origin, with --boundary "
-                     "written for it, lets them check")
+                     "declared_mean_value_gap are null); subtracting a constant from --boundary, or moving the domain "
+                     "nearer the origin with --boundary written for it, lets them check")
         gs = res.grid
         extent = (gs.x0, gs.x0 + gs.nx * gs.h, gs.y1 - gs.ny * gs.h, gs.y1)
         with run.timer("write"):

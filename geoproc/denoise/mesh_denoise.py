@@ -672,7 +672,7 @@ def filter_and_fit(
     info = {
         "guidance_mix": mix if filtered else None,
         "outer_iterations": outer,
-        "normal_iterations": inner,
+        "normal_iterations": inner if outer > 0 else None,
         "vertex_iterations": p.vertex_iterations if fitted else None,
         "fidelity": p.fidelity if fitted else None,
         "sigma_r": sigma_r if filtered else None,

@@ -443,8 +443,9 @@ def _plyfile_elements(data: bytes, path: str) -> dict[str, np.ndarray]:
 
     # a list's count is its length: plyfile read an ASCII count of 3.99 under a float
     # count type as 3 (the vectorized reader leaves such headers to this one)
-    end = re.search(rb"^end_header[ \t]*(\r\n|\n|\r)", data, re.M)  # its own line (not a comment's words)
-    head = data[:end.start()] if end else b""
+    # its own line (not a comment's words), after LF, CR LF or CR alone
+    end = re.search(rb"(?:^|(?<=\r))end_header[ \t]*(\r\n|\n|\r)", data, re.M)
+    head = data[:end.start()].replace(b"\r\n", b"\n").replace(b"\r", b"\n") if end else b""
     counted = re.search(rb"^property\s+list\s+(float|double|float32|float64)\s+\S+\s+(\S+)", head, re.M)
     if counted:
         raise InputError(path, f"PLY list property '{counted.group(2).decode('ascii', 'replace')}' has a count "
@@ -978,7 +979,9 @@ def _ascii_stl_uneven_facet(data: bytes) -> tuple[int, int] | None:
         return None
     # the words as trimesh reads them (separated by white space, anywhere on a line: 'outer loop
     # vertex 0 0 0' is a corner), leaving out the solids' names
-    body = re.sub(rb"^[ \t]*(end)?solid\b[^\r\n]*", b"", text.lower(), flags=re.M)
+    low = text.lower()
+    first = re.search(rb"[\r\n]", low)  # the header line, whatever it names (trimesh skips it)
+    body = re.sub(rb"endsolid[^\r\n]*|^[ \t]*solid[^\r\n]*", b"", low[first.end():] if first else b"", flags=re.M)
     words = np.array(re.findall(rb"\s(facet|vertex)(?=\s)", body))
     if not len(words):
         return None

@@ -338,9 +338,10 @@ Laplacian): what rounding the function's values alone can give."""
 _EPS = float(np.finfo(np.float64).eps)
 
 UNRESOLVED = 1e-5
-"""Where rounding alone can give more than this (relative, as the checks' values), a
-declared-function check cannot tell harmonic from not at the level that matters (a
-note at 1e-4) and is NaN: x*x - y*y 1e8 away from the origin for the Laplacian's stencils."""
+"""Where a check finds nothing beyond rounding but rounding alone can give more than
+this (relative, as the checks' values), it cannot tell harmonic from not at the level
+that matters (a note at 1e-4) and is NaN: x*x - y*y 1e8 away from the origin for the
+Laplacian's stencils. What it finds beyond rounding stands (x*x + y*y 1e4 away)."""
 
 LAPLACIAN_STEP = 1e-3
 """Step of :func:`declared_laplacian`'s five-point stencil, in bounding-box diagonals."""
@@ -354,7 +355,8 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) 
     (Richardson), less what rounding of the values can give
     (:data:`ROUNDING_MARGIN` epsilons of their size over the step squared),
     times the diagonal squared, over the range of ``expr`` there (NaN where
-    rounding can give more than :data:`UNRESOLVED`). Dimensionless: 1e-9 or less for a harmonic function far from its
+    it finds nothing beyond rounding and rounding can give more than
+    :data:`UNRESOLVED`). Dimensionless: 1e-9 or less for a harmonic function far from its
     singularities, up to a few 1e-6 for a dipole centred in a hole of 0.01
     (its stencils' rounding and s⁴ terms), of order 1 for one that is not
     (x² + y² on the unit square: 4; log r with r = 0 inside the unit disk:
@@ -384,9 +386,7 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) 
         span = float(np.ptp(u))
         if not span > 0:
             return float(np.max(lap) > 0)
-        if float(np.max(floor)) * diagonal**2 / span > UNRESOLVED:  # rounding hides what matters
-            return float("nan")
-        return float(np.max(lap) * diagonal**2 / span)
+        return _resolved(float(np.max(lap)) * diagonal**2 / span, float(np.max(floor)) * diagonal**2 / span)
 
 
 MEAN_VALUE_NODES = 64
@@ -404,8 +404,8 @@ def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray) -> float:
     of radius depth(x) / 2 (``depth``: distance to the boundary, (k,)) minus
     its value at x, less what rounding of the values can give
     (:data:`ROUNDING_MARGIN` epsilons of their size); the largest gap over
-    the range of ``expr`` at those points (NaN where rounding can give more
-    than :data:`UNRESOLVED`). Dimensionless: 0 for a harmonic function,
+    the range of ``expr`` at those points (NaN where it finds nothing beyond
+    rounding and rounding can give more than :data:`UNRESOLVED`). Dimensionless: 0 for a harmonic function,
     whatever lies outside the domain; of order 1 for one that is not, including one harmonic but for a
     singular point inside (log r with r = 0 in the domain, which the
     Laplacian's stencils only see when a grid point comes near it). inf
@@ -430,7 +430,13 @@ def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray) -> float:
     span = float(np.ptp(u))
     if not span > 0:
         return float(gap > 0)
-    return gap / span if float(np.max(floor)) / span <= UNRESOLVED else float("nan")
+    return _resolved(gap / span, float(np.max(floor)) / span)
+
+
+def _resolved(value: float, floor: float) -> float:
+    """A check's ``value`` beyond rounding, or NaN where it reads 0 but rounding
+    (``floor``, relative as the value) could hide more than :data:`UNRESOLVED`."""
+    return float("nan") if value == 0 and floor > UNRESOLVED else value
 
 
 def _declared_solution(boundary, X: np.ndarray, domain: Domain) -> np.ndarray:

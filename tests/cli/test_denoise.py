@@ -136,6 +136,17 @@ def test_a_clean_mesh_is_said_to_be_written_unchanged_with_no_filter_values(cli,
     assert p.returncode == 0, p.stderr
     m = _metrics(rep)
     assert m["outer_iterations"] == 0 and m["vertex_iterations"] is None and m["fidelity"] is None
+    assert m["normal_iterations"] is None and "every frame reads as clean" in p.stderr, p.stderr
+    # --rounds 0 on a noisy mesh: the schedule's passes did not act either (it had reported 3)
+    noisy, _ = cube_pair
+    p = cli("denoise", noisy, "-o", out, "--rounds", "0", "--report", rep)
+    assert p.returncode == 0 and _metrics(rep)["normal_iterations"] is None, p.stderr
+    # groups of which none was filtered because --rounds 0 says so: not "each reads as clean"
+    noisy_mesh = load_mesh(noisy)
+    mixed = Mesh(np.vstack([noisy_mesh.V, cube.V / 1000 + 5]), np.vstack([noisy_mesh.F, cube.F + len(noisy_mesh.V)]))
+    save_mesh(tmp_path / "mixed.ply", mixed)
+    p = cli("denoise", tmp_path / "mixed.ply", "-o", out, "--rounds", "0")
+    assert p.returncode == 0 and "the largest group; no filter pass ran" in p.stderr, p.stderr
 
 
 def test_the_reported_schedule_given_back_reproduces_the_run(cli, cube_pair, tmp_path):

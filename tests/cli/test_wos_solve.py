@@ -221,6 +221,12 @@ def test_a_declared_solution_that_is_not_harmonic_gets_a_note(cli, inputs, tmp_p
         m = json.loads(rep.read_text())["metrics"]
         assert (m["declared_laplacian"] is None) == lap_null and (m["declared_mean_value_gap"] is None) == gap_null
         assert ("cannot check that --boundary is harmonic" in p.stderr) == gap_null
+    # what a check finds beyond rounding stands: x*x + y*y 1e4 away had read null and passed
+    far.write_text(json.dumps({"loops": [[[x + 1e4, y] for x, y in loop] for loop in loops]}))
+    p = cli("wos-solve", far, "--boundary", "x*x + y*y", "--exact", "--grid", "16", "--walks", "2",
+            "-o", tmp_path / "u.exr", "--report", rep)
+    assert p.returncode == 0 and "--boundary is not harmonic (its Laplacian reaches" in p.stderr, p.stderr
+    assert json.loads(rep.read_text())["metrics"]["declared_laplacian"] > 1e-4
 
 
 def test_output_to_standard_output_is_refused_in_words(cli, inputs, tmp_path):

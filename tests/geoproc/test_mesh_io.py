@@ -992,3 +992,10 @@ def test_reader_cases_found_by_fuzzing():
     assert read(commented, "ply").F.tolist() == [[0, 1, 2]]
     with pytest.raises(InputError, match="mesh has no vertices"):
         read(b"COFF\n0 0 0\n", "off")
+    # a header line naming a solid 'solid_1 facet', an endsolid's name after endfacet on one line
+    one = (b"solid_1 facet 2\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n"
+           b"   vertex 0 1 0\n  endloop\n endfacet endsolid a facet\n")
+    assert read(one, "stl").F.shape == (1, 3)
+    # an ASCII PLY whose lines end in CR alone: '1_0' had still been read as 10
+    with pytest.raises(InputError, match="'_' inside a number"):
+        read(ply.replace(b"\n1 0 0\n", b"\n1_0 0 0\n").replace(b"\n", b"\r"), "ply")
