@@ -601,7 +601,8 @@ def require_ply_output(output: str, what: str, also: tuple[str, ...] = ()) -> No
     ext = file_extension(output)
     if output == "-" or ext == "ply" or ext in also:
         return
-    write_format(output)  # raises for a name without a mesh format
+    if write_format(output) == "ply":  # (raises for a name without a mesh format) a device: binary PLY
+        return
     raise UsageError(f"{output}: {what}, which only PLY keeps; use a .ply output")
 
 

@@ -161,6 +161,7 @@ def geodesic(
     m_name = method.value
     params = {
         "mesh": mesh, "output": output, "sources": list(source or []), "sources_file": sources_file,
+        "sources_from_file": None,
         # the options that apply: --time replaces -c, and heat and exact take no --steps
         "method": m_name, "time_factor": None if time is not None or m_name == "exact" else time_factor,
         "time": time, "steps": None if m_name in UNSTEPPED else steps,
@@ -185,13 +186,22 @@ def geodesic(
         run.one_stdin(mesh, sources_file)
         m = run.load_mesh(mesh, clean=not no_clean)
         srcs = list(source or [])
+        # indices past the loaded mesh, where loading merged or dropped vertices: the stored count differs
+        cleaned = (f"; the file stores {m.log.stored_vertices}, and loading merged {m.log.merged_vertices} "
+                   f"coincident and dropped {m.log.removed_unreferenced} unreferenced vertices (--no-clean keeps "
+                   "the stored numbering)" if m.log.merged_vertices or m.log.removed_unreferenced else "")
+        wrong = [i for i in srcs if isinstance(i, int) and not 0 <= i < len(m.V)]
+        if wrong:
+            raise InputError(m.log.path or mesh, f"source vertex {wrong[0]} is out of range (the mesh has "
+                                                 f"{len(m.V)} vertices, numbered from 0{cleaned})")
         if sources_file is not None:  # after the mesh: a second '-' is then the one refused
             listed = run.read_input(sources_file, read_sources_file, "file of source indices")
             for i, lineno in listed:
                 if not 0 <= i < len(m.V):
                     raise InputError(sources_file, f"line {lineno}: source vertex {i} is out of range "
-                                                   f"(the mesh {m.log.path or mesh} has {len(m.V)} vertices)")
+                                                   f"(the mesh {m.log.path or mesh} has {len(m.V)} vertices{cleaned})")
             srcs += [i for i, _ in listed]
+            run.params["sources_from_file"] = [i for i, _ in listed]  # the report names them: a pipe is gone
         where = m.log.path or mesh  # notes on the mesh name it, as errors do
         if m.log.merged_vertices or m.log.removed_unreferenced:
             run.note(f"{where}: source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")

@@ -36,14 +36,28 @@ def save_mesh(path: str | os.PathLike, mesh: Mesh, binary: bool = True) -> None:
 
 def write_format(path: str | os.PathLike) -> str:
     """The mesh format to write ``path`` in, from its extension (one of
-    :data:`WRITE_FORMATS`); UsageError for any other extension."""
+    :data:`WRITE_FORMATS`; binary PLY for a device or FIFO without one, such as
+    ``/dev/null``); UsageError for any other extension."""
     ext = file_extension(path)
+    if not ext and _is_stream(path):  # /dev/null, a FIFO, a link to /dev/stdout: binary PLY, as -o - writes
+        return "ply"
     if not ext:
         raise UsageError(f"{os.fspath(path)}: no file extension to choose the format by; use .ply, .obj, .off "
                          "or .stl")
     if ext not in WRITE_FORMATS:
         raise UsageError(f"{os.fspath(path)}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
     return ext
+
+
+def _is_stream(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is an existing device, FIFO or socket (links followed)."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
 def mesh_to_bytes(mesh: Mesh, fmt: str = "ply", binary: bool = True) -> bytes:

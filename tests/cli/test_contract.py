@@ -1068,3 +1068,17 @@ def test_report_params_hold_the_options_used_and_none_for_those_not(cli, fixture
     exact = params("morse-simplify", fixture_dir / "icosphere.ply", "-f", "z", "-p", "0.1", "--barycentric",
                    "-o", tmp_path / "m.ply")
     assert exact["exact_windows"] is None and exact["barycentric"] is True
+
+
+def test_a_mesh_output_to_a_device_is_binary_ply(cli, fixture_dir, tmp_path):
+    # -o /dev/null (a run kept for its report and gates) had been refused: no extension to choose the format by
+    rep = tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", "/dev/null", "--report", rep,
+            "--check", "vertices>=1")
+    assert p.returncode == 0 and json.loads(rep.read_text())["metrics"]["vertices"] == 1152, p.stderr
+    link = tmp_path / "out"
+    link.symlink_to("/dev/stdout")
+    p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", link, "-q")
+    assert p.returncode == 0 and p.stdout.startswith(b"ply\nformat binary_little_endian"), p.stderr
+    p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", tmp_path / "noext")
+    assert p.returncode == 2 and "no file extension to choose the format by" in p.stderr

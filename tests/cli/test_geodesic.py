@@ -600,3 +600,24 @@ def test_default_laplacian_of_each_method(cli, fixture_dir, tmp_path, method):
             assert _report(rep)["params"]["laplacian"] == default
     d = {k: load_mesh(v).vertex_fields["distance"] for k, v in outs.items()}
     assert np.array_equal(d["none"], d["same"]) and not np.array_equal(d["none"], d["other"])
+
+
+def test_sources_read_from_a_file_are_in_the_report_and_renumbering_is_explained(cli, fixture_dir, tmp_path):
+    # a pipe of sources left only its hash in the report; an index past a merged mesh said nothing of the merge
+    rep = tmp_path / "r.json"
+    p = cli("geodesic", fixture_dir / "grid.ply", "--sources-file", "-", "-o", tmp_path / "o.ply", "--report", rep,
+            stdin=b"0\n440\n0\n")
+    assert p.returncode == 0, p.stderr
+    params = json.loads(rep.read_text())["params"]
+    assert params["sources_from_file"] == [0, 440, 0] and params["sources"] == []
+    p = cli("geodesic", fixture_dir / "grid.ply", "-s", "0", "-o", tmp_path / "o.ply", "--report", rep)
+    assert json.loads(rep.read_text())["params"]["sources_from_file"] is None
+    g = load_mesh(fixture_dir / "grid.ply")
+    split = Mesh(g.V[g.F].reshape(-1, 3), np.arange(3 * len(g.F)).reshape(-1, 3))  # every corner its own vertex
+    save_mesh(tmp_path / "split.ply", split)
+    p = cli("geodesic", tmp_path / "split.ply", "-s", "500", "-o", tmp_path / "o.ply")
+    assert p.returncode == 2, p.stderr
+    assert (f"source vertex 500 is out of range (the mesh has 441 vertices, numbered from 0; the file stores "
+            f"{3 * len(g.F)}, and loading merged {3 * len(g.F) - 441} coincident") in p.stderr, p.stderr
+    p = cli("geodesic", tmp_path / "split.ply", "--sources-file", "-", "-o", tmp_path / "o.ply", stdin=b"500\n")
+    assert p.returncode == 2 and "(--no-clean keeps the stored numbering)" in p.stderr, p.stderr
