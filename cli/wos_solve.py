@@ -23,7 +23,8 @@ from geoproc_cli.common import (
     require_extension,
 )
 
-EXACT_METRICS = ("rmse", "max_abs_error", "bias", "error_points", "declared_laplacian", "declared_mean_value_gap")
+EXACT_METRICS = ("rmse", "max_abs_error", "bias", "error_points", "declared_laplacian", "declared_mean_value_gap",
+                 "declared_flux_gap")
 """The errors against the boundary function as the exact solution, reported only with ``--exact``."""
 
 METRICS = EXACT_METRICS + (
@@ -41,6 +42,11 @@ HARMONIC_NOTE = 1e-4
 """A --exact function whose declared_laplacian or declared_mean_value_gap is above this gets a note
 (harmonic ones read a few 1e-6 at most, the ones that were not 1e-3 and more, on the demo domains and
 a disk with a small hole)."""
+
+FLUX_NOTE = 0.1
+"""A --exact function whose declared_flux_gap is above this gets a note: looser than
+HARMONIC_NOTE, since Neumann data given for a smooth curve meets the normals of the
+polyline that stands for it only to the polyline's angles (a few hundredths)."""
 
 EPSILON_NOTE = 0.01
 """An --epsilon above this fraction of the domain's bounding-box diagonal gets a note: on
@@ -238,6 +244,13 @@ def wos_solve(
         if gap is not None and gap > HARMONIC_NOTE:  # also a singular point inside, which the stencils can miss
             signs.append("its mean over circles inside the domain differs from its value at their centre by "
                          + (f"{gap:.3g} of its range" if np.isfinite(gap) else "an infinite amount"))
+        flux_gap = res.metrics.get("declared_flux_gap")
+        if flux_gap is not None and flux_gap > FLUX_NOTE:
+            given = "--neumann" if neumann is not None else "the zero flux of Neumann segments without --neumann"
+            run.note(f"--exact: the normal derivative of --boundary on the Neumann segments differs from {given} "
+                     + (f"by {flux_gap:.3g} of its range per diagonal" if np.isfinite(flux_gap) else "(not finite)")
+                     + ", so it does not solve the mixed problem the walks estimate, and rmse measures the "
+                     "difference to it")
         if signs:
             run.note(f"--exact: --boundary is not harmonic ({'; '.join(signs)}), so it is not the solution the "
                      "walks estimate, and rmse measures the difference to it")

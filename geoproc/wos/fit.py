@@ -209,6 +209,13 @@ def ridge_fit(Phi: np.ndarray, u: np.ndarray, alpha: float, dPhi: np.ndarray | N
 
 def neumann_samples(domain: Domain, m: int) -> tuple[np.ndarray, np.ndarray]:
     """About ``m`` points spread by arc length over the Neumann segments, with outward normals."""
+    P, N, _ = neumann_samples_and_ends(domain, m)
+    return P, N
+
+
+def neumann_samples_and_ends(domain: Domain, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`neumann_samples` (m, 2), (m, 2), and each point's distance to the
+    nearer end of its segment (m,), in length units."""
     sel = np.flatnonzero(domain.neumann)
     E = domain.B[sel] - domain.A[sel]
     length = np.linalg.norm(E, axis=1)
@@ -218,7 +225,7 @@ def neumann_samples(domain: Domain, m: int) -> tuple[np.ndarray, np.ndarray]:
     t = (s - cum[k]) / length[k]
     P = domain.A[sel[k]] + t[:, None] * E[k]
     N = np.stack([E[k, 1], -E[k, 0]], axis=1) / length[k, None]
-    return P, N
+    return P, N, np.minimum(t, 1 - t) * length[k]
 
 
 def fit_control_variate(Phi: np.ndarray, u: np.ndarray, alpha: float) -> np.ndarray:

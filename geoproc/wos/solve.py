@@ -23,7 +23,7 @@ import numpy as np
 from geoproc.errors import InputError, UsageError
 from geoproc.wos.domain import Domain
 from geoproc.wos.expression import Expression, evaluate, translated
-from geoproc.wos.fit import fit_points, make_kernels, neumann_samples, ridge_fit
+from geoproc.wos.fit import fit_points, make_kernels, neumann_samples, neumann_samples_and_ends, ridge_fit
 from geoproc.wos.kernels import kernel_matrix, kernel_normal_matrix
 from geoproc.wos.npass import adam_refine
 from geoproc.wos.problem import WalkProblem, pass_seed
@@ -296,7 +296,9 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         metrics.update({"rmse": rmse, "max_abs_error": top,
                         "bias": float(np.mean(err)), "error_points": int(len(err)),
                         "declared_laplacian": declared_laplacian(boundary, X, depth, float(np.linalg.norm(hi - lo))),
-                        "declared_mean_value_gap": declared_mean_value_gap(boundary, X, depth)})
+                        "declared_mean_value_gap": declared_mean_value_gap(boundary, X, depth),
+                        "declared_flux_gap": declared_flux_gap(boundary, flux, domain, float(np.linalg.norm(hi - lo)),
+                                                               float(np.ptp(ue_inside)))})
         exact_img = ue.reshape(shape)
     if shift is not None:
         gs = GridSpec(float(gs.x0 + shift[0]), float(gs.y1 + shift[1]), gs.h, gs.nx, gs.ny)
@@ -431,6 +433,48 @@ def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray) -> float:
     if not span > 0:
         return float(gap > 0)
     return _resolved(gap / span, float(np.max(floor)) / span)
+
+
+FLUX_SAMPLES = 1024
+"""Points on the Neumann segments where :func:`declared_flux_gap` compares the declared
+function's normal derivative with the flux."""
+
+FLUX_STEP = 1e-4
+"""Step of :func:`declared_flux_gap`'s one-sided difference, in bounding-box diagonals."""
+
+
+def declared_flux_gap(expr, flux, domain: Domain, diagonal: float, span: float) -> float:
+    """How far the declared solution ``expr`` is from the Neumann data: at
+    :data:`FLUX_SAMPLES` points spread over the Neumann segments, its
+    derivative along the outward normal (a second-order one-sided difference
+    of step :data:`FLUX_STEP` diagonals, from inside, or a hundredth of the
+    distance to the segment's nearer end where that is less: a corner can be
+    singular, as r^(2/3) at the apex of a reflex sector) minus the flux ``flux``
+    (an expression; None is zero flux), less what rounding of the values can
+    give; the largest, times the diagonal, over ``span`` (the declared
+    function's range over the grid). Dimensionless: 0 for the solution of the
+    mixed problem; of order 1 for one whose flux is another (y with flux 5 on
+    a rectangle's top). NaN without Neumann segments, or where rounding could
+    hide more than :data:`UNRESOLVED`; inf where a value is not finite."""
+    if not domain.has_neumann:
+        return float("nan")
+    Z, N, ends = neumann_samples_and_ends(domain, FLUX_SAMPLES)
+    d = np.minimum(FLUX_STEP * diagonal, 0.01 * ends)
+    keep = d > 0
+    Z, N, d = Z[keep], N[keep], d[keep]
+    if not len(Z):
+        return float("nan")
+    with np.errstate(over="ignore", invalid="ignore"):
+        f0, f1, f2 = (evaluate(expr, *(Z - k * d[:, None] * N).T) for k in (0, 1, 2))
+        dudn = (3 * f0 - 4 * f1 + f2) / (2 * d)
+        h = evaluate(flux, Z[:, 0], Z[:, 1]) if flux is not None else np.zeros(len(Z))
+        if not (np.isfinite(dudn).all() and np.isfinite(h).all()):
+            return float("inf")
+        floor = ROUNDING_MARGIN * _EPS * np.maximum.reduce([np.abs(f0), np.abs(f1), np.abs(f2)]) / d
+        gap = float(np.max(np.maximum(np.abs(dudn - h) - floor, 0.0)))
+    if not span > 0:
+        return float(gap > 0)
+    return _resolved(gap * diagonal / span, float(np.max(floor)) * diagonal / span)
 
 
 def _resolved(value: float, floor: float) -> float:

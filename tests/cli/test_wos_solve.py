@@ -229,6 +229,27 @@ def test_a_declared_solution_that_is_not_harmonic_gets_a_note(cli, inputs, tmp_p
     assert json.loads(rep.read_text())["metrics"]["declared_laplacian"] > 1e-4
 
 
+def test_a_declared_solution_whose_flux_is_not_the_neumann_data_gets_a_note(cli, inputs, tmp_path):
+    # y with flux 5 on the rectangle's top and bottom read rmse 3.7 without a word
+    rep = tmp_path / "r.json"
+    sector = tmp_path / "sector.json"
+    sector.write_text(json.dumps(wf.reflex_sector()))
+    for domain, boundary, flux, noted in (
+            ("rect.json", "y", "5", True), ("rect.json", "x*y", None, True),
+            ("rect.json", "y", "2*y - 1", False),  # d/dn y is -1 at the bottom, 1 at the top
+            (sector, "(x*x+y*y)**(1/3)*cos(2/3*(atan2(y,x)+0.75*pi))", None, False)):  # zero flux, r^(2/3) apex
+        args = ["--boundary", boundary] + (["--neumann", flux] if flux else [])
+        p = cli("wos-solve", inputs / domain, *args, "--exact", "--grid", "16", "--walks", "2",
+                "-o", tmp_path / "u.exr", "--report", rep)
+        assert p.returncode == 0, p.stderr
+        gap = json.loads(rep.read_text())["metrics"]["declared_flux_gap"]
+        assert (gap > 1) if noted else (gap < 1e-4), (domain, boundary, gap)
+        assert ("the normal derivative of --boundary on the Neumann segments differs" in p.stderr) == noted
+    p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--exact", "--grid", "8", "--walks", "2",
+            "-o", tmp_path / "u.exr", "--report", rep)
+    assert json.loads(rep.read_text())["metrics"]["declared_flux_gap"] is None  # no Neumann segment
+
+
 def test_output_to_standard_output_is_refused_in_words(cli, inputs, tmp_path):
     # it had read "-o -: must end in .exr", as if "-" were a file name
     p = cli("wos-solve", inputs / "disk.json", "--boundary", "x", "--grid", "8", "--walks", "2", "-o", "-")
