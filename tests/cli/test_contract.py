@@ -130,7 +130,8 @@ def test_checks_gate_the_exit_code(cli, fixture_dir, tmp_path):
               "--report", report)
     assert bad.returncode == 1
     lines = bad.stderr.strip().splitlines()
-    assert len(lines) == 2 and lines[0].startswith("check failed: genus==0") and "faces<10" in lines[1]
+    # each names the input, which tells runs apart under make -j (error lines named it, check lines had not)
+    assert len(lines) == 2 and lines[0].startswith(f"check failed: {mesh}: genus==0") and "faces<10" in lines[1]
     rep = json.loads(report.read_text())
     validate_report(rep)  # the run itself succeeded
     # the report tells a failed gate from a passing one (it had recorded no check at all)
