@@ -142,13 +142,16 @@ def _interruption(exc: BaseException) -> KeyboardInterrupt | None:
     return None
 
 
-def metrics_epilog(names: Sequence[str], text: Sequence[str] = ()) -> str:
+def metrics_epilog(names: Sequence[str], text: Sequence[str] = (), units: dict[str, str] | None = None) -> str:
     """The closing paragraph of a subcommand's ``--help``: the metric names
-    ``--check`` accepts, then those of ``names`` that are ``text`` (reported, not checked)."""
+    ``--check`` accepts, then those of ``names`` that are ``text`` (reported,
+    not checked), then the units of those whose name does not tell (``units``:
+    name to unit)."""
     numbers = sorted(n for n in names if n not in text)
     out = ("Metrics for --check and the report (some only with the options that produce them): "
            + ", ".join(numbers) + ".")
-    return out + (" Text in the report: " + ", ".join(sorted(text)) + "." if text else "")
+    out += " Text in the report: " + ", ".join(sorted(text)) + "." if text else ""
+    return out + (" Units: " + "; ".join(f"{k} {v}" for k, v in units.items()) + "." if units else "")
 
 
 class Run:

@@ -39,6 +39,14 @@ REFERENCE_METRICS = (
 )
 """The errors against the clean mesh or animation, reported only with ``--reference``."""
 
+METRIC_UNITS = {
+    "hausdorff": "two-sided, over the clean mesh's bounding-box diagonal",
+    "vertex_rmse": "in the clean mesh's mean edge lengths",
+    "flipped_faces": "faces more than 90 degrees from the clean mesh",
+    "sigma_s": "in centroid spacings (sigma_s_length in length units)",
+}
+"""Units of the metrics whose names do not tell, for ``--help``."""
+
 METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     # meshes: sizes, the noise and shape estimates, the parameters used, the repairs
     "vertices", "faces", "feature_faces", "noise_median_dihedral_deg", "noise_roughness", "coarseness_deg",
@@ -636,4 +644,4 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
 
 def register(app: typer.Typer) -> None:
     """Add ``denoise`` to the application."""
-    app.command("denoise", epilog=metrics_epilog(METRICS, TEXT_METRICS))(denoise)
+    app.command("denoise", epilog=metrics_epilog(METRICS, TEXT_METRICS, units=METRIC_UNITS))(denoise)

@@ -43,6 +43,13 @@ REFERENCE_METRICS = ("compared_vertices", "nonfinite_vertices", "pearson_r", "rm
                      "max_relative_error")
 """The comparison with exact geodesics, reported only with ``--reference``."""
 
+METRIC_UNITS = {
+    "rmse, mae, mean_relative_error (= mae), max_relative_error": "of |d - exact| over the largest exact distance",
+    "max_distance, mean_distance, mean_edge_length": "in the mesh's length unit",
+    "t": "in its area unit",
+}
+"""Units of the metrics whose names do not tell, for ``--help``."""
+
 METRICS = LOAD_METRICS + REFERENCE_METRICS + (
     "method", "vertices", "faces", "sources", "mean_edge_length", "t", "t_over_h2", "steps",
     "reachable_vertices", "unreachable_vertices", "nonfinite_distance_vertices", "max_distance", "mean_distance",
@@ -331,4 +338,4 @@ def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | Non
 
 def register(app: typer.Typer) -> None:
     """Add ``geodesic`` to the application."""
-    app.command("geodesic", epilog=metrics_epilog(METRICS, TEXT_METRICS))(geodesic)
+    app.command("geodesic", epilog=metrics_epilog(METRICS, TEXT_METRICS, units=METRIC_UNITS))(geodesic)

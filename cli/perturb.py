@@ -31,6 +31,13 @@ METRICS = LOAD_METRICS + (
 """Every metric ``perturb`` can report (``frames`` for animations)."""
 
 
+METRIC_UNITS = {
+    "noise_scale": "the mean edge length (mean nearest-neighbour distance for a cloud): the unit of --noise",
+    "rms_displacement": "in the input's length unit",
+}
+"""Units of the metrics whose names do not tell, for ``--help``."""
+
+
 def perturb(
     ctx: typer.Context,
     input: Annotated[str, typer.Argument(help="Mesh or point cloud (.obj, .ply, .off, .stl, - for stdin), "
@@ -181,7 +188,7 @@ def _merged_flags(run, new: np.ndarray, fields: dict, shape: tuple, path: str, a
 
 def register(app: typer.Typer) -> None:
     """Add ``perturb`` to the application."""
-    app.command("perturb", epilog=metrics_epilog(METRICS))(perturb)
+    app.command("perturb", epilog=metrics_epilog(METRICS, units=METRIC_UNITS))(perturb)
 
 
 def _note_fractions_of_none(run, n: int, impulsive: float, outliers: float) -> None:

@@ -58,6 +58,15 @@ REFINE_METRICS = ("refine_seconds", "refine_steps", "refine_iterations")
 """Reported only by npass."""
 
 
+METRIC_UNITS = {
+    "rmse, max_abs_error, bias, mean_standard_error, rms_standard_error": "in the solution's units",
+    "declared_laplacian, declared_mean_value_gap, declared_flux_gap": "dimensionless, over the declared function's "
+    "range (0 or a few 1e-6 when it is the solution; a note above 1e-4, 0.1 for the flux)",
+    "pixel_size, grid_left, grid_top, domain_area": "in the domain's length unit (area its square)",
+}
+"""Units of the metrics whose names do not tell, for ``--help``."""
+
+
 def _metric_needs(exact: bool, method: str) -> dict[str, tuple[str, ...]]:
     """For each option not given, the metrics only it reports (a --check on one is refused at once)."""
     needs: dict[str, tuple[str, ...]] = {} if exact else {"--exact": EXACT_METRICS}
@@ -293,4 +302,4 @@ def wos_solve(
 
 def register(app: typer.Typer) -> None:
     """Add ``wos-solve`` to the application."""
-    app.command("wos-solve", epilog=metrics_epilog(METRICS))(wos_solve)
+    app.command("wos-solve", epilog=metrics_epilog(METRICS, units=METRIC_UNITS))(wos_solve)

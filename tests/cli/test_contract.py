@@ -309,8 +309,11 @@ def test_every_option_of_every_command_has_help():
         # the closing paragraph lists the metric names --check accepts, then the text ones
         module = importlib.import_module(f"geoproc_cli.{name.replace('-', '_')}")
         text = getattr(module, "TEXT_METRICS", ())
-        assert command.epilog == metrics_epilog(module.METRICS, text), name
+        units = getattr(module, "METRIC_UNITS", None)
+        assert command.epilog == metrics_epilog(module.METRICS, text, units), name
         assert set(text) <= set(module.METRICS), name
+        for names in units or ():  # the units name metrics the command reports
+            assert {n.strip() for n in names.split(",")} - {"mean_relative_error (= mae)"} <= set(module.METRICS), names
         for metric in module.METRICS:
             assert (f" {metric}," in command.epilog or f" {metric}." in command.epilog), (name, metric)
 
