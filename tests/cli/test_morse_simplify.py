@@ -508,3 +508,15 @@ def test_negative_zero_persistence_is_reported_as_zero(cli, fixture_dir, tmp_pat
     assert p.returncode == 0, p.stderr
     r = json.loads(rep.read_text())
     assert math.copysign(1.0, r["metrics"]["threshold"]) == math.copysign(1.0, r["params"]["persistence"]) == 1.0
+
+
+def test_a_relative_persistence_past_the_range_is_noted(cli, fixture_dir, tmp_path):
+    # -p 5 --relative (five times the range) had been taken without a word
+    p = cli("morse-simplify", fixture_dir / "icosphere.ply", "-f", "z", "-p", "5", "--relative", "-o",
+            tmp_path / "o.ply", "--report", tmp_path / "r.json")
+    assert p.returncode == 0 and "is more than the field's whole range: every critical pair is removed" in p.stderr
+    m = json.loads((tmp_path / "r.json").read_text())["metrics"]
+    assert m["pairs_kept"] == 0 and (m["minima_after"], m["saddles_after"], m["maxima_after"]) == (1, 0, 1)
+    p = cli("morse-simplify", fixture_dir / "icosphere.ply", "-f", "z", "-p", "1", "--relative", "-o",
+            tmp_path / "o.ply")
+    assert p.returncode == 0 and "whole range" not in p.stderr
