@@ -22,6 +22,7 @@ from geoproc_cli.common import (
     flag,
     load_summary,
     metrics_epilog,
+    refuse_options,
     stdout,
 )
 
@@ -29,14 +30,18 @@ METRICS = LOAD_METRICS + (
     "vertices", "faces", "point_cloud", "duplicate_vertices", "bbox_diagonal", "edges", "components",
     "boundary_edges", "boundary_loops", "euler_characteristic", "genus", "closed", "edge_manifold",
     "vertex_manifold", "orientable", "consistently_oriented", "nonmanifold_edges", "nonmanifold_vertices",
-    "degenerate_faces", "duplicate_faces", "unreferenced_vertices", "mean_edge_length",
+    "degenerate_faces", "duplicate_faces", "unreferenced_vertices", "mean_edge_length", "frames",
 )
-"""Every metric ``info`` reports (the scalar entries of :func:`geoproc.mesh.mesh_info`)."""
+"""Every metric ``info`` reports (the scalar entries of :func:`geoproc.mesh.mesh_info`; ``frames``
+for an animation, whose other entries are its first frame's)."""
 
 
 def info(
-    mesh: Annotated[str, typer.Argument(help="Mesh or point cloud: .obj, .ply, .off, .stl, or - for stdin.",
-                                        metavar="MESH")],
+    ctx: typer.Context,
+    mesh: Annotated[str, typer.Argument(help="Mesh or point cloud: .obj, .ply, .off, .stl, or - for stdin; or "
+                                        "an animation (.npz with 'vertices' (frames, n, 3) and 'faces', or a "
+                                        "folder of frame meshes): its frame count, and its first frame's "
+                                        "summary (the connectivity is every frame's).", metavar="MESH")],
     as_json: Annotated[bool, flag("--json", help="Print the summary as one JSON object on stdout.")] = False,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
@@ -57,12 +62,28 @@ def info(
     params = {"mesh": mesh, "json": as_json, "clean": not no_clean}
     with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=["-"], inputs=[mesh], metrics=METRICS) as run:  # the summary goes to stdout
-        m = run.load_mesh(mesh, clean=not no_clean)
+        from geoproc.animation import is_animation_path
+
+        frames = None
+        if mesh != "-" and is_animation_path(mesh):
+            if no_clean:
+                refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")
+            from geoproc.mesh.mesh import LoadLog, Mesh
+
+            anim = run.load_animation(mesh)
+            frames = anim.n_frames
+            m = Mesh(anim.V[0], anim.F, {k: v[0] for k, v in anim.fields.items()},
+                     log=LoadLog(path=mesh, unread_properties=list(anim.unread)))
+        else:
+            m = run.load_mesh(mesh, clean=not no_clean)
         from geoproc.mesh.info import mesh_info  # the topology kernels load once the mesh is read
 
         with run.timer("compute"):
             summary = mesh_info(m)
-        summary["load"] = load_summary(m.log)
+        if frames is None:
+            summary["load"] = load_summary(m.log)
+        else:  # before the first frame's entries, which it qualifies
+            summary = {"frames": frames, **summary}
         run.metrics.update({k: v for k, v in summary.items() if not isinstance(v, list | dict)})
         if as_json:
             run.write_stdout((json.dumps(json_safe(summary), indent=2) + "\n").encode())

@@ -1086,3 +1086,21 @@ def test_a_mesh_output_to_a_device_is_binary_ply(cli, fixture_dir, tmp_path):
     assert p.returncode == 0 and p.stdout.startswith(b"ply\nformat binary_little_endian"), p.stderr
     p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", tmp_path / "noext")
     assert p.returncode == 2 and "no file extension to choose the format by" in p.stderr
+
+
+def test_info_summarizes_an_animation(cli, fixture_dir, tmp_path):
+    # an animation, which perturb and denoise write, had been 'unknown mesh format'
+    torus = load_mesh(fixture_dir / "torus.ply")
+    frames = np.stack([torus.V * (1 + 0.1 * t) for t in range(4)])
+    np.savez(tmp_path / "a.npz", vertices=frames, faces=torus.F, tag=np.ones((4, len(torus.V))))
+    rep = tmp_path / "r.json"
+    p = cli("info", tmp_path / "a.npz", "--json", "--report", rep, "--check", "frames==4", "--check", "genus==1")
+    assert p.returncode == 0, p.stderr
+    s = json.loads(p.stdout)
+    assert (s["frames"], s["vertices"], s["faces"], s["genus"]) == (4, len(torus.V), len(torus.F), 1)
+    assert s["bbox_diagonal"] == pytest.approx(np.linalg.norm(np.ptp(torus.V, axis=0)))  # the first frame's
+    assert s["vertex_properties"] == ["tag"] and json.loads(rep.read_text())["metrics"]["frames"] == 4
+    p = cli("info", tmp_path / "a.npz", "--no-clean")
+    assert p.returncode == 2 and "--no-clean: not used for an animation" in p.stderr
+    p = cli("info", fixture_dir / "torus.ply", "--report", rep)
+    assert p.returncode == 0 and "frames" not in json.loads(rep.read_text())["metrics"]
