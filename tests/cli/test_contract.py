@@ -51,7 +51,7 @@ def test_missing_file_unknown_extension_and_folder(cli, tmp_path):
     for path, fragment in [
         (tmp_path / "missing.ply", "no such file"),
         (tmp_path / "mesh.xyz", "unknown mesh format"),
-        (tmp_path, "is a directory"),
+        (tmp_path, "folder holds no frame meshes"),  # info reads a folder as an animation's frames
     ]:
         if path.suffix == ".xyz":
             path.write_text("0 0 0\n")
