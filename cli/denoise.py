@@ -451,7 +451,7 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
         if zero:
             why = f"no filter pass ran ({' and '.join(opt + ' 0' for opt in zero)})"
         else:
-            auto = [opt for opt, _, value in counts if value is None]  # (a clean mesh: none of either)
+            auto = [opt for opt, _, value in counts if not value]  # not given, or given as 0
             why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so "
                    f"nothing was filtered; give {' and '.join(auto)} to filter anyway")
         run.note(f"{', '.join(unused)} not used: {why}")
@@ -461,9 +461,10 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
                  f"{info.get('noise_roughness', float('nan')):.3g}), so --normal-iterations defaults to 0 in "
                  f"each of the {rounds} rounds; give --normal-iterations to filter")
     elif not rounds and dp.outer_iterations is None:  # nothing given, nothing done: said (it had been silent)
-        auto = [opt for opt, _, value in counts if value is None]
+        auto = [opt for opt, _, value in counts if not value]  # not given, or given as 0
         run.note(f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}): nothing "
-                 f"was filtered and the positions are written unchanged; give {' and '.join(auto)} to filter anyway")
+                 f"was filtered and the positions are written unchanged; give {' and '.join(auto)} (above 0) to filter "
+                 "anyway")
     if (filtered and "--method" in given and "--guidance-mix" not in given and dp.guidance_mix is None
             and info.get("guidance_mix") == 1.0 and not info.get("crease_repair")):
         run.note("--method guided: at this noise level on this mesh the guidance is blended away "
@@ -628,8 +629,10 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     if not info.get("outer_iterations"):  # no frame's static step ran a round: its fit did not act
         run.metrics.update({"vertex_iterations": None, "fidelity": None})
         if dp.outer_iterations is None:
-            run.note("every frame reads as clean: the static step filtered none (give --rounds and "
-                     "--normal-iterations to filter anyway); the temporal coherence step still ran")
+            wanted = " and ".join(o for o, v in (("--rounds", dp.outer_iterations),
+                                                 ("--normal-iterations", dp.normal_iterations)) if not v)
+            run.note(f"every frame reads as clean: the static step filtered none (give {wanted} (above 0) to "
+                     "filter anyway); the temporal coherence step still ran")
     if ref_V is not None:
         with run.timer("metrics"):
             per = [reference_metrics(V[t], anim.V[t], anim.F, ref_V[t]) for t in range(anim.n_frames)]

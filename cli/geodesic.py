@@ -198,7 +198,7 @@ def geodesic(
         m = run.load_mesh(mesh, clean=not no_clean)
         srcs = list(source or [])
         # indices past the loaded mesh, where loading merged or dropped vertices: the stored count differs
-        cleaned = (f"; the file stores {m.log.stored_vertices}, and loading merged {m.log.merged_vertices} "
+        cleaned = (f"; the mesh file stores {m.log.stored_vertices}, and loading merged {m.log.merged_vertices} "
                    f"coincident and dropped {m.log.removed_unreferenced} unreferenced vertices (--no-clean keeps "
                    "the stored numbering)" if m.log.merged_vertices or m.log.removed_unreferenced else "")
         wrong = [i for i in srcs if isinstance(i, int) and not 0 <= i < len(m.V)]

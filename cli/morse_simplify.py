@@ -178,7 +178,7 @@ def morse_simplify(
             f, used = f[keep], used[keep]
         span = float(f[used].max() - f[used].min()) if used.any() else 0.0  # the field's range on the surface
         threshold = float(persistence) * span if relative else float(persistence)
-        if relative and persistence > 1:  # every pair's persistence is at most the range
+        if relative and persistence > 1 and span > 0:  # every pair's persistence is at most the range
             run.note(f"--persistence {persistence:g} --relative is more than the field's whole range: every "
                      "critical pair is removed, and only the critical points the surface's topology needs are left")
         if relative and span == 0.0 and persistence > 0:

@@ -182,7 +182,8 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
     # the boundary value; on a Neumann segment they start 1e-9 of the diagonal inside
     # (wost.off_neumann_walls), where the points on a hole's top edge had been left NaN
     lo, hi = domain.bbox
-    inside = domain.contains(P) | (d_all <= 1e-9 * float(np.linalg.norm(hi - lo)))
+    diagonal = float(np.linalg.norm(hi - lo))
+    inside = domain.contains(P) | (d_all <= 1e-9 * diagonal)
     X = np.ascontiguousarray(P[inside])
     if len(X) == 0:
         raise UsageError(f"--grid {grid}: no grid point falls inside the domain; use a finer grid")
@@ -295,10 +296,10 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
             rmse = top * float(np.sqrt(np.mean((err / top) ** 2)))
         metrics.update({"rmse": rmse, "max_abs_error": top,
                         "bias": float(np.mean(err)), "error_points": int(len(err)),
-                        "declared_laplacian": declared_laplacian(boundary, X, depth, float(np.linalg.norm(hi - lo))),
-                        "declared_mean_value_gap": declared_mean_value_gap(boundary, X, depth),
-                        "declared_flux_gap": declared_flux_gap(boundary, flux, domain, float(np.linalg.norm(hi - lo)),
-                                                               float(np.ptp(ue_inside)))})
+                        "declared_laplacian": declared_laplacian(boundary, X, depth, diagonal, shift),
+                        "declared_mean_value_gap": declared_mean_value_gap(boundary, X, depth, shift),
+                        "declared_flux_gap": declared_flux_gap(boundary, flux, domain, diagonal,
+                                                               float(np.ptp(ue_inside)), shift)})
         exact_img = ue.reshape(shape)
     if shift is not None:
         gs = GridSpec(float(gs.x0 + shift[0]), float(gs.y1 + shift[1]), gs.h, gs.nx, gs.ny)
@@ -349,7 +350,8 @@ LAPLACIAN_STEP = 1e-3
 """Step of :func:`declared_laplacian`'s five-point stencil, in bounding-box diagonals."""
 
 
-def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) -> float:
+def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float,
+                       offset: np.ndarray | None = None) -> float:
     """How far the declared solution ``expr`` is from harmonic at the grid points
     X (k, 2) whose distance to the boundary is ``depth`` (k,): the largest
     Laplacian, from five-point stencils of steps s and 2s (s =
@@ -376,14 +378,16 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float) 
     u = evaluate(expr, x, y)
 
     def stencil(t):
-        return (evaluate(expr, x + t, y) + evaluate(expr, x - t, y) + evaluate(expr, x, y + t)
-                + evaluate(expr, x, y - t) - 4 * u) / (t * t)
+        e, w, n, so = (evaluate(expr, x + t, y), evaluate(expr, x - t, y), evaluate(expr, x, y + t),
+                       evaluate(expr, x, y - t))
+        return (e + w + n + so - 4 * u) / (t * t), np.hypot(e - w, n - so) / (2 * t)
 
     with np.errstate(over="ignore", invalid="ignore"):
-        lap = np.abs((4 * stencil(s) - stencil(2 * s)) / 3)
+        (near, grad), (far, _) = stencil(s), stencil(2 * s)
+        lap = np.abs((4 * near - far) / 3)
         # what rounding the values alone gives (about 11 eps |f| / s^2), with a margin: far from
         # the origin x*x - y*y had read 67 at 1e12 and got the note that it is not harmonic
-        floor = ROUNDING_MARGIN * _EPS * np.abs(u) / (s * s)
+        floor = _rounding(u, grad, P, offset) / (s * s)
         lap = np.maximum(lap - floor, 0.0)
         span = float(np.ptp(u))
         if not span > 0:
@@ -399,7 +403,7 @@ MEAN_VALUE_POINTS = 16384
 """At most this many grid points (an even subsample) centre circles in :func:`declared_mean_value_gap`."""
 
 
-def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray) -> float:
+def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray, offset: np.ndarray | None = None) -> float:
     """How far the declared solution ``expr`` is from harmonic, by the mean
     value property: at each grid point x of X (k, 2) (an even subsample of
     at most :data:`MEAN_VALUE_POINTS`), the mean of ``expr`` over the circle
@@ -427,7 +431,8 @@ def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray) -> float:
         ring = evaluate(expr, cx.ravel(), cy.ravel()).reshape(cx.shape)
         if not np.isfinite(ring).all():
             return float("inf")
-        floor = ROUNDING_MARGIN * _EPS * np.maximum(np.abs(u), np.abs(ring).max(axis=1))
+        grad = np.abs(ring - u[:, None]).max(axis=1) / rho  # (a bound, within the mean value property's terms)
+        floor = _rounding(np.maximum(np.abs(u), np.abs(ring).max(axis=1)), grad, P + rho[:, None], offset)
         gap = float(np.max(np.maximum(np.abs(ring.mean(axis=1) - u) - floor, 0.0)))
     span = float(np.ptp(u))
     if not span > 0:
@@ -443,7 +448,8 @@ FLUX_STEP = 1e-4
 """Step of :func:`declared_flux_gap`'s one-sided difference, in bounding-box diagonals."""
 
 
-def declared_flux_gap(expr, flux, domain: Domain, diagonal: float, span: float) -> float:
+def declared_flux_gap(expr, flux, domain: Domain, diagonal: float, span: float,
+                      offset: np.ndarray | None = None) -> float:
     """How far the declared solution ``expr`` is from the Neumann data: at
     :data:`FLUX_SAMPLES` points spread over the Neumann segments, its
     derivative along the outward normal (a second-order one-sided difference
@@ -470,11 +476,33 @@ def declared_flux_gap(expr, flux, domain: Domain, diagonal: float, span: float) 
         h = evaluate(flux, Z[:, 0], Z[:, 1]) if flux is not None else np.zeros(len(Z))
         if not (np.isfinite(dudn).all() and np.isfinite(h).all()):
             return float("inf")
-        floor = ROUNDING_MARGIN * _EPS * np.maximum.reduce([np.abs(f0), np.abs(f1), np.abs(f2)]) / d
-        gap = float(np.max(np.maximum(np.abs(dudn - h) - floor, 0.0)))
+        size = np.maximum.reduce([np.abs(f0), np.abs(f1), np.abs(f2)])
+        # the gradient's size over the segments, from differences of the full step (one shrunk
+        # next to a segment's end can round to no difference at all) and the derivatives at hand
+        D = FLUX_STEP * diagonal
+        gx = evaluate(expr, Z[:, 0] + D, Z[:, 1]) - evaluate(expr, Z[:, 0] - D, Z[:, 1])
+        gy = evaluate(expr, Z[:, 0], Z[:, 1] + D) - evaluate(expr, Z[:, 0], Z[:, 1] - D)
+        grad = max(float(np.max(np.hypot(gx, gy))) / (2 * D), float(np.max(np.abs(h))), float(np.max(np.abs(dudn))))
+        floor = _rounding(size, np.full(len(Z), grad), Z, offset) / d
+        gaps = np.maximum(np.abs(dudn - h) - floor, 0.0)
     if not span > 0:
-        return float(gap > 0)
-    return _resolved(gap * diagonal / span, float(np.max(floor)) * diagonal / span)
+        return float(gaps.max() > 0)
+    # a point where rounding alone could pass the level that matters (a step shrunk next to
+    # a segment's end, far from the origin) tells nothing: left out, NaN when none is left
+    resolved = floor * diagonal / span <= UNRESOLVED
+    return float(gaps[resolved].max() * diagonal / span) if resolved.any() else float("nan")
+
+
+def _rounding(value: np.ndarray, grad: np.ndarray, P: np.ndarray, offset: np.ndarray | None = None) -> np.ndarray:
+    """What rounding can put in a function's ``value`` (k,) at points P (k, 2)
+    (in the expression's coordinates: ``P + offset`` when the domain was moved
+    towards the origin and the expression with it) where its gradient is
+    about ``grad`` (k,): :data:`ROUNDING_MARGIN` epsilons of the value and of
+    the gradient times the coordinates' size, since the terms the expression
+    sums may be that large (x*x - y*y near (1e8, 1e8): each term 1e16, their
+    difference 2e8)."""
+    Q = P if offset is None else P + np.asarray(offset, dtype=np.float64)
+    return ROUNDING_MARGIN * _EPS * (np.abs(value) + np.abs(grad) * np.abs(Q).max(axis=1))
 
 
 def _resolved(value: float, floor: float) -> float:

@@ -1100,6 +1100,14 @@ def test_info_summarizes_an_animation(cli, fixture_dir, tmp_path):
     assert (s["frames"], s["vertices"], s["faces"], s["genus"]) == (4, len(torus.V), len(torus.F), 1)
     assert s["bbox_diagonal"] == pytest.approx(np.linalg.norm(np.ptp(torus.V, axis=0)))  # the first frame's
     assert s["vertex_properties"] == ["tag"] and json.loads(rep.read_text())["metrics"]["frames"] == 4
+    assert s["worst_frame"] == -1 and s["degenerate_faces"] == 0
+    # a face collapsed in one later frame: counted, with that frame (frame 0's summary had read 0)
+    frames[2][torus.F[5, 1]] = frames[2][torus.F[5, 0]]
+    np.savez(tmp_path / "b.npz", vertices=frames, faces=torus.F)
+    p = cli("info", tmp_path / "b.npz", "--json", "-q", "--check", "degenerate_faces==0")
+    assert p.returncode == 1 and f"check failed: {tmp_path / 'b.npz'}: degenerate_faces==0" in p.stderr, p.stderr
+    s = json.loads(p.stdout)  # the collapsed edge's two faces, one vertex on another, frame 2
+    assert (s["degenerate_faces"], s["duplicate_vertices"], s["worst_frame"]) == (2, 1, 2)
     p = cli("info", tmp_path / "a.npz", "--no-clean")
     assert p.returncode == 2 and "--no-clean: not used for an animation" in p.stderr
     p = cli("info", fixture_dir / "torus.ply", "--report", rep)

@@ -617,7 +617,7 @@ def test_sources_read_from_a_file_are_in_the_report_and_renumbering_is_explained
     save_mesh(tmp_path / "split.ply", split)
     p = cli("geodesic", tmp_path / "split.ply", "-s", "500", "-o", tmp_path / "o.ply")
     assert p.returncode == 2, p.stderr
-    assert (f"source vertex 500 is out of range (the mesh has 441 vertices, numbered from 0; the file stores "
+    assert (f"source vertex 500 is out of range (the mesh has 441 vertices, numbered from 0; the mesh file stores "
             f"{3 * len(g.F)}, and loading merged {3 * len(g.F) - 441} coincident") in p.stderr, p.stderr
     p = cli("geodesic", tmp_path / "split.ply", "--sources-file", "-", "-o", tmp_path / "o.ply", stdin=b"500\n")
     assert p.returncode == 2 and "(--no-clean keeps the stored numbering)" in p.stderr, p.stderr
