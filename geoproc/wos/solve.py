@@ -334,9 +334,10 @@ def far_from_origin_shift(domain: Domain) -> np.ndarray | None:
 
 
 ROUNDING_MARGIN = 32.0
-""":func:`declared_laplacian` and :func:`declared_mean_value_gap` leave out this many
-machine epsilons of the function's size (over the stencil's step squared for the
-Laplacian): what rounding the function's values alone can give."""
+""":func:`declared_laplacian`, :func:`declared_mean_value_gap` and :func:`declared_flux_gap`
+leave out this many machine epsilons of the size of the terms the expression sums
+(:func:`_rounding`; over the step squared for the Laplacian, over the step for the flux):
+what rounding the function's values alone can give."""
 
 _EPS = float(np.finfo(np.float64).eps)
 
@@ -357,7 +358,7 @@ def declared_laplacian(expr, X: np.ndarray, depth: np.ndarray, diagonal: float,
     Laplacian, from five-point stencils of steps s and 2s (s =
     :data:`LAPLACIAN_STEP` diagonals) combined to cancel their s² truncation
     (Richardson), less what rounding of the values can give
-    (:data:`ROUNDING_MARGIN` epsilons of their size over the step squared),
+    (:func:`_rounding` over the step squared),
     times the diagonal squared, over the range of ``expr`` there (NaN where
     it finds nothing beyond rounding and rounding can give more than
     :data:`UNRESOLVED`). Dimensionless: 1e-9 or less for a harmonic function far from its
@@ -409,7 +410,7 @@ def declared_mean_value_gap(expr, X: np.ndarray, depth: np.ndarray, offset: np.n
     at most :data:`MEAN_VALUE_POINTS`), the mean of ``expr`` over the circle
     of radius depth(x) / 2 (``depth``: distance to the boundary, (k,)) minus
     its value at x, less what rounding of the values can give
-    (:data:`ROUNDING_MARGIN` epsilons of their size); the largest gap over
+    (:func:`_rounding`); the largest gap over
     the range of ``expr`` at those points (NaN where it finds nothing beyond
     rounding and rounding can give more than :data:`UNRESOLVED`). Dimensionless: 0 for a harmonic function,
     whatever lies outside the domain; of order 1 for one that is not, including one harmonic but for a
@@ -460,8 +461,9 @@ def declared_flux_gap(expr, flux, domain: Domain, diagonal: float, span: float,
     give; the largest, times the diagonal, over ``span`` (the declared
     function's range over the grid). Dimensionless: 0 for the solution of the
     mixed problem; of order 1 for one whose flux is another (y with flux 5 on
-    a rectangle's top). NaN without Neumann segments, or where rounding could
-    hide more than :data:`UNRESOLVED`; inf where a value is not finite."""
+    a rectangle's top). Points where rounding (:func:`_rounding`, over the
+    step) could pass :data:`UNRESOLVED` are left out; NaN without Neumann
+    segments or when none is left; inf where a value is not finite."""
     if not domain.has_neumann:
         return float("nan")
     Z, N, ends = neumann_samples_and_ends(domain, FLUX_SAMPLES)
