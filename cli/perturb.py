@@ -59,8 +59,9 @@ def perturb(
                                            metavar=choices_metavar(DIRECTIONS))]
     = "normal",
     impulsive: Annotated[float, typer.Option("--impulsive", help="Apply the Gaussian noise to only this "
-                                             "fraction of the vertices (impulsive noise), 0 to 1; 0 = all.",
-                                             metavar="FRACTION")] = 0.0,
+                                             "fraction of the vertices, chosen at random (impulsive noise), 0 "
+                                             "to 1; 1, the default, moves every vertex, 0 none.",
+                                             metavar="FRACTION")] = 1.0,
     outliers: Annotated[float, typer.Option("--outliers", help="Fraction of vertices moved as outliers, "
                                             "0 to 1 (flagged in the per-vertex 'outlier' property, added to "
                                             "any flags the input carries).",
@@ -192,7 +193,10 @@ def register(app: typer.Typer) -> None:
 
 
 def _note_fractions_of_none(run, n: int, impulsive: float, outliers: float) -> None:
-    """A note when a positive --impulsive or --outliers fraction of n vertices rounds to none."""
+    """A note when a positive --impulsive or --outliers fraction of n vertices rounds to none,
+    and for --impulsive 0 (which had meant every vertex)."""
+    if impulsive == 0:
+        run.note("--impulsive 0: the Gaussian noise moves no vertex (1, the default, moves every one)")
     for option, fraction, what in (("--impulsive", impulsive, "the noise moves no vertex"),
                                    ("--outliers", outliers, "no outlier is added")):
         if fraction > 0 and round(fraction * n) == 0:

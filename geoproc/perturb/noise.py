@@ -37,8 +37,9 @@ class NoiseSpec:
     direction : {"normal", "random"}
         Along the unit vertex normal, or along a uniformly random unit direction.
     impulsive : float
-        When > 0, only this fraction of the vertices (chosen at random) gets the
-        Gaussian displacement: impulsive noise.
+        The fraction of the vertices that gets the Gaussian displacement: 1 (the
+        default) every vertex; below 1 that many chosen at random (impulsive
+        noise), 0 none. (0 had meant every vertex.)
     outliers : float
         Fraction of the vertices moved uniformly inside a ball of radius
         ``outlier_range`` times the bounding-box diagonal (flagged as outliers).
@@ -48,7 +49,7 @@ class NoiseSpec:
 
     sigma: float = 0.0
     direction: str = "normal"
-    impulsive: float = 0.0
+    impulsive: float = 1.0
     outliers: float = 0.0
     outlier_range: float = 0.02
 
@@ -208,7 +209,7 @@ def _add_noise(out: np.ndarray, outlier: np.ndarray, V: np.ndarray, F: np.ndarra
         else:
             D = _random_directions(rng, n)
         amount = rng.standard_normal(n) * spec.sigma * scale
-        if spec.impulsive > 0:
+        if spec.impulsive < 1:  # (every vertex draws no choice: the default's bytes as they were)
             chosen = np.zeros(n, dtype=bool)
             chosen[rng.permutation(n)[: int(round(spec.impulsive * n))]] = True
             amount[~chosen] = 0.0

@@ -408,3 +408,19 @@ def test_what_an_obj_input_stores_beyond_its_geometry_is_noted(cli, tmp_path):
     assert entry["not_carried"] == ["texture coordinates (vt)", "colours after x y z on v lines"]
     p = cli("perturb", tmp_path / "q.ply", "--seed", "1", "-o", tmp_path / "r.ply", "--report", rep)
     assert "not_carried" not in json.loads(rep.read_text())["inputs"][0]
+
+
+def test_impulsive_fraction_counts_from_none_to_all(cli, fixture_dir, tmp_path):
+    # --impulsive 0 had meant every vertex; now 0 moves none (said) and 1, the default, every one
+    src = fixture_dir / "torus.ply"
+    V0 = load_mesh(src).V
+    runs = {}
+    for frac in (None, "1", "0", "0.5"):
+        out = tmp_path / f"i{frac}.ply"
+        p = cli("perturb", src, "--noise", "0.3", "--seed", "1", "-o", out, *(["--impulsive", frac] if frac else []))
+        assert p.returncode == 0, p.stderr
+        assert ("--impulsive 0: the Gaussian noise moves no vertex" in p.stderr) == (frac == "0")
+        runs[frac] = np.linalg.norm(load_mesh(out).V - V0, axis=1) > 0
+    assert runs[None].all() and runs["1"].all() and not runs["0"].any()
+    assert runs["0.5"].sum() == round(0.5 * len(V0))
+    assert (tmp_path / "iNone.ply").read_bytes() == (tmp_path / "i1.ply").read_bytes()
