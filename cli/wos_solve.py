@@ -275,15 +275,18 @@ def wos_solve(
                      "nearer the origin with --boundary written for it, lets them check")
         gs = res.grid
         extent = (gs.x0, gs.x0 + gs.nx * gs.h, gs.y1 - gs.ny * gs.h, gs.y1)
+        # where the image lies: pixel (row, col) is centred at (grid_left + (col + 0.5) pixel_size,
+        # grid_top - (row + 0.5) pixel_size), in the file itself as in the report
+        placed = {f"geoproc:{k}": res.metrics[k] for k in ("grid_left", "grid_top", "pixel_size")}
         with run.timer("write"):
             try:
-                encoded = exr_bytes(res.U)
+                encoded = exr_bytes(res.U, attributes=placed)
             except UsageError as exc:  # boundary data too large for float32: name the domain
                 raise UsageError(f"{domain}: {exc}") from None
             run.write_bytes(output, encoded)
             if stderr_image:
                 # (bounded by the solution's range, which fits; below float32's range it reads 0)
-                run.write_bytes(stderr_image, exr_bytes(res.stderr, solution=False))
+                run.write_bytes(stderr_image, exr_bytes(res.stderr, solution=False, attributes=placed))
             fin = res.U[np.isfinite(res.U)]
             lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (0.0, 0.0)
             steps = float32_steps(lo, hi)

@@ -22,12 +22,15 @@ def float32_steps(lo: float, hi: float) -> float:
     return (hi - lo) / float(np.spacing(big)) if big > 0 else 0.0
 
 
-def exr_bytes(U: np.ndarray, solution: bool = True) -> bytes:
+def exr_bytes(U: np.ndarray, solution: bool = True, attributes: dict[str, float] | None = None) -> bytes:
     """Encode a (H, W) float array as a one-channel float32 OpenEXR file (NaN kept).
 
     Row 0 is the top of the image. A ``solution`` beyond float32's range, or
     one that float32 writes as 0 everywhere, is a UsageError; other arrays
-    (standard errors) are written as float32 rounds them.
+    (standard errors) are written as float32 rounds them. ``attributes``
+    (name to number) go into the header as strings of the number's every
+    digit (the EXR writer keeps no double attribute, and a float one rounds
+    a position 1e12 away to 6e4).
     """
     import OpenImageIO as oiio
 
@@ -44,6 +47,8 @@ def exr_bytes(U: np.ndarray, solution: bool = True) -> bytes:
     spec.channelnames = ("Y",)
     spec.attribute("compression", "zip")
     spec.attribute("DateTime", "")  # no capture date: same data, same bytes
+    for name, value in (attributes or {}).items():
+        spec.attribute(name, repr(float(value)))
     fd, tmp = tempfile.mkstemp(suffix=".exr")
     os.close(fd)
     try:
@@ -58,6 +63,18 @@ def exr_bytes(U: np.ndarray, solution: bool = True) -> bytes:
             return fh.read()
     finally:
         os.unlink(tmp)
+
+
+def exr_attributes(path: str) -> dict[str, float]:
+    """The ``geoproc:`` header attributes of an EXR written by :func:`exr_bytes`, as numbers."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    try:
+        spec = inp.spec()
+        return {a.name: float(a.value) for a in spec.extra_attribs if a.name.startswith("geoproc:")}
+    finally:
+        inp.close()
 
 
 def read_exr(path: str) -> np.ndarray:

@@ -514,3 +514,20 @@ def test_stderr_image_is_the_spread_of_the_estimates_over_seeds(cli, inputs, tmp
     assert p.returncode == 0, p.stderr
     SE = read_exr(str(tmp_path / "s2.exr"))
     assert np.nanmax(SE) < 1e-43 and np.array_equal(np.isnan(SE), np.isnan(read_exr(str(tmp_path / "w.exr"))))
+
+
+def test_the_exr_says_where_it_lies(cli, inputs, tmp_path):
+    # the grid's origin and pixel size had been in the report only: now in each EXR's header too,
+    # every digit kept (a float attribute rounds 1e12 + 0.5 to 1e12)
+    from geoproc.wos.images import exr_attributes
+
+    far = tmp_path / "far.json"
+    far.write_text(json.dumps({"loops": [[[1e12 + 0.5, 3], [1e12 + 2.5, 3], [1e12 + 2.5, 4], [1e12 + 0.5, 4]]]}))
+    out, se, rep = tmp_path / "u.exr", tmp_path / "se.exr", tmp_path / "r.json"
+    p = cli("wos-solve", far, "--boundary", "y", "--grid", "8", "--walks", "4", "-o", out, "--stderr-image", se,
+            "--report", rep, "-q")
+    assert p.returncode == 0, p.stderr
+    m = json.loads(rep.read_text())["metrics"]
+    expected = {f"geoproc:{k}": m[k] for k in ("grid_left", "grid_top", "pixel_size")}
+    assert exr_attributes(str(out)) == expected == exr_attributes(str(se))
+    assert expected["geoproc:grid_left"] == 1e12 + 0.5 and expected["geoproc:grid_top"] == 4.0
