@@ -77,14 +77,14 @@ def info(
                      log=LoadLog(path=mesh, unread_properties=list(anim.unread)))
         else:
             m = run.load_mesh(mesh, clean=not no_clean)
-        from geoproc.mesh.info import mesh_info  # the topology kernels load once the mesh is read
+        from geoproc.mesh.info import mesh_info, worst_frame_counts  # (the kernels load once the mesh is read)
 
         with run.timer("compute"):
             summary = mesh_info(m)
         if frames is None:
             summary["load"] = load_summary(m.log)
         else:  # before the first frame's entries, which it qualifies
-            summary = {"frames": frames, **summary, **_worst_frame(anim, summary)}
+            summary = {"frames": frames, **summary, **worst_frame_counts(anim.V, anim.F)}
         run.metrics.update({k: v for k, v in summary.items() if not isinstance(v, list | dict)})
         if as_json:
             run.write_stdout((json.dumps(json_safe(summary), indent=2) + "\n").encode())
@@ -92,25 +92,6 @@ def info(
             with stdout.capture() as text:
                 stdout.print(_table(mesh, summary))
             run.write_stdout(text.get().encode("utf-8", "surrogateescape"))  # undecodable file names as given
-
-
-def _worst_frame(anim, first: dict) -> dict:
-    """An animation's geometry counts over every frame (the first frame's
-    summary has the rest, which the connectivity makes every frame's):
-    ``degenerate_faces`` and ``duplicate_vertices``, the most of any frame
-    (a face collapsed in frame 3 alone had read 0), with the frame
-    (``worst_frame``, -1 when every frame reads 0)."""
-    from geoproc.mesh.clean import position_groups
-    from geoproc.mesh.topology import degenerate_faces, used_bbox_diagonal
-
-    if not len(anim.F):
-        return {}
-    counts = [(len(degenerate_faces(V, anim.F, diagonal=used_bbox_diagonal(V, anim.F))),
-               len(V) - (int(position_groups(V).max()) + 1)) for V in anim.V]
-    worst = max(range(len(counts)), key=lambda t: counts[t])
-    if counts[worst] == (0, 0):
-        return {"worst_frame": -1}
-    return {"degenerate_faces": counts[worst][0], "duplicate_vertices": counts[worst][1], "worst_frame": worst}
 
 
 def _table(name: str, s: dict) -> Table:

@@ -62,6 +62,12 @@ def position_groups(V: np.ndarray) -> np.ndarray:
     return group
 
 
+def repeated_positions(V: np.ndarray) -> int:
+    """How many vertices of V (n, 3) sit at a position a lower index takes
+    (n minus the number of distinct positions; :func:`position_groups`)."""
+    return len(V) - (int(position_groups(V).max()) + 1) if len(V) else 0
+
+
 def unique_rows(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct rows of ``P`` (n, d) in lexicographic order and, for each
     row, the index of its copy among them: ``np.unique(P, axis=0,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoproc.mesh.clean import position_groups
+from geoproc.mesh.clean import repeated_positions
 from geoproc.mesh.mesh import Mesh
 from geoproc.mesh.topology import (
     count_boundary_loops,
@@ -52,7 +52,7 @@ def mesh_info(mesh: Mesh) -> dict:
     V, F = mesh.V, mesh.F
     n = len(V)
     diag = used_bbox_diagonal(V, F)
-    duplicates = n - (int(position_groups(V).max()) + 1) if n else 0
+    duplicates = repeated_positions(V)
     info: dict = {
         "vertices": n,
         "faces": len(F),
@@ -115,3 +115,20 @@ def mesh_info(mesh: Mesh) -> dict:
         info.update(dict.fromkeys(["genus", "closed", "edge_manifold", "vertex_manifold", "orientable",
                                    "consistently_oriented"]))
     return info
+
+
+def worst_frame_counts(frames: np.ndarray, F: np.ndarray) -> dict:
+    """An animation's geometry counts over every frame, where its first
+    frame's :func:`mesh_info` would miss them (a face collapsed in frame 3
+    alone had read 0): ``degenerate_faces`` and ``duplicate_vertices``, the
+    most of any frame of ``frames`` (T, n, 3) with triangles F (m, 3), and
+    that frame (``worst_frame``); ``{"worst_frame": -1}`` when every frame
+    has none, ``{}`` without faces."""
+    if not len(F):
+        return {}
+    counts = [(len(degenerate_faces(V, F, diagonal=used_bbox_diagonal(V, F))), repeated_positions(V))
+              for V in frames]
+    worst = max(range(len(counts)), key=lambda t: counts[t])
+    if counts[worst] == (0, 0):
+        return {"worst_frame": -1}
+    return {"degenerate_faces": counts[worst][0], "duplicate_vertices": counts[worst][1], "worst_frame": worst}

@@ -13,7 +13,7 @@ import os
 import numpy as np
 
 from geoproc.errors import UsageError
-from geoproc.fileio import file_extension, write_bytes_atomic
+from geoproc.fileio import file_extension, file_kind, write_bytes_atomic
 from geoproc.mesh.mesh import Mesh
 
 WRITE_FORMATS = ("ply", "obj", "off", "stl")
@@ -39,7 +39,7 @@ def write_format(path: str | os.PathLike) -> str:
     :data:`WRITE_FORMATS`; binary PLY for a device or FIFO without one, such as
     ``/dev/null``); UsageError for any other extension."""
     ext = file_extension(path)
-    if not ext and _is_stream(path):  # /dev/null, a FIFO, a link to /dev/stdout: binary PLY, as -o - writes
+    if not ext and file_kind(os.fspath(path)) == "other":  # /dev/null, a FIFO, a link to /dev/stdout: binary PLY
         return "ply"
     if not ext:
         raise UsageError(f"{os.fspath(path)}: no file extension to choose the format by; use .ply, .obj, .off "
@@ -47,17 +47,6 @@ def write_format(path: str | os.PathLike) -> str:
     if ext not in WRITE_FORMATS:
         raise UsageError(f"{os.fspath(path)}: cannot write '.{ext}'; use .ply, .obj, .off or .stl")
     return ext
-
-
-def _is_stream(path: str | os.PathLike) -> bool:
-    """Whether ``path`` is an existing device, FIFO or socket (links followed)."""
-    import stat
-
-    try:
-        mode = os.stat(path).st_mode
-    except (OSError, ValueError):
-        return False
-    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
 def mesh_to_bytes(mesh: Mesh, fmt: str = "ply", binary: bool = True) -> bytes:
