@@ -672,10 +672,8 @@ def command_run(
         _require_distinct_outputs(named, [os.fspath(p) for p in inputs if p is not None], report)
         with _stray_stdout_dropped() if "-" in named else contextlib.nullcontext():
             yield run
-        failures = evaluate_checks(parsed, run.metrics)  # raises on unknown metric names
-        if run.inputs:  # which run missed, among several a Makefile runs at once (as error lines name the file)
-            failures = [f"check failed: {run.inputs[0]['path']}: {line.removeprefix('check failed: ')}"
-                        for line in failures]
+        # raises on unknown metric names; each line names the run's first input, as error lines name the file
+        failures = evaluate_checks(parsed, run.metrics, run.inputs[0]["path"] if run.inputs else None)
         run._commit(report, check_records(parsed, run.metrics))
         outputs_committed()  # the run is done: a signal from here would only misreport it
         run._flush_notes()

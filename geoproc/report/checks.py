@@ -98,13 +98,16 @@ def require_known_metrics(checks: list[Check], names: Collection[str], command: 
                          f"its metrics: {', '.join(numbers)}")
 
 
-def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
+def evaluate_checks(checks: list[Check], metrics: dict, subject: str | None = None) -> list[str]:
     """Compare every check with ``metrics``.
 
     Parameters
     ----------
     checks : list of Check
     metrics : dict of str to number, bool or None
+    subject : str, optional
+        What the run was on (its first input), named in each line after
+        ``check failed:``, so that runs a Makefile starts at once can be told apart.
 
     Returns
     -------
@@ -129,7 +132,7 @@ def evaluate_checks(checks: list[Check], metrics: dict) -> list[str]:
     if text:
         raise UsageError(f"--check '{text[0].text}': metric '{text[0].metric}' is not a number "
                          f"(it is '{metrics[text[0].metric]}')")
-    return [line for line in (_failure(c, metrics) for c in checks) if line is not None]
+    return [line for line in (_failure(c, metrics, subject) for c in checks) if line is not None]
 
 
 def check_records(checks: list[Check], metrics: dict) -> list[dict]:
@@ -138,18 +141,20 @@ def check_records(checks: list[Check], metrics: dict) -> list[dict]:
     return [{"check": c.text, "passed": _failure(c, metrics) is None} for c in checks]
 
 
-def _failure(c: Check, metrics: dict) -> str | None:
-    """The line that tells how ``c`` failed on ``metrics``, or None when it passed."""
+def _failure(c: Check, metrics: dict, subject: str | None = None) -> str | None:
+    """The line that tells how ``c`` failed on ``metrics`` (naming ``subject``
+    when given), or None when it passed."""
+    head = "check failed: " if subject is None else f"check failed: {subject}: "
     measured = _numeric(metrics[c.metric])
     if measured is None:
-        return f"check failed: {c.text} (not measured in this run: null in the report)"
+        return f"{head}{c.text} (not measured in this run: null in the report)"
     if c.passes(measured):
         return None
     # every digit: 0.0376518 could hide a miss of <=0.037651843221598626; a count as the
     # count, a flag as the flag (false had read 0.0)
     raw = metrics[c.metric]
     shown = raw if isinstance(raw, int) else measured
-    return f"check failed: {c.text} (measured: {shown!r})"
+    return f"{head}{c.text} (measured: {shown!r})"
 
 
 def _numeric(value) -> float | None:
