@@ -451,9 +451,8 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
         if zero:
             why = f"no filter pass ran ({' and '.join(opt + ' 0' for opt in zero)})"
         else:
-            auto = [opt for opt, _, value in counts if not value]  # not given, or given as 0
             why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so "
-                   f"nothing was filtered; give {' and '.join(auto)} to filter anyway")
+                   f"nothing was filtered; give {_options_to_filter(dp)} to filter anyway")
         run.note(f"{', '.join(unused)} not used: {why}")
     elif rounds and not filtered and dp.outer_iterations and dp.normal_iterations is None:
         # --rounds given, the passes left to the schedule, which gives none on a clean mesh
@@ -461,10 +460,9 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
                  f"{info.get('noise_roughness', float('nan')):.3g}), so --normal-iterations defaults to 0 in "
                  f"each of the {rounds} rounds; give --normal-iterations to filter")
     elif not rounds and dp.outer_iterations is None:  # nothing given, nothing done: said (it had been silent)
-        auto = [opt for opt, _, value in counts if not value]  # not given, or given as 0
         run.note(f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}): nothing "
-                 f"was filtered and the positions are written unchanged; give {' and '.join(auto)} (above 0) to filter "
-                 "anyway")
+                 f"was filtered and the positions are written unchanged; give {_options_to_filter(dp)} (above 0) to "
+                 "filter anyway")
     if (filtered and "--method" in given and "--guidance-mix" not in given and dp.guidance_mix is None
             and info.get("guidance_mix") == 1.0 and not info.get("crease_repair")):
         run.note("--method guided: at this noise level on this mesh the guidance is blended away "
@@ -473,14 +471,20 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
         run.note("--fidelity not used: no vertex sweep ran (--vertex-iterations 0)")
 
 
+def _options_to_filter(dp) -> str:
+    """The counts a clean mesh leaves at 0 that would make the filter run: of
+    --rounds and --normal-iterations, those not given or given as 0."""
+    return " and ".join(opt for opt, value in (("--rounds", dp.outer_iterations),
+                                               ("--normal-iterations", dp.normal_iterations)) if not value)
+
+
 def _note_kept_seams(run, mesh, name: str) -> None:
     """Under --no-clean, a note when vertices the faces use share a position: each
     copy moves on its own, so the surface can open along those seams."""
-    from geoproc.mesh.clean import position_groups
+    from geoproc.mesh.clean import repeated_positions
     from geoproc.mesh.topology import referenced_vertices
 
-    used = np.flatnonzero(referenced_vertices(mesh.F, len(mesh.V)))
-    copies = len(used) - len(np.unique(position_groups(mesh.V[used])))
+    copies = repeated_positions(mesh.V[referenced_vertices(mesh.F, len(mesh.V))])
     if copies:
         one = copies == 1
         run.note(f"{name}: {copies} {'vertex' if one else 'vertices'} the faces use "
@@ -629,10 +633,8 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     if not info.get("outer_iterations"):  # no frame's static step ran a round: its fit did not act
         run.metrics.update({"vertex_iterations": None, "fidelity": None})
         if dp.outer_iterations is None:
-            wanted = " and ".join(o for o, v in (("--rounds", dp.outer_iterations),
-                                                 ("--normal-iterations", dp.normal_iterations)) if not v)
-            run.note(f"every frame reads as clean: the static step filtered none (give {wanted} (above 0) to "
-                     "filter anyway); the temporal coherence step still ran")
+            run.note(f"every frame reads as clean: the static step filtered none (give {_options_to_filter(dp)} "
+                     "(above 0) to filter anyway); the temporal coherence step still ran")
     if ref_V is not None:
         with run.timer("metrics"):
             per = [reference_metrics(V[t], anim.V[t], anim.F, ref_V[t]) for t in range(anim.n_frames)]

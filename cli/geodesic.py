@@ -198,9 +198,10 @@ def geodesic(
         m = run.load_mesh(mesh, clean=not no_clean)
         srcs = list(source or [])
         # indices past the loaded mesh, where loading merged or dropped vertices: the stored count differs
+        renumbered = bool(m.log.merged_vertices or m.log.removed_unreferenced)
         cleaned = (f"; the mesh file stores {m.log.stored_vertices}, and loading merged {m.log.merged_vertices} "
                    f"coincident and dropped {m.log.removed_unreferenced} unreferenced vertices (--no-clean keeps "
-                   "the stored numbering)" if m.log.merged_vertices or m.log.removed_unreferenced else "")
+                   "the stored numbering)" if renumbered else "")
         wrong = [i for i in srcs if isinstance(i, int) and not 0 <= i < len(m.V)]
         if wrong:
             raise InputError(m.log.path or mesh, f"source vertex {wrong[0]} is out of range (the mesh has "
@@ -214,7 +215,7 @@ def geodesic(
             srcs += [i for i, _ in listed]
             run.params["sources_from_file"] = [i for i, _ in listed]  # the report names them: a pipe is gone
         where = m.log.path or mesh  # notes on the mesh name it, as errors do
-        if m.log.merged_vertices or m.log.removed_unreferenced:
+        if renumbered:
             run.note(f"{where}: source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
         # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read
         from geoproc.geodesic.compare import compare_to_reference

@@ -248,31 +248,8 @@ def wos_solve(
             run.note(f"{res.metrics['fit_points']} fit points used, not {wanted}"
                      f"{'' if fit_points is not None else f' ({FIT_POINTS_PER_KERNEL} x the kernels used)'}: "
                      "every grid point farther than 2 x epsilon from the boundary (raise --grid for more)")
-        lap, gap = (res.metrics.get(k) for k in ("declared_laplacian", "declared_mean_value_gap"))
-        signs = ([f"its Laplacian reaches {lap:.3g} of its range per squared diagonal"]
-                 if lap is not None and lap > HARMONIC_NOTE else [])
-        if gap is not None and gap > HARMONIC_NOTE:  # also a singular point inside, which the stencils can miss
-            signs.append("its mean over circles inside the domain differs from its value at their centre by "
-                         + (f"{gap:.3g} of its range" if np.isfinite(gap) else "an infinite amount"))
-        flux_gap = res.metrics.get("declared_flux_gap")
-        if exact and res.metrics.get("neumann_segments") and not (flux_gap is not None and flux_gap == flux_gap):
-            run.note("--exact: cannot check --boundary against the Neumann data: rounding its values hides "
-                     "the difference at every sample (declared_flux_gap is null); subtracting a constant from "
-                     "--boundary, or moving the domain nearer the origin, lets it check")
-        if flux_gap is not None and flux_gap > FLUX_NOTE:
-            given = "--neumann" if neumann is not None else "the zero flux of Neumann segments without --neumann"
-            run.note(f"--exact: the normal derivative of --boundary on the Neumann segments differs from {given} "
-                     + (f"by {flux_gap:.3g} of its range per diagonal" if np.isfinite(flux_gap) else "(not finite)")
-                     + ", so it does not solve the mixed problem the walks estimate, and rmse measures the "
-                     "difference to it")
-        if signs:
-            run.note(f"--exact: --boundary is not harmonic ({'; '.join(signs)}), so it is not the solution the "
-                     "walks estimate, and rmse measures the difference to it")
-        elif exact and not any(v is not None and v == v for v in (lap, gap)):  # both NaN: rounding hides it
-            run.note("--exact: cannot check that --boundary is harmonic: its values are so large for their range "
-                     "over the domain that rounding them hides what the checks look for (declared_laplacian and "
-                     "declared_mean_value_gap are null); subtracting a constant from --boundary, or moving the domain "
-                     "nearer the origin with --boundary written for it, lets them check")
+        if exact:
+            _note_declared_checks(run, res.metrics, neumann is not None)
         gs = res.grid
         extent = (gs.x0, gs.x0 + gs.nx * gs.h, gs.y1 - gs.ny * gs.h, gs.y1)
         # where the image lies: pixel (row, col) is centred at (grid_left + (col + 0.5) pixel_size,
@@ -306,6 +283,44 @@ def wos_solve(
                 run.write_bytes(error_image, png_bytes(
                     err, extent, f"{name}: |error|, {method.value}, rmse "
                     f"{res.metrics['rmse']:.3g}", cmap="magma", contours=0, label="|u - exact|"))
+
+
+def _measured(value) -> bool:
+    """Whether a check's value was measured (not None, not NaN)."""
+    return value is not None and value == value
+
+
+def _note_declared_checks(run, metrics: dict, neumann_given: bool) -> None:
+    """--exact: the notes on the declared function's checks (``metrics``:
+    declared_laplacian, declared_mean_value_gap, declared_flux_gap): where it
+    is not harmonic or not the Neumann data's solution, rmse measures the
+    difference to it; where rounding hides what a check looks for, it could
+    not be checked."""
+    lap, gap, flux_gap = (metrics.get(k) for k in
+                          ("declared_laplacian", "declared_mean_value_gap", "declared_flux_gap"))
+    signs = ([f"its Laplacian reaches {lap:.3g} of its range per squared diagonal"]
+             if _measured(lap) and lap > HARMONIC_NOTE else [])
+    if _measured(gap) and gap > HARMONIC_NOTE:  # also a singular point inside, which the stencils can miss
+        signs.append("its mean over circles inside the domain differs from its value at their centre by "
+                     + (f"{gap:.3g} of its range" if np.isfinite(gap) else "an infinite amount"))
+    if metrics.get("neumann_segments") and not _measured(flux_gap):
+        run.note("--exact: cannot check --boundary against the Neumann data: rounding its values hides "
+                 "the difference at every sample (declared_flux_gap is null); subtracting a constant from "
+                 "--boundary, or moving the domain nearer the origin, lets it check")
+    if _measured(flux_gap) and flux_gap > FLUX_NOTE:
+        given = "--neumann" if neumann_given else "the zero flux of Neumann segments without --neumann"
+        run.note(f"--exact: the normal derivative of --boundary on the Neumann segments differs from {given} "
+                 + (f"by {flux_gap:.3g} of its range per diagonal" if np.isfinite(flux_gap) else "(not finite)")
+                 + ", so it does not solve the mixed problem the walks estimate, and rmse measures the "
+                 "difference to it")
+    if signs:
+        run.note(f"--exact: --boundary is not harmonic ({'; '.join(signs)}), so it is not the solution the "
+                 "walks estimate, and rmse measures the difference to it")
+    elif not (_measured(lap) or _measured(gap)):  # both null: rounding hides what they look for
+        run.note("--exact: cannot check that --boundary is harmonic: its values are so large for their range "
+                 "over the domain that rounding them hides what the checks look for (declared_laplacian and "
+                 "declared_mean_value_gap are null); subtracting a constant from --boundary, or moving the domain "
+                 "nearer the origin with --boundary written for it, lets them check")
 
 
 def register(app: typer.Typer) -> None:
