@@ -12,7 +12,7 @@ import typer
 from geoproc.errors import UsageError
 from geoproc.fileio import read_input_bytes
 from geoproc.mesh import Mesh
-from geoproc.mesh.validate import require_manifold, require_triangle_mesh
+from geoproc.mesh.validate import require_edge_manifold, require_manifold, require_triangle_mesh
 from geoproc.report import json_bytes
 from geoproc_cli.common import (
     LOAD_METRICS,
@@ -43,7 +43,8 @@ METRICS = LOAD_METRICS + BARYCENTRIC_METRICS + (
 def morse_simplify(
     ctx: typer.Context,
     mesh: Annotated[str, typer.Argument(help="Triangle mesh (.ply, .obj, .off, .stl), or - for stdin; "
-                                        "must be a 2-manifold (boundary and several components are fine).",
+                                        "must be a 2-manifold (boundary and several components are fine; "
+                                        "see --split-nonmanifold for vertices where fans of faces meet).",
                                         metavar="MESH")],
     field: Annotated[str, typer.Option(
         "--field", "-f",
@@ -85,6 +86,13 @@ def morse_simplify(
         "is the lower-star extension (each cell's largest vertex value), and the per-vertex property "
         "cell_dim (0, 1, 2) tells input vertices, edge midpoints and triangle centres apart. "
         "--exact-windows is refused with it.")] = False,
+    split_nonmanifold: Annotated[bool, flag(
+        "--split-nonmanifold",
+        help="Give each fan of faces at a non-manifold vertex (where separate fans meet at one point, as "
+        "in many scans) its own vertex at the same position, instead of refusing the mesh. The output "
+        "then has more vertices than the input; its int property input_vertex gives each one's input "
+        "vertex (reading the output again merges the copies, as coincident vertices, unless --no-clean "
+        "is given). Edges with more than two faces are still refused.")] = False,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,
@@ -126,7 +134,7 @@ def morse_simplify(
               "output": output, "critical": str(critical) if critical else None,
               "diagram": str(diagram) if diagram else None,
               "exact_windows": None if barycentric else exact_windows,  # --barycentric holds P/2 without them
-              "barycentric": barycentric, "clean": not no_clean}
+              "barycentric": barycentric, "split_nonmanifold": split_nonmanifold, "clean": not no_clean}
     npy_path = field if field.lower().endswith(".npy") else None  # a field read from a file
     with command_run("morse-simplify", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, critical, diagram],
@@ -145,7 +153,10 @@ def morse_simplify(
             require_extension(critical, ".json", "--critical", stdout_ok=True)
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
-        require_manifold(m, "; morse-simplify needs a manifold mesh")
+        require_edge_manifold(m.F, m.log.path or None, "; morse-simplify needs a manifold mesh")
+        if not split_nonmanifold:  # (the edges are checked: only a vertex can be what it names)
+            require_manifold(m, "; morse-simplify needs a manifold mesh (--split-nonmanifold gives each fan "
+                                "of faces at a vertex its own vertex)")
         # the methods (scipy, the compiled kernels) load once the mesh is read and checked
         from geoproc.mesh.clean import remove_unreferenced_vertices
         from geoproc.mesh.topology import orientation_status, referenced_vertices
@@ -153,13 +164,17 @@ def morse_simplify(
         from geoproc.morse.barycentric import barycentric_simplify, mesh_cell, subdivision_values
         from geoproc.morse.critical_table import critical_cells_table
         from geoproc.morse.diagram_plot import persistence_diagram_png
-        from geoproc.morse.fields import field_name, vertex_field
+        from geoproc.morse.fields import CURVATURES, field_name, vertex_field
         from geoproc.morse.summary import simplification_summary
         from geoproc.morse.window_repair import TIE_ROUNDING
 
         npy = read_input_bytes(npy_path, "field file (.npy)") if npy_path else None
-        with run.timer("field"):
-            f = vertex_field(m, field, npy)
+        split, source = _split_fans(run, m, mesh) if split_nonmanifold else (m, None)
+        with run.timer("field"):  # curvatures of the split surface; the other fields are the input's values
+            f = vertex_field(split, field) if field in CURVATURES else vertex_field(m, field, npy)
+            if source is not None and field not in CURVATURES:
+                f = f[source]
+        m = split
         if npy is not None:
             run.add_input(field, npy)
         name = field_name(field)
@@ -234,6 +249,28 @@ def morse_simplify(
 def register(app: typer.Typer) -> None:
     """Add ``morse-simplify`` to the application."""
     app.command("morse-simplify", epilog=metrics_epilog(METRICS))(morse_simplify)
+
+
+def _split_fans(run, m: Mesh, mesh: str) -> tuple[Mesh, np.ndarray | None]:
+    """``m`` with one vertex per fan of faces, its fields carried and
+    ``input_vertex`` added, and the input vertex of each vertex; ``m`` itself
+    and None when every vertex has one fan (a note says so)."""
+    from geoproc.mesh.clean import split_nonmanifold_vertices
+
+    V, F, source = split_nonmanifold_vertices(m.V, m.F)
+    path = m.log.path or mesh
+    if len(V) == len(m.V):
+        run.note(f"{path}: no vertex joins separate fans of faces; --split-nonmanifold changed nothing "
+                 "(the output has no input_vertex property)")
+        return m, None
+    split = len(np.unique(source[len(m.V):]))
+    run.note(f"{path}: split {split} non-manifold {'vertex' if split == 1 else 'vertices'} into "
+             f"{split + len(V) - len(m.V)} (one per fan of "
+             f"faces; {len(V)} vertices in all): the output's vertex ids are the split mesh's, and its "
+             "input_vertex property gives each one's input vertex")
+    fields = {k: v[source] for k, v in m.vertex_fields.items()}
+    fields["input_vertex"] = source.astype(np.int32 if len(m.V) < 2**31 else np.int64)
+    return Mesh(V, F, fields, dict(m.face_fields), m.log), source
 
 
 def _beyond_note(beyond: int, threshold: float, max_change: float, summary, tie_rounding: float) -> str:

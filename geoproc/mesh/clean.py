@@ -148,3 +148,49 @@ def clean_mesh(mesh: Mesh) -> Mesh:
     keep = keep1[keep2]
     fields = {k: v[keep] for k, v in mesh.vertex_fields.items()}
     return Mesh(V, F, fields, dict(mesh.face_fields), log)
+
+
+def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Give every fan of faces its own vertex (a bowtie's two fans become two
+    vertices at the same position). The corners fall into the same vertices
+    as with MeshLab's ``meshing_repair_non_manifold_vertices`` at
+    ``vertdispratio=0``, which gives no map back to the input's vertices.
+
+    A vertex with one fan (or none) keeps its index; each further fan of a
+    vertex gets a new vertex appended, in order of the input vertex and then
+    of the fan's first corner, so the numbering does not depend on anything
+    but V and F. Unlike ``igl.split_nonmanifold``, faces are not split apart
+    where their orientations disagree: only the vertices are split, and an
+    edge shared by more than two faces stays so.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+
+    Returns
+    -------
+    V2 : (n2, 3) float array
+        ``V[source]``.
+    F2 : (m, 3) int array
+        The same faces on the split vertices.
+    source : (n2,) int array
+        The input vertex of each output vertex (``source[:n]`` is ``0..n-1``).
+    """
+    from geoproc.mesh.topology import corner_fans
+
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    n = len(V)
+    count, label = corner_fans(F, n)
+    corner_vertex = F.reshape(-1)
+    first = np.full(count, F.size, dtype=np.int64)
+    np.minimum.at(first, label, np.arange(F.size))  # each fan's first corner
+    fan_vertex = corner_vertex[first]
+    order = np.lexsort((first, fan_vertex))  # fans by vertex, then by first corner
+    later = np.ones(count, dtype=bool)
+    later[order[np.r_[True, fan_vertex[order[1:]] != fan_vertex[order[:-1]]]]] = False  # a vertex's first fan
+    new_index = fan_vertex.copy()
+    extra = order[later[order]]
+    new_index[extra] = n + np.arange(len(extra))
+    source = np.concatenate([np.arange(n), fan_vertex[extra]])
+    return V[source], new_index[label].reshape(-1, 3), source

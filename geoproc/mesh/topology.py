@@ -154,9 +154,25 @@ def vertex_fans(F: np.ndarray, n: int) -> np.ndarray:
 
 
 def fans_by_sorting(F: np.ndarray, n: int) -> np.ndarray:
-    """:func:`vertex_fans` in numpy and scipy: the two edges at every corner are
-    sorted by their (vertex, other end) keys, equal keys join their corners, and
-    the connected components of that corner graph are the fans."""
+    """:func:`vertex_fans` in numpy and scipy, from :func:`corner_fans`."""
+    count, label = corner_fans(F, n)
+    fan_vertex = np.empty(count, dtype=np.int64)
+    fan_vertex[label] = np.asarray(F, dtype=np.int64).reshape(-1)  # every corner of a fan is at the same vertex
+    return np.bincount(fan_vertex, minlength=n)
+
+
+def corner_fans(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:
+    """The fan of every corner: the two edges at every corner are sorted by
+    their (vertex, other end) keys, equal keys join their corners, and the
+    connected components of that corner graph are the fans.
+
+    Returns
+    -------
+    count : int
+        Number of fans.
+    label : (3 m,) int array
+        Fan of corner ``3 f + k`` (vertex ``F[f, k]``), in ``0..count-1``.
+    """
     F = np.ascontiguousarray(F, dtype=np.int64)
     corners = F.size
     v = F.reshape(-1)  # corner 3 f + k is vertex F[f, k]
@@ -166,9 +182,7 @@ def fans_by_sorting(F: np.ndarray, n: int) -> np.ndarray:
     a, b = order[same] % corners, order[same + 1] % corners
     graph = sp.coo_matrix((np.ones(len(a), dtype=np.int32), (a, b)), shape=(corners, corners))
     count, label = connected_components(graph, directed=False)
-    fan_vertex = np.empty(count, dtype=np.int64)
-    fan_vertex[label] = v  # every corner of a fan is at the same vertex
-    return np.bincount(fan_vertex, minlength=n)
+    return int(count), label
 
 
 def fans_compiled(F: np.ndarray, n: int) -> np.ndarray:

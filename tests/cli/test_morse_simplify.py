@@ -186,8 +186,53 @@ def test_non_manifold_refused(cli, fixture_dir, tmp_path, name, needle):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and "non-manifold" in lines[0]
     assert f"first: {needle}" in lines[0]
-    assert lines[0].endswith("; morse-simplify needs a manifold mesh")
+    hint = " (--split-nonmanifold gives each fan of faces at a vertex its own vertex)" if needle == "vertex" else ""
+    assert lines[0].endswith("; morse-simplify needs a manifold mesh" + hint)
     assert not out.exists()
+    if needle == "edge":  # splitting vertices does not mend an edge with three faces
+        p = cli("morse-simplify", fixture_dir / name, "--field", "z", "--persistence", "0.1", "-o", out,
+                "--split-nonmanifold")
+        assert p.returncode == 2 and "edges have more than two faces" in p.stderr and not out.exists()
+
+
+def test_split_nonmanifold_gives_each_fan_its_vertex(cli, fixture_dir, tmp_path, make_fixtures):
+    # the bowtie's two triangles become two discs; fields follow input_vertex
+    out, rep = tmp_path / "o.ply", tmp_path / "r.json"
+    p = cli("morse-simplify", fixture_dir / "bowtie.obj", "--field", "x", "--persistence", "0", "-o", out,
+            "--split-nonmanifold", "--report", rep)
+    assert p.returncode == 0, p.stderr
+    assert "split 1 non-manifold vertex into 2" in p.stderr
+    m = load_mesh(out, clean=False)
+    assert np.array_equal(m.vertex_fields["input_vertex"], [0, 1, 2, 3, 4, 0])
+    assert m.vertex_fields["input_vertex"].dtype.kind == "i"
+    np.testing.assert_array_equal(m.vertex_fields["x_value_original"], m.V[:, 0])
+    r = json.loads(rep.read_text())
+    assert r["params"]["split_nonmanifold"] is True
+    assert (r["metrics"]["betti_0"], r["metrics"]["euler_characteristic"]) == (2, 2)
+    # two spheres touching at a vertex: each copy gets the curvature of one sphere there
+    # (libigl's on the single sphere; the unsplit vertex would have summed both fans' angles)
+    import igl
+
+    V, F = make_fixtures.icosphere(2)
+    n = len(V)
+    mirrored = V - 2 * (V @ V[0] - 1)[:, None] * V[0]  # through the plane touching the sphere at vertex 0
+    two = Mesh(np.concatenate([V, mirrored]),
+               np.concatenate([F, np.where(F == 0, 0, F + n)[:, ::-1]]))
+    src = tmp_path / "two.ply"
+    save_mesh(src, two)
+    p = cli("morse-simplify", src, "--field", "gaussian-curvature", "--persistence", "0", "-o", out,
+            "--split-nonmanifold", "--quiet")
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(out, clean=False)
+    k = m.vertex_fields["gaussian_curvature_original"]
+    K = igl.gaussian_curvature(V, F) / igl.massmatrix(V, F, igl.MASSMATRIX_TYPE_VORONOI).diagonal()
+    copies = np.flatnonzero(m.vertex_fields["input_vertex"] == 0)
+    assert len(copies) == 2
+    np.testing.assert_allclose(k[copies], K[0], rtol=1e-9)
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "--field", "x", "--persistence", "0", "-o", out,
+            "--split-nonmanifold")
+    assert p.returncode == 0 and "--split-nonmanifold changed nothing" in p.stderr
+    assert "input_vertex" not in load_mesh(out).vertex_fields
 
 
 def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
