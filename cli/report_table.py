@@ -1,4 +1,5 @@
-"""Print a summary table of geoproc JSON reports: ``python -m geoproc_cli.report_table DIR``.
+"""Print a summary table of geoproc JSON reports: ``python -m geoproc_cli.report_table DIR``,
+or write them all as CSV with ``--csv OUT.csv``.
 
 Used by ``make demo``; reads every ``*.json`` in DIR that is a geoproc report.
 """
@@ -70,15 +71,10 @@ def read_report(path: Path) -> dict | None:
     return rep
 
 
-def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[str]]:
-    """One row per report in ``folder``: command, input, a few metrics, total time.
-
-    Returns the table, the number of reports in it and one note per
-    ``*.json`` file that could not be read."""
-    t = Table(title=Text(f"geoproc reports in {folder}"))
-    for col in ("report", "command", "input", "metrics", "checks", "total s"):
-        t.add_column(col)
-    rows, notes = 0, []
+def folder_reports(folder: Path) -> tuple[list[tuple[Path, dict]], list[str]]:
+    """Every geoproc report in ``folder`` (``*.json``, any case, sorted by
+    name) with its path, and one note per such file that could not be read."""
+    reports, notes = [], []
     for path in sorted(p for p in folder.iterdir() if p.suffix.lower() == ".json"):  # as --report accepts them
         if not path.is_file():
             continue
@@ -87,13 +83,77 @@ def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[
         except OSError as e:
             notes.append(f"{path}: cannot read ({e.strerror or e})")
             continue
-        if rep is None:
-            continue
+        if rep is not None:
+            reports.append((path, rep))
+    return reports, notes
+
+
+def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[str]]:
+    """One row per report in ``folder``: command, input, a few metrics, total time.
+
+    Returns the table, the number of reports in it and one note per
+    ``*.json`` file that could not be read."""
+    t = Table(title=Text(f"geoproc reports in {folder}"))
+    for col in ("report", "command", "input", "metrics", "checks", "total s"):
+        t.add_column(col)
+    reports, notes = folder_reports(folder)
+    for path, rep in reports:
         shown = [f"{k}={_shown_value(v)}" for k, v in headline_metrics(rep["metrics"])][:max_metrics]
         t.add_row(Text(path.name), Text(str(rep["command"])), Text(_input_names(rep)), Text(" ".join(shown)),
                   _check_summary(rep), _total_seconds(rep))
-        rows += 1
-    return t, rows, notes
+    return t, len(reports), notes
+
+
+def _csv_value(v) -> str:
+    """A report value as CSV text: numbers as JSON writes them (every digit),
+    true/false, empty for null or absent, lists and objects as JSON."""
+    if v is None:
+        return ""
+    if isinstance(v, str):
+        return v
+    return json.dumps(v, separators=(",", ":"), allow_nan=True)
+
+
+def reports_csv(reports: list[tuple[Path, dict]]) -> str:
+    """One CSV row per report: ``report``, ``command``, ``geoproc_version``, ``created``,
+    ``inputs`` (paths joined by ``;``), ``checks_failed`` (count, empty
+    without checks), then a column ``params.NAME``, ``metrics.NAME`` and
+    ``timings_s.NAME`` for every name in any report (metrics in the order of
+    :data:`HEADLINE`, then as they first appear). A cell is empty where a
+    report lacks the name or holds null."""
+    import csv
+    import io
+
+    def names(section: str) -> list[str]:
+        seen: dict[str, None] = {}
+        for _, rep in reports:
+            block = rep.get(section)
+            if isinstance(block, dict):
+                seen.update(dict.fromkeys(block))
+        if section == "metrics":
+            return [k for k in HEADLINE if k in seen] + [k for k in seen if k not in HEADLINE]
+        return list(seen)
+
+    sections = [(sec, names(sec)) for sec in ("params", "metrics", "timings_s")]
+    header = ["report", "command", "geoproc_version", "created", "inputs", "checks_failed"]
+    header += [f"{sec}.{k}" for sec, keys in sections for k in keys]
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(header)
+    for path, rep in reports:
+        inputs = rep.get("inputs")
+        paths = [i["path"] for i in inputs if isinstance(i, dict) and isinstance(i.get("path"), str)] \
+            if isinstance(inputs, list) else []
+        checks = rep.get("checks")
+        failed = sum(1 for c in checks if not (isinstance(c, dict) and c.get("passed") is True)) \
+            if isinstance(checks, list) and checks else None
+        row = [path.name, *(_csv_value(rep.get(k)) for k in ("command", "geoproc_version", "created")), ";".join(paths),
+               _csv_value(failed)]
+        for sec, keys in sections:
+            block = rep.get(sec) if isinstance(rep.get(sec), dict) else {}
+            row += [_csv_value(block.get(k)) for k in keys]
+        w.writerow(row)
+    return out.getvalue()
 
 
 def _check_summary(rep: dict) -> Text:
@@ -107,35 +167,83 @@ def _check_summary(rep: dict) -> Text:
     return Text(f"{len(failed)} of {len(checks)} failed: {', '.join(failed)}", style="bold red")
 
 
-USAGE = "usage: python -m geoproc_cli.report_table [FOLDER]  (default out/demo)"
+USAGE = "usage: python -m geoproc_cli.report_table [FOLDER] [--csv OUT.csv]  (FOLDER default out/demo)"
+HELP = """Prints one row per geoproc JSON report in FOLDER.
+  --csv OUT.csv   write every report's params, metrics and timings as CSV
+                  instead (one row per report, one column per name; - for
+                  standard output)"""
+
+
+def _arguments(args: list[str]) -> tuple[str | None, str | None] | None:
+    """(folder, csv path) from the arguments, None when they are not usable."""
+    folder, csv_path, i = None, None, 0
+    while i < len(args):
+        a = args[i]
+        if a == "--csv" and i + 1 < len(args) and csv_path is None:
+            csv_path, i = args[i + 1], i + 2
+        elif a.startswith("--csv=") and csv_path is None:
+            csv_path, i = a[len("--csv="):], i + 1
+        elif folder is None and not a.startswith("-"):
+            folder, i = a, i + 1
+        else:
+            return None
+    if csv_path == "":
+        return None
+    return folder, csv_path
 
 
 def main(argv: list[str]) -> int:
-    """Print the table of the reports in ``argv[1]``. Exit 0; 2 for a bad
-    argument, a missing folder or one without reports (one line on stderr)."""
+    """Print the table of the reports in the folder argument, or write them
+    as CSV with ``--csv``. Exit 0; 2 for a bad argument, a missing folder or
+    one without reports, or a CSV file that cannot be written (one line on
+    stderr)."""
     args = argv[1:]
     if args and args[0] in ("-h", "--help"):
-        print(USAGE + "\nPrints one row per geoproc JSON report in FOLDER.")
+        print(USAGE + "\n" + HELP)
         return 0
-    if len(args) > 1 or (args and args[0].startswith("-")):
+    parsed = _arguments(args)
+    if parsed is None:
         print(f"report_table: error: {USAGE}", file=sys.stderr)
         return 2
-    folder = Path(args[0]) if args else Path("out/demo")
+    folder = Path(parsed[0]) if parsed[0] else Path("out/demo")
+    csv_path = parsed[1]
     if not folder.is_dir():
         what = "not a folder" if folder.exists() else "no such folder"
         print(f"report_table: error: {folder}: {what}", file=sys.stderr)
         return 2
-    table, rows, notes = summary_table(folder)
+    if csv_path is not None:
+        reports, notes = folder_reports(folder)
+    else:
+        table, rows, notes = summary_table(folder)
+        reports = [None] * rows
     for note in notes:
         print(f"report_table: {note}", file=sys.stderr)
-    if rows == 0:
+    if not reports:
         print(f"report_table: error: {folder}: no geoproc reports (*.json with command and metrics)",
               file=sys.stderr)
         return 2
+    if csv_path is not None:
+        return _write_csv(csv_path, reports_csv(reports))
     console = Console()
     if not console.is_terminal:
         console = Console(width=160)
     console.print(table)
+    return 0
+
+
+def _write_csv(path: str, text: str) -> int:
+    """Write the CSV to ``path`` (a temporary file renamed into place) or to
+    standard output for ``-``; 2 with one line when the file cannot be written."""
+    if path == "-":
+        sys.stdout.write(text)
+        return 0
+    from geoproc.fileio import write_bytes_atomic
+
+    try:
+        write_bytes_atomic(path, text.encode())
+    except OSError as e:
+        print(f"report_table: error: {path}: cannot write ({e.strerror or e})", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -115,3 +115,48 @@ def test_a_full_standard_output_and_a_termination_are_one_error_line(tmp_path):
               "sys.exit(report_table.run(['report_table', sys.argv[1]]))\n")
     p = subprocess.run([sys.executable, "-c", script, str(tmp_path)], capture_output=True, text=True, timeout=60)
     assert p.returncode == 143 and p.stderr == "report_table: error: terminated (SIGTERM)\n", p.stderr
+
+
+def test_csv_has_a_column_per_name_and_every_digit(tmp_path, capsys):
+    import csv
+
+    folder = tmp_path / "reports"
+    folder.mkdir()
+    x = 0.1 + 0.2  # 0.30000000000000004: the CSV keeps every digit
+    _write(folder, "a.json", {"command": "example", "geoproc_version": "1.2", "params": {"method": "heat", "t": 2},
+                              "metrics": {"faces": 10, "mean_relative_error": x, "note": None},
+                              "inputs": [{"path": "/x/a.ply"}, {"path": "/x/b.npy"}],
+                              "checks": [{"check": "faces<9", "passed": False}], "timings_s": {"total": 1.5}})
+    _write(folder, "b.json", {"command": "other", "metrics": {"genus": 2, "closed": True, "faces": 4}})
+    _write(folder, "other.json", {"critical": []})
+    out = tmp_path / "r.csv"
+    assert main(["report_table", str(folder), "--csv", str(out)]) == 0
+    rows = list(csv.DictReader(out.read_text().splitlines()))
+    assert [r["report"] for r in rows] == ["a.json", "b.json"]
+    header = out.read_text().splitlines()[0].split(",")
+    # metrics: the headline names first (mean_relative_error before faces), then as they appear
+    assert header.index("metrics.mean_relative_error") < header.index("metrics.genus") < header.index(
+        "metrics.faces") < header.index("metrics.note")
+    a, b = rows
+    assert float(a["metrics.mean_relative_error"]) == x and a["metrics.faces"] == "10"
+    assert a["metrics.note"] == "" and a["metrics.genus"] == "" and b["metrics.closed"] == "true"
+    assert a["inputs"] == "/x/a.ply;/x/b.npy" and a["checks_failed"] == "1" and b["checks_failed"] == ""
+    assert a["params.method"] == "heat" and b["params.method"] == "" and a["timings_s.total"] == "1.5"
+    assert a["geoproc_version"] == "1.2" and b["command"] == "other"
+    capsys.readouterr()
+    assert main(["report_table", str(folder), "--csv", "-"]) == 0
+    assert capsys.readouterr().out == out.read_text()
+
+
+def test_csv_arguments_and_unwritable_files_exit_2_with_one_line(tmp_path, capsys):
+    _write(tmp_path, "a.json", {"command": "info", "metrics": {"genus": 0}})
+    for args in (["--csv"], [str(tmp_path), "--csv"], ["--csv=", str(tmp_path)],
+                 [str(tmp_path), "--csv", "a.csv", "--csv", "b.csv"], [str(tmp_path), "extra"]):
+        assert main(["report_table", *args]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("report_table: error: usage:")
+    missing = tmp_path / "no" / "r.csv"
+    assert main(["report_table", str(tmp_path), f"--csv={missing}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(missing) in err[0] and "cannot write" in err[0]
+    assert not missing.parent.exists()
