@@ -44,6 +44,11 @@ METRIC_UNITS = {
     "vertex_rmse": "in the clean mesh's mean edge lengths",
     "flipped_faces": "faces more than 90 degrees from the clean mesh",
     "sigma_s": "in centroid spacings (sigma_s_length in length units)",
+    "sigma_r": "as the distance |n_i - n_j| between unit normals (0 to 2)",
+    "noise_roughness": "in mean edge lengths (the median jump of the vertices' heights over their rings)",
+    "feature_tau": "in each vertex's mean edge length",
+    "threshold": "(--outliers) in median point spacings",
+    "mean_refinement_shift": "(--outliers) in the cloud's length unit",
 }
 """Units of the metrics whose names do not tell, for ``--help``."""
 
@@ -78,7 +83,7 @@ def denoise(
     output: Annotated[str, typer.Option("--output", "-o", help="Output: a mesh (.ply keeps the per-face "
                                         "'feature' property; - is binary PLY on stdout), the inlier cloud "
                                         "with --outliers, .npz with --dynamic.", metavar="OUT")],
-    method: Annotated[str, typer.Option("--method", help=f"Normal filter: {', '.join(METHODS)}.",
+    method: Annotated[str, typer.Option("--method", "-m", help=f"Normal filter: {', '.join(METHODS)}.",
                                         metavar=choices_metavar(METHODS))]
     = DEFAULT_METHOD,
     reference: Annotated[str | None, typer.Option("--reference", help="Clean version with the same "

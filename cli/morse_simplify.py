@@ -38,6 +38,11 @@ METRICS = LOAD_METRICS + BARYCENTRIC_METRICS + (
     "max_abs_change", "threshold", "vertices_beyond_half_threshold",
 )
 """Every metric ``morse-simplify`` can report (``subdivision_vertices`` with --barycentric)."""
+METRIC_UNITS = {
+    "threshold": "P in the field's units (with --relative, P times the field's range)",
+    "max_abs_change": "max |f - g| in the field's units",
+}
+"""Units of the metrics whose names do not tell, for ``--help``."""
 
 
 def morse_simplify(
@@ -248,7 +253,7 @@ def morse_simplify(
 
 def register(app: typer.Typer) -> None:
     """Add ``morse-simplify`` to the application."""
-    app.command("morse-simplify", epilog=metrics_epilog(METRICS))(morse_simplify)
+    app.command("morse-simplify", epilog=metrics_epilog(METRICS, units=METRIC_UNITS))(morse_simplify)
 
 
 def _split_fans(run, m: Mesh, mesh: str) -> tuple[Mesh, np.ndarray | None]:

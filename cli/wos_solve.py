@@ -106,7 +106,7 @@ def wos_solve(
         "as an expression; marked segments without it have zero flux.", metavar="'EXPR'",
         show_default=False)] = None,
     method: Annotated[Method, typer.Option(
-        "--method", help="naive: plain walks; cv-green / cv-angle: fit a control variate of "
+        "--method", "-m", help="naive: plain walks; cv-green / cv-angle: fit a control variate of "
         "Green / segment-angle kernels, then walk the residual; npass: cv-green refined by Adam "
         "on fresh walk batches. cv-angle takes Dirichlet-only domains.")] = Method.naive,
     walks: Annotated[int, typer.Option("--walks", help="Walks per grid point (1 to 10^7).", min=1,
@@ -137,10 +137,10 @@ def wos_solve(
         "max_abs_error and bias over grid points inside and farther than 2 epsilon from the "
         "boundary.")] = False,
     error_image: Annotated[str | None, typer.Option(
-        "--error-image", help="PNG of the absolute error (needs --exact).", metavar="E.png",
+        "--error-image", help="PNG of the absolute error (needs --exact; - for stdout).", metavar="E.png",
         show_default=False)] = None,
     image: Annotated[str | None, typer.Option("--image", help="Colormapped PNG of the solution "
-                                              "with contour lines.", metavar="U.png",
+                                              "with contour lines (- for stdout).", metavar="U.png",
                                               show_default=False)] = None,
     stderr_image: Annotated[str | None, typer.Option(
         "--stderr-image", help="Standard error of each pixel's estimate (the walks' sample standard "
@@ -174,14 +174,14 @@ def wos_solve(
             refuse_options(ctx, ("kernels", "fit_walks", "fit_points", "ridge"),
                            "only with a control variate (--method cv-green, cv-angle or npass)")
         if image:
-            require_extension(image, ".png", "--image")
+            require_extension(image, ".png", "--image", stdout_ok=True)
         if stderr_image:
             require_extension(stderr_image, ".exr", "--stderr-image")
             if walks < 2:
                 raise UsageError("--stderr-image needs --walks 2 or more (one walk per point has no "
                                  "spread to measure)")
         if error_image:
-            require_extension(error_image, ".png", "--error-image")
+            require_extension(error_image, ".png", "--error-image", stdout_ok=True)
             if not exact:
                 raise UsageError("--error-image needs --exact (the error is against the exact solution)")
         from geoproc.wos.expression import parse_expression  # plain Python: no numba yet
@@ -192,7 +192,7 @@ def wos_solve(
             require_input_file(domain, "domain file")
         from geoproc.wos import load_domain, solve_laplace
         from geoproc.wos.images import EXR_MAX, exr_bytes, float32_steps, png_bytes
-        from geoproc.wos.solve import FIT_POINTS_PER_KERNEL, default_ridge
+        from geoproc.wos.solve import FIT_POINTS_PER_KERNEL, default_ridge, suggested_epsilon
 
         if fitted and ridge is None:  # the report names the weight used
             run.params["ridge"] = default_ridge(method.value)
@@ -217,7 +217,7 @@ def wos_solve(
             run.note(f"--epsilon {epsilon:g} is {epsilon / diag:.2g} of the domain's bounding-box diagonal "
                      f"({diag:.3g}): walks stop that far from the boundary and score the closest boundary "
                      "point, a bias the standard error does not show; --epsilon is in the domain's length "
-                     f"units (try {1e-4 * diag:.2g})")
+                     f"units (try {suggested_epsilon(diag):.2g}, as 0.001 is to a unit square)")
         with run.timer("solve"), run.progress("walking", 1.0) as update:
             res = solve_laplace(dom, g, flux=h, method=method.value, walks=walks, grid=grid,
                                 eps=epsilon, kernels=kernels, fit_walks=fit_walks,

@@ -187,7 +187,8 @@ def perturb_positions(
         given = " / ".join([f"--noise {spec.sigma:g}"] * (spec.sigma > 0)
                            + [f"--outlier-range {spec.outlier_range:g}"] * (spec.outliers > 0))
         raise UsageError(f"{given} move{'s' if ' / ' not in given else ''} vertices {far}, "
-                         f"beyond the +-{MAX_COORDINATE:.0e} a mesh may span; use less noise")
+                         f"beyond the +-{MAX_COORDINATE:.0e} a mesh may span; use "
+                         f"{'smaller values' if ' / ' in given else 'a smaller value'}")
     return out, outlier
 
 

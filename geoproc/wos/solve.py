@@ -52,6 +52,17 @@ class GridSpec:
         return np.stack([X.ravel(), Y.ravel()], axis=1)
 
 
+
+def suggested_epsilon(diagonal: float, deepest: float | None = None) -> float:
+    """The stopping distance that is to a domain what the default 0.001 is to
+    a unit square: 0.001 / sqrt(2) of the bounding-box ``diagonal``, and no
+    more than 1/500 of the ``deepest`` grid point's distance to the boundary
+    when it is known (a unit square's centre is 0.5 deep), so that a thin
+    domain keeps points farther than 2 epsilon from its boundary. Domain
+    length units."""
+    eps = 1e-3 / np.sqrt(2.0) * diagonal
+    return float(eps if deepest is None else min(eps, deepest / 500))
+
 def grid_over(domain: Domain, n: int) -> GridSpec:
     """Square-pixel grid over the domain's bounding box, ``n`` pixels along its
     longer side and as many along the other as cover it (centred on the box:
@@ -195,7 +206,8 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
         deepest = float(depth.max())
         raise InputError(str(domain.source), f"--exact: no grid point lies farther than 2 x epsilon ({2 * eps:.3g}) "
                          f"from the boundary (the farthest is {deepest:.3g} from it); --epsilon is in domain "
-                         f"units (try {deepest / 500:.2g}, as 0.001 is to a unit square), or use a finer --grid")
+                         f"units (try {suggested_epsilon(diagonal, deepest):.2g}, as 0.001 is to a unit square), "
+                         "or use a finer --grid")
     ue_inside = _declared_solution(boundary, X, domain) if exact else None
     # compile (or load cached code) outside the timed passes
     problem.load_kernels(X)

@@ -67,6 +67,13 @@ def test_solve_writes_exr_report_and_images(cli, inputs, tmp_path):
         assert key in m, key
     assert m["rmse"] < 0.02 and m["walks"] == 32 and m["total_steps"] > 0
     assert img.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and err.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # the PNGs go to standard output with -, as geodesic's --render and morse-simplify's --diagram do
+    for option, written in (("--image", img), ("--error-image", err)):
+        p = cli("wos-solve", inputs / "disk.json", "--boundary", "x**3 - 3*x*y**2", "--method",
+                "cv-green", "--walks", "32", "--grid", "40", "--kernels", "40", "--exact", "-o", tmp_path / "v.exr",
+                option, "-", "--seed", "3", "--quiet")
+        assert p.returncode == 0, p.stderr
+        assert p.stdout == written.read_bytes()
 
 
 def test_same_seed_same_bytes(cli, inputs, tmp_path):
@@ -353,6 +360,7 @@ def test_an_epsilon_large_for_the_domain_is_noted(cli, tmp_path):
     p = cli("wos-solve", dom, "--boundary", "x", "--grid", "8", "--walks", "4", "-o", tmp_path / "u.exr")
     assert p.returncode == 0
     assert "note: --epsilon 0.001 is 0.35 of the domain's bounding-box diagonal (0.00283)" in p.stderr
+    assert "(try 2e-06, as 0.001 is to a unit square)" in p.stderr  # as the --exact refusal suggests
     p = cli("wos-solve", dom, "--boundary", "x", "--grid", "8", "--walks", "4", "--epsilon", "1e-6",
             "-o", tmp_path / "u.exr")
     assert p.returncode == 0 and "--epsilon" not in p.stderr
