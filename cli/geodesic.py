@@ -70,10 +70,6 @@ Solver = StrEnum("Solver", {name: name for name in SOLVERS})
 HeatUnderflow = StrEnum("HeatUnderflow", {name.replace("-", "_"): name for name in HEAT_UNDERFLOW})
 
 
-class Reference(StrEnum):
-    exact = "exact"
-
-
 MAX_INDEX_DIGITS = 20
 """Digits of the longest vertex index a sources file may spell (2^64 has 20)."""
 
@@ -149,9 +145,12 @@ def geodesic(
                               "representable; a time so short that t times a Laplacian weight underflows is "
                               "then refused) and keep keeps the plain step's result (no direction where u is 0).")]
     = HeatUnderflow.log_domain,
-    reference: Annotated[Reference | None, typer.Option("--reference", help="Compare with exact "
-                         "geodesics: pearson_r, rmse, mae, mean/max_relative_error in the report.",
-                         show_default=False)] = None,
+    reference: Annotated[str | None, typer.Option(
+        "--reference", help="Compare with a reference distance: exact (libigl's exact geodesics from the "
+        "same sources), or a file of distances, one per vertex: a .npy, or a mesh with the same vertices "
+        "(within 1e-6 of its bounding-box diagonal) holding them in the vertex property --field-name names "
+        "(another run's output, say); +inf marks vertices no source reaches. Reports pearson_r, rmse, mae, "
+        "mean/max_relative_error.", metavar="exact|FILE", show_default=False)] = None,
     field_name: Annotated[str, typer.Option("--field-name", help="Name of the output vertex property: an identifier "
                                           "(letters, digits, _) other than x, y, z.")]
     = "distance",
@@ -180,11 +179,12 @@ def geodesic(
         "operators": operators.value if operators else DEFAULT_OPERATORS.get(m_name),
         "solver": solver.value if m_name == "log-ode" else None,  # the only method that solves with it
         "heat_underflow": heat_underflow.value if m_name == "heat" else None,
-        "reference": reference.value if reference else None,
+        "reference": reference,
         "field_name": field_name, "render": render, "clean": not no_clean,
     }
     with command_run("geodesic", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output, render], inputs=[mesh, sources_file], metrics=METRICS, text_metrics=TEXT_METRICS,
+                     outputs=[output, render], inputs=[mesh, sources_file, None if reference == "exact" else reference],
+                     metrics=METRICS, text_metrics=TEXT_METRICS,
                      needs=_metric_needs(m_name, solver.value, reference)) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
@@ -194,7 +194,10 @@ def geodesic(
         _refuse_unused_options(ctx, m_name, operators.value if operators else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
-        run.one_stdin(mesh, sources_file)
+        if reference not in (None, "exact", "-") and not os.path.exists(reference):  # before the work
+            raise UsageError(f"--reference {reference}: no such file (give exact, or a .npy or mesh file of "
+                             "distances)")
+        run.one_stdin(mesh, sources_file, None if reference == "exact" else reference)
         m = run.load_mesh(mesh, clean=not no_clean)
         srcs = list(source or [])
         # indices past the loaded mesh, where loading merged or dropped vertices: the stored count differs
@@ -277,7 +280,10 @@ def geodesic(
                      f"finite distance{why}: nonfinite_distance_vertices counts them")
         if reference is not None:
             with run.timer("reference"):
-                ref = geodesic_distance(m.V, m.F, srcs, "exact", path=m.log.path).distance
+                if reference == "exact":
+                    ref = geodesic_distance(m.V, m.F, srcs, "exact", path=m.log.path).distance
+                else:
+                    ref = _reference_file(run, reference, m, field_name, no_clean)
             cmp = compare_to_reference(d, ref)
             run.metrics.update(cmp)
         out = m.copy()
@@ -308,6 +314,49 @@ METHOD_METRICS = (
 )
 """The metrics only some methods report: a --check on one that the chosen method
 does not report is refused before the input is read."""
+
+
+def _reference_file(run, path: str, m, field_name: str, no_clean: bool) -> np.ndarray:
+    """The reference distances of ``--reference FILE`` for the vertices of
+    ``m``: a .npy with one value per vertex, or the ``field_name`` property of
+    a mesh with the same vertices (loaded as the input was). Finite values and
+    +inf (unreached) only."""
+    from geoproc.mesh import load_mesh
+    from geoproc.mesh.validate import npy_vertex_values
+
+    if path.lower().endswith(".npy"):
+        values = run.read_input(path, lambda name, data: npy_vertex_values(data, m, name),
+                                "reference distances (.npy)").reshape(-1)
+    else:
+        ref = run.read_input(path, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
+        if len(ref.V) != len(m.V):
+            raise InputError(path, f"the reference mesh has {len(ref.V)} vertices, the mesh {len(m.V)}: it must "
+                                   "be the same mesh, holding the distances as a vertex property")
+        far = np.linalg.norm(ref.V - m.V, axis=1)
+        diag = float(np.linalg.norm(np.ptp(m.V, axis=0))) if len(m.V) else 0.0
+        if far.max(initial=0.0) > 1e-6 * diag:
+            i = int(np.argmax(far))
+            raise InputError(path, f"the reference mesh's vertex {i} is {far[i]:.3g} from the mesh's (more than "
+                                   "1e-6 of its bounding-box diagonal): it must be the same mesh, with its "
+                                   "vertices in the same order")
+        if field_name not in ref.vertex_fields or ref.vertex_fields[field_name].ndim != 1:
+            have = ", ".join(sorted(k for k, v in ref.vertex_fields.items() if v.ndim == 1)) or "none"
+            raise InputError(path, f"no vertex property '{field_name}' (--field-name) holds the reference "
+                                   f"distances (scalar properties: {have})")
+        values = ref.vertex_fields[field_name]
+    if values.dtype.kind not in "fiu":
+        raise InputError(path, f"reference distances must be real numbers, got dtype {values.dtype}")
+    values = np.asarray(values, dtype=np.float64)
+    if len(values) != len(m.V):
+        raise InputError(path, f"{len(values)} reference distances for {len(m.V)} vertices")
+    bad = np.isnan(values) | (values == -np.inf)
+    if bad.any():
+        are = "distances are" if bad.sum() > 1 else "distance is"
+        raise InputError(path, f"{int(bad.sum())} reference {are} NaN or -inf (first: vertex "
+                               f"{int(np.flatnonzero(bad)[0])}); +inf marks vertices no source reaches")
+    if not np.isfinite(values).any():
+        raise InputError(path, "no reference distance is finite")
+    return values
 
 
 def _metric_needs(method: str, solver: str, reference) -> dict[str, tuple[str, ...]]:

@@ -6,6 +6,9 @@ before any compiled kernel is needed."""
 
 from __future__ import annotations
 
+import io
+import os
+
 import numpy as np
 
 from geoproc.errors import InputError, frame_error
@@ -186,3 +189,29 @@ def vertex_field_values(values, n: int, name: str, path: str | None = None) -> n
     if len(a) and a.max() / 2 - a.min() / 2 > np.finfo(np.float64).max / 2:
         raise InputError(path, f"field '{name}' spans more than 1.8e308 (max - min overflows); rescale it")
     return a
+
+
+def npy_vertex_values(data: bytes, mesh: Mesh, path: str) -> np.ndarray:
+    """The values of a ``.npy`` file's bytes ``data`` meant as one per vertex
+    of ``mesh``: a 1-D array, or 2-D with one row or column, as stored (any
+    dtype; the caller checks the values). InputError naming ``path`` when the
+    bytes are not a NumPy array (a pickle is never loaded), or when the file
+    holds one value per vertex stored in the mesh's file where loading merged
+    or dropped some (the message says how many and names --no-clean); other
+    lengths are left to the caller's check."""
+    if data and not data.startswith(b"\x93NUMPY"):  # np.load reads any other bytes as a pickle, then refuses it
+        raise InputError(path, "cannot read field: not a NumPy .npy file (it does not start with \\x93NUMPY)")
+    try:
+        values = np.load(io.BytesIO(data), allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:  # EOFError: an empty file
+        raise InputError(path, f"cannot read field: {exc or type(exc).__name__}") from None
+    if values.ndim != 1 and not (values.ndim == 2 and 1 in values.shape):
+        raise InputError(path, f"field must hold one value per vertex, got shape {values.shape}")
+    log = mesh.log
+    if values.size != len(mesh.V) and log.cleaned and values.size == log.stored_vertices != len(mesh.V):
+        # one value per stored vertex: loading merged or dropped some (which ones is the file's order)
+        raise InputError(path, f"field has {values.size} values, one per vertex stored in "
+                               f"{os.path.basename(log.path) or 'the mesh'}, but loading merged "
+                               f"{log.merged_vertices} and dropped {log.removed_unreferenced} unreferenced, "
+                               f"leaving {len(mesh.V)}; pass --no-clean to keep every stored vertex")
+    return values

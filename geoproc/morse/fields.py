@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import os
 import re
 import unicodedata
@@ -12,7 +11,7 @@ import numpy as np
 from geoproc.errors import InputError
 from geoproc.fileio import read_input_bytes
 from geoproc.mesh import Mesh
-from geoproc.mesh.validate import require_vertex_field
+from geoproc.mesh.validate import npy_vertex_values, require_vertex_field
 
 COORDINATES = {"x": 0, "y": 1, "z": 2}
 CURVATURES = ("mean-curvature", "gaussian-curvature")
@@ -139,21 +138,7 @@ def vertex_field(mesh: Mesh, spec: str, data: bytes | None = None) -> np.ndarray
     elif spec.lower().endswith(".npy"):
         if data is None:
             data = read_input_bytes(spec, "field file (.npy)")
-        if data and not data.startswith(b"\x93NUMPY"):  # np.load reads any other bytes as a pickle, then refuses it
-            raise InputError(spec, "cannot read field: not a NumPy .npy file (it does not start with \\x93NUMPY)")
-        try:
-            values = np.load(io.BytesIO(data), allow_pickle=False)
-        except (OSError, ValueError, EOFError) as exc:  # EOFError: an empty file
-            raise InputError(spec, f"cannot read field: {exc or type(exc).__name__}") from None
-        if values.ndim != 1 and not (values.ndim == 2 and 1 in values.shape):
-            raise InputError(spec, f"field must hold one value per vertex, got shape {values.shape}")
-        log = mesh.log
-        if values.size != len(mesh.V) and log.cleaned and values.size == log.stored_vertices != len(mesh.V):
-            # one value per stored vertex: loading merged or dropped some (which ones is the file's order)
-            raise InputError(spec, f"field has {values.size} values, one per vertex stored in "
-                                   f"{os.path.basename(log.path) or 'the mesh'}, but loading merged "
-                                   f"{log.merged_vertices} and dropped {log.removed_unreferenced} unreferenced, "
-                                   f"leaving {len(mesh.V)}; pass --no-clean to keep every stored vertex")
+        values = npy_vertex_values(data, mesh, spec)
         return require_vertex_field(mesh, values, field_name(spec), path=spec)
     elif spec in mesh.vertex_fields:
         values = mesh.vertex_fields[spec]

@@ -26,6 +26,64 @@ def test_exact_on_grid_writes_euclidean_distance(cli, fixture_dir, tmp_path):
     assert r["metrics"]["unreachable_vertices"] == 0
 
 
+def test_reference_file_gives_the_same_metrics_as_the_exact_reference(cli, fixture_dir, tmp_path, make_fixtures):
+    # a stored run (a mesh with a 'distance' property, or a .npy) as the reference: the metrics are
+    # those of --reference exact when the file holds the exact distances; +inf marks unreached vertices
+    V, F = make_fixtures.icosphere(2)
+    two = Mesh(np.concatenate([V, V + [3.0, 0, 0]]), np.concatenate([F, F + len(V)]))  # source on one sphere
+    src, golden, npy = tmp_path / "two.ply", tmp_path / "golden.ply", tmp_path / "golden.npy"
+    save_mesh(src, two)
+    p = cli("geodesic", src, "-s", "3", "-m", "exact", "-o", golden, "--quiet")
+    assert p.returncode == 0, p.stderr
+    d = load_mesh(golden).vertex_fields["distance"]
+    assert np.isinf(d[len(V):]).all()
+    np.save(npy, d)
+    got = {}
+    for ref in ("exact", golden, npy):
+        rep = tmp_path / "r.json"
+        p = cli("geodesic", src, "-s", "3", "-m", "heat", "--reference", ref, "-o", tmp_path / "h.ply",
+                "--report", rep, "--quiet")
+        assert p.returncode == 0, p.stderr
+        r = _report(rep)
+        got[str(ref)] = r["metrics"]
+        assert r["params"]["reference"] == str(ref)
+        if ref != "exact":
+            assert [i["path"] for i in r["inputs"]] == [str(src), str(ref)]
+    ref_metrics = ("pearson_r", "rmse", "mae", "mean_relative_error", "max_relative_error", "compared_vertices")
+    for ref in (golden, npy):
+        assert {k: got[str(ref)][k] for k in ref_metrics} == {k: got["exact"][k] for k in ref_metrics}
+    assert got["exact"]["compared_vertices"] == len(V) and 0 < got["exact"]["mean_relative_error"] < 0.05
+    # from standard input too
+    p = cli("geodesic", src, "-s", "3", "-m", "heat", "--reference", "-", "-o", tmp_path / "h.ply", "--report",
+            tmp_path / "r.json", "--quiet", stdin=golden.read_bytes())
+    assert p.returncode == 0 and _report(tmp_path / "r.json")["metrics"]["rmse"] == got["exact"]["rmse"]
+
+
+def test_bad_reference_files_are_one_line_errors(cli, fixture_dir, tmp_path):
+    src = fixture_dir / "icosphere.ply"
+    n = len(load_mesh(src).V)
+    nan, short = tmp_path / "nan.npy", tmp_path / "short.npy"
+    v = np.ones(n)
+    v[4] = np.nan
+    np.save(nan, v)
+    np.save(short, np.ones(n - 1))
+    for ref, needle in ((tmp_path / "exakt", "--reference " + str(tmp_path / "exakt") + ": no such file (give exact"),
+                        (fixture_dir / "torus.ply", "the reference mesh has"),
+                        (src, "no vertex property 'distance' (--field-name) holds the reference distances"),
+                        (nan, "1 reference distance is NaN or -inf (first: vertex 4)"),
+                        (short, f"{n - 1} reference distances for {n} vertices")):
+        out = tmp_path / "o.ply"
+        p = cli("geodesic", src, "-s", "0", "--reference", ref, "-o", out)
+        lines = p.stderr.strip().splitlines()
+        assert p.returncode == 2 and len(lines) == 1 and needle in lines[0], (ref, p.stderr)
+        assert not out.exists()
+    moved = tmp_path / "moved.ply"
+    m = load_mesh(src)
+    save_mesh(moved, Mesh(m.V * 1.001, m.F, vertex_fields={"distance": np.ones(n)}))
+    p = cli("geodesic", src, "-s", "0", "--reference", moved, "-o", tmp_path / "o.ply")
+    assert p.returncode == 2 and "it must be the same mesh, with its vertices in the same order" in p.stderr
+
+
 def test_heat_with_reference_on_sphere(cli, fixture_dir, tmp_path):
     out, rep = tmp_path / "d.ply", tmp_path / "r.json"
     p = cli("geodesic", fixture_dir / "icosphere.ply", "-s", "3", "-m", "heat", "--reference", "exact",
