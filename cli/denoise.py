@@ -147,8 +147,9 @@ def denoise(
                                      "(at least 4, at most the number of distinct points; near copies count "
                                      "once).")] = 16,
     threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, >= 0, in "
-                                                    "median point spacings (default 0.5; for an animation "
-                                                    "max(0.5, 3 x the median score)).",
+                                                    "median point spacings (default max(0.5, 3 x the median "
+                                                    "score), which follows the noise of the inliers; the "
+                                                    "report's threshold metric gives the cut used).",
                                                     show_default=False)] = None,
     keep_all: Annotated[bool, flag("--keep-all", help="--outliers: write every point with "
                                            "'outlier_score' and 'outlier_detected' properties (a point "
@@ -197,7 +198,7 @@ def denoise(
               "coherence": coherence_used,
               "clean": not no_clean}
     mode = denoise_mode(input, outliers, dynamic)
-    params.update(_options_not_used(mode, features, threshold, method))
+    params.update(_options_not_used(mode, features, method))
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output], inputs=[input, reference], metrics=METRICS, text_metrics=TEXT_METRICS,
                      needs=_metric_needs(Choices(mode, method, features, refined, reference))) as run:
@@ -211,10 +212,8 @@ def denoise(
                                "(outlier_score, outlier_detected)")
         if coherence is not None and coherence not in COHERENCE:
             raise UsageError(f"--coherence {coherence}: use one of {', '.join(COHERENCE)}")
-        threshold_set = threshold is not None
-        if threshold_set and threshold < 0:
+        if threshold is not None and threshold < 0:
             raise UsageError(f"--threshold {threshold}: must be >= 0")
-        threshold = CLOUD_THRESHOLD if threshold is None else threshold
         for option, value in (("--sigma-r", sigma_r), ("--sigma-s", sigma_s)):
             if value is not None and value <= 0:
                 raise UsageError(f"{option} {shown_number(value)}: must be > 0")
@@ -239,7 +238,7 @@ def denoise(
         if mode == DYNAMIC:
             _dynamic(run, input, output, reference, method, dp, coherence_used)
         elif mode == MOVING_CLOUD:
-            _animation_outliers(run, input, output, threshold_set, threshold, refined)
+            _animation_outliers(run, input, output, threshold, refined)
         elif mode == CLOUD:
             _outliers(run, input, output, k, threshold, keep_all, refined, no_clean)
         else:
@@ -316,8 +315,6 @@ def _metric_needs(choices: Choices) -> dict[str, tuple[str, ...]]:
 
 
 _FEATURE_OPTIONS = ("features", "feature_tau", "feature_angle")
-CLOUD_THRESHOLD = 0.5
-"""--threshold's default on a point cloud (median point spacings)."""
 _OUTLIER_OPTIONS = ("k", "threshold", "keep_all", "refined")
 OUTLIER_BYTES = 150
 """Memory of --outliers per point and neighbour (the stacked neighbourhoods and
@@ -355,16 +352,12 @@ def _unused_option_groups(mode: str, features: str, method: str) -> list[tuple[t
     return groups
 
 
-def _options_not_used(mode: str, features: str, threshold: float | None, method: str) -> dict:
+def _options_not_used(mode: str, features: str, method: str) -> dict:
     """The report's values of the options the mode does not use (None, as
     :func:`_refuse_unused_options` refuses them when given; ``no_clean`` is
-    the report's ``clean``) and of the default threshold of --outliers on a
-    point cloud (0.5)."""
-    values = {("clean" if name == "no_clean" else name): None
-              for names, _ in _unused_option_groups(mode, features, method) for name in names}
-    if mode == CLOUD and threshold is None:
-        values["threshold"] = CLOUD_THRESHOLD
-    return values
+    the report's ``clean``)."""
+    return {("clean" if name == "no_clean" else name): None
+            for names, _ in _unused_option_groups(mode, features, method) for name in names}
 
 
 def _refuse_unused_options(ctx: typer.Context, mode: str, features: str, method: str) -> None:
@@ -571,7 +564,7 @@ def _inliers(run, cloud: Mesh, P: np.ndarray, keep: np.ndarray, name: str) -> Me
 SCORE_FIELDS = ("outlier_score", "outlier_detected")
 
 
-def _animation_outliers(run, input, output, threshold_set, threshold, refined) -> None:
+def _animation_outliers(run, input, output, threshold, refined) -> None:
     if not output.lower().endswith(".npz"):
         raise UsageError(f"{output}: an animation is written as .npz")
     anim = run.load_animation(input)
@@ -582,7 +575,7 @@ def _animation_outliers(run, input, output, threshold_set, threshold, refined) -
     from geoproc.denoise.outliers import detection_scores, rpca_animation_outliers
 
     with run.timer("outliers"):
-        res = rpca_animation_outliers(anim.V, threshold if threshold_set else None, path=anim.path)
+        res = rpca_animation_outliers(anim.V, threshold, path=anim.path)
     run.metrics.update({"frames": anim.n_frames, "points": int(anim.V.shape[1]),
                         "detected_outliers": int(res.outlier.sum()), "threshold": res.threshold,
                         "motion_basis": res.rank, "rpca_iterations": res.rpca_iterations})

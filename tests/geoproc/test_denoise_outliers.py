@@ -395,3 +395,20 @@ def test_outlier_scores_do_not_depend_on_the_block_size(monkeypatch):
     small = rpca_outliers(P, k=12, refine_passes=1)
     assert np.array_equal(whole.score, small.score) and np.array_equal(whole.outlier, small.outlier)
     assert np.array_equal(whole.refined, small.refined)
+
+
+def test_default_threshold_follows_the_noise_of_the_inliers(dfx):
+    # Gaussian noise of 0.5 point spacings along the normals on top of 20 % outliers: a fixed cut
+    # at half a spacing flags the noise's tail; the default cut, 3 x the median score, does not.
+    # Without noise the default stays half a spacing.
+    P = dfx.torus_points(20000)
+    spec = NoiseSpec(sigma=0.5, outliers=0.2, outlier_range=0.02)
+    Pn, flag = perturb_positions(P, np.zeros((0, 3), dtype=np.int64), spec, np.random.default_rng(4))
+    res = rpca_outliers(Pn, k=16)
+    assert res.threshold == pytest.approx(3 * np.median(res.score)) and res.threshold > 0.8
+    fixed = detection_scores(res.score > 0.5, flag > 0)
+    s = detection_scores(res.outlier, flag > 0)
+    assert fixed["precision"] < 0.7 < 0.9 < s["precision"]
+    assert s["f1"] > fixed["f1"] + 0.05
+    P0, flag0 = dfx.cloud_with_outliers(20000, 0.2, 0.02)
+    assert rpca_outliers(P0, k=16).threshold == 0.5
