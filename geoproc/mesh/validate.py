@@ -182,9 +182,12 @@ def vertex_field_values(values, n: int, name: str, path: str | None = None) -> n
         _require_integers_apart(values.reshape(-1), a, name, path)
     bad = ~np.isfinite(a)
     if bad.any():
+        unreached = (a[bad] == np.inf).all()  # as geodesic writes where no source reaches
         raise InputError(
             path, f"field '{name}' has {int(bad.sum())} non-finite values "
             f"(first: vertex {int(np.flatnonzero(bad)[0])})"
+            + ("; all +inf, as geodesic writes on the parts of a mesh its sources do not reach: give a "
+               "source on every connected part" if unreached else "")
         )
     if len(a) and a.max() / 2 - a.min() / 2 > np.finfo(np.float64).max / 2:
         raise InputError(path, f"field '{name}' spans more than 1.8e308 (max - min overflows); rescale it")

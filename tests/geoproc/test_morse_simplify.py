@@ -314,7 +314,10 @@ def test_bad_input_to_the_library_function_is_refused(make_fixtures):
         morse_simplify(np.r_[F, [[0, 1, -1]]], f, 0.2)
     fn = f.copy()
     fn[3] = np.nan
-    with pytest.raises(InputError, match="field 'f' has 1 non-finite values"):
+    with pytest.raises(InputError, match=r"field 'f' has 1 non-finite values \(first: vertex 3\)$"):
+        morse_simplify(F, fn, 0.2)
+    fn[3] = np.inf  # as geodesic writes where no source reaches: the message says what to do
+    with pytest.raises(InputError, match="all [+]inf, as geodesic writes .* give a source on every connected part"):
         morse_simplify(F, fn, 0.2)
     for P in (float("nan"), -1.0):
         with pytest.raises(UsageError, match="threshold"):
