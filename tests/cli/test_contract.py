@@ -1045,7 +1045,7 @@ def test_with_its_result_on_stdout_a_run_lets_no_other_print_reach_it(fixture_di
 def test_report_params_hold_the_options_used_and_none_for_those_not(cli, fixture_dir, tmp_path):
     # the report's params named options that a mode refuses when given (k and threshold of
     # --outliers for a mesh, --exact-windows with --barycentric), called an animation's frames
-    # cleaned, and left the cloud's default threshold of 0.5 as null
+    # cleaned; a default chosen from the input (the outlier threshold) is null there
     import numpy as np
 
     from geoproc.animation import Animation, animation_to_bytes
@@ -1060,7 +1060,7 @@ def test_report_params_hold_the_options_used_and_none_for_those_not(cli, fixture
     assert mesh["k"] is mesh["threshold"] is mesh["coherence"] is mesh["feature_tau"] is None
     assert mesh["feature_angle"] is not None and mesh["clean"] is True and mesh["method"] == "guided"
     cloud = params("denoise", fixture_dir / "points.ply", "--outliers", "-o", tmp_path / "c.ply")
-    assert cloud["threshold"] == 0.5 and cloud["k"] == 16
+    assert cloud["threshold"] is None and cloud["k"] == 16  # chosen from the scores: the metric gives it
     assert cloud["method"] is cloud["rounds"] is cloud["features"] is cloud["reference"] is None
     V, F = load_mesh(fixture_dir / "cube.ply").V, load_mesh(fixture_dir / "cube.ply").F
     anim = tmp_path / "a.npz"
