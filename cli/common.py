@@ -43,7 +43,7 @@ from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
 from geoproc.report import build_report, check_records, evaluate_checks, parse_check, require_known_metrics
 from geoproc.report.report import report_json
-from geoproc_cli.entry import interruption_line, outputs_committed
+from geoproc_cli.entry import interruption_cause, interruption_line, outputs_committed
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 T = TypeVar("T")
@@ -127,19 +127,6 @@ def load_summary(log) -> dict:
     """A mesh's load log as a dict, its counts named as the report's :data:`LOAD_METRICS`."""
     names = {field: metric for metric, field in _LOAD_LOG_FIELDS.items()}
     return {names.get(k, k): v for k, v in log.as_dict().items()}
-
-
-def _interruption(exc: BaseException) -> KeyboardInterrupt | None:
-    """The Ctrl-C (or termination, :class:`~geoproc_cli.entry.Terminated`) that
-    caused ``exc``, if any: numba's compiled functions re-raise a
-    KeyboardInterrupt that arrives while they run as a SystemError caused by it."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return exc
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return None
 
 
 def metrics_epilog(names: Sequence[str], text: Sequence[str] = (), units: dict[str, str] | None = None) -> str:
@@ -695,7 +682,7 @@ def command_run(
         detail = str(exc).strip().splitlines()[0] if str(exc).strip() else "the request is too large"
         raise _fail(f"out of memory: {detail}", EXIT_BAD_INPUT) from None
     except Exception as exc:  # a bug: keep the one-line contract, offer the traceback
-        stop = _interruption(exc)
+        stop = interruption_cause(exc)
         if stop is not None:  # Ctrl-C inside a compiled kernel comes back as a SystemError
             raise _fail(*interruption_line(stop)) from None
         if debug:

@@ -76,12 +76,30 @@ def _raise_interruption(signum, frame) -> None:
 
 def outputs_committed(done: bool = True) -> None:
     """The running command's outputs are in place (``done``; False when a
-    command starts): until the next command starts, the handlers of
-    :func:`install_signal_handlers` drop a terminating signal (it had made a
-    finished run exit 143, most often with no error line, with its outputs
-    complete)."""
+    command starts): until the next command starts, a terminating signal is
+    dropped. The signals whose handler is :func:`install_signal_handlers`'
+    are then ignored outright: Python's exit puts a Python handler back to
+    the default action, which would kill a finished run (exit 143, no error
+    line) in the time its exit still takes, but leaves an ignored signal
+    ignored."""
     global _committed
     _committed = done
+    for sig in _TERMINATING:
+        if sig is None:
+            continue
+        try:
+            if done and signal.getsignal(sig) is _raise_interruption:
+                signal.signal(sig, signal.SIG_IGN)
+                _ignored_when_done.add(sig)
+            elif not done and sig in _ignored_when_done:
+                signal.signal(sig, _raise_interruption)
+                _ignored_when_done.discard(sig)
+        except ValueError:  # not the main thread: the handler itself drops the signal
+            pass
+
+
+_ignored_when_done: set = set()
+"""The signals :func:`outputs_committed` ignores until the next command starts."""
 
 
 _TERMINATING = (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None))
@@ -177,6 +195,30 @@ def main() -> None:
 
         run()
     except KeyboardInterrupt as exc:  # while the modules load, or once a command's handling is over
-        text, code = interruption_line(exc)
-        sys.stderr.write(f"error: {text}\n")
-        sys.exit(code)
+        _exit_interrupted(exc)
+    except Exception as exc:  # an import that wrapped the interruption (functools' __set_name__ does)
+        stop = interruption_cause(exc)
+        if stop is None:
+            raise
+        _exit_interrupted(stop)
+
+
+def _exit_interrupted(exc: KeyboardInterrupt) -> None:
+    text, code = interruption_line(exc)
+    sys.stderr.write(f"error: {text}\n")
+    sys.exit(code)
+
+
+def interruption_cause(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C (or termination, :class:`Terminated`) that caused ``exc``, if
+    any: numba's compiled functions re-raise a KeyboardInterrupt that arrives
+    while they run as a SystemError caused by it, and Python 3.11 wraps one
+    raised inside a descriptor's ``__set_name__`` (while a module loads) in a
+    RuntimeError."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None

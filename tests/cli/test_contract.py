@@ -865,6 +865,57 @@ def test_a_signal_once_the_outputs_are_in_place_is_ignored(fixture_dir, tmp_path
     assert out.stat().st_size > 0 and json.loads(rep.read_text())["command"] == "perturb"
 
 
+def test_a_signal_while_python_exits_after_the_outputs_are_in_place_is_ignored(fixture_dir, tmp_path):
+    # Python's exit puts its signal handlers back to the default action: a SIGTERM in the
+    # fraction of a second the exit takes killed a finished run (exit 143, no error line).
+    # It is sent here from an object that the interpreter's exit destroys
+    import subprocess
+    import sys
+
+    script = (
+        "import os, signal, time\n"
+        "class Late:\n"
+        "    def __del__(self):\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "        time.sleep(0.05)\n"
+        "late = Late()\n"
+        "from geoproc_cli.entry import main\n"
+        "main()\n"
+    )
+    out = tmp_path / "o.ply"
+    p = subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
+                        "-o", str(out)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0 and p.stderr == "", (p.returncode, p.stderr[-2000:])
+    assert out.stat().st_size > 0
+
+
+def test_a_signal_that_an_import_wraps_is_an_interruption(fixture_dir, tmp_path):
+    # Python 3.11 wraps an exception raised inside a descriptor's __set_name__ in a
+    # RuntimeError: a SIGHUP while typer's imports (platform's cached_property) ran gave a
+    # 62-line traceback and exit 1, the status of a failed --check
+    import subprocess
+    import sys
+
+    script = (
+        "import functools, os, signal\n"
+        "orig = functools.cached_property.__set_name__\n"
+        "armed = [True]\n"
+        "def hook(self, owner, name):\n"
+        "    if armed[0] and signal.getsignal(signal.SIGHUP) is not signal.SIG_DFL:\n"
+        "        armed[0] = False\n"
+        "        os.kill(os.getpid(), signal.SIGHUP)\n"
+        "    return orig(self, owner, name)\n"
+        "functools.cached_property.__set_name__ = hook\n"
+        "from geoproc_cli.entry import main\n"
+        "main()\n"
+    )
+    out = tmp_path / "o.ply"
+    p = subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
+                        "-o", str(out)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 129 and p.stderr == "error: terminated (SIGHUP)\n", (p.returncode, p.stderr[-2000:])
+    assert not out.exists()
+
+
 def test_a_second_command_in_the_process_is_interruptible_again(fixture_dir, tmp_path, capsys):
     # once a command's outputs were in place the terminating signals were set to be ignored
     # for good: a second command in the same process ran through a Ctrl-C
