@@ -57,7 +57,8 @@ def _igl_exact_geodesic(U, F, VS, VT):
 def call_in_child(fn, *args):
     """``fn(*args)`` computed in a forked child process; its result, or its
     exception (a MemoryError stays one, anything else becomes a RuntimeError
-    with its message).
+    with its message). A child killed by SIGKILL, as the system's
+    out-of-memory killer kills, is a MemoryError too.
 
     For long calls into compiled code that never return to the interpreter:
     while the child works, this process waits in a system call, so a signal
@@ -80,6 +81,9 @@ def call_in_child(fn, *args):
         except EOFError:
             child.join()
             code = child.exitcode
+            if code == -signal.SIGKILL:  # what the system's out-of-memory killer sends
+                raise MemoryError("the computation's process was killed by SIGKILL without a result, as the "
+                                  "system kills a process when memory runs out") from None
             how = (f"was killed by {signal.Signals(-code).name}" if code is not None and code < 0
                    else f"exited with code {code}")
             raise RuntimeError(f"the computation's process {how} without a result") from None

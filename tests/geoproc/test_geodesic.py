@@ -133,6 +133,15 @@ def test_call_in_child_passes_results_and_errors_back():
     # a crash in compiled code (libigl's MMP segfaulted on a non-manifold mesh) is named
     with pytest.raises(RuntimeError, match="was killed by SIGSEGV without a result"):
         call_in_child(_crash)
+    # SIGKILL is how the system's out-of-memory killer ends a process: reported as memory
+    # (exit 2), not as an internal error (exit 3)
+    import signal
+
+    def killed():
+        os.kill(os.getpid(), signal.SIGKILL)  # the child's own id, taken in the child
+
+    with pytest.raises(MemoryError, match="killed by SIGKILL .* when memory runs out"):
+        call_in_child(killed)
 
 
 # ---- the heat method family against exact geodesics ----------------------------------------
