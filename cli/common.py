@@ -38,7 +38,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 
 from geoproc.c_output import c_stdout_silenced
 from geoproc.errors import GeoprocError, InputError, UsageError
-from geoproc.fileio import file_kind, read_input_bytes, sha256_bytes, sha256_file, write_files_atomic
+from geoproc.fileio import file_kind, folder_of, read_input_bytes, sha256_bytes, sha256_file, write_files_atomic
 from geoproc.mesh import Mesh, load_mesh, mesh_to_bytes
 from geoproc.mesh.write import STL_MAX_COORDINATE, write_format
 from geoproc.report import build_report, check_records, evaluate_checks, parse_check, require_known_metrics
@@ -499,7 +499,7 @@ def _require_output_folders(names: list[str]) -> None:
             raise UsageError(f"{name}: cannot write: is a folder; give a file name")
         if name.endswith(("/", os.sep)):  # a folder's name, of a folder that is not there
             raise UsageError(f"{name}: cannot write: names a folder (it ends with '/'); give a file name")
-        folder = os.path.dirname(real) if os.path.islink(name) else os.path.dirname(os.path.abspath(name))
+        folder = os.path.dirname(real) if os.path.islink(name) else folder_of(name)
         if not os.path.isdir(folder):
             raise UsageError(f"{name}: output folder '{folder}' does not exist")
         if file_kind(name) == "other":  # written directly, as write_files_atomic does
@@ -650,10 +650,8 @@ def command_run(
                 run.params[key] = 0.0
         if report is not None:
             require_extension(report, ".json", "--report", stdout_ok=True)
-        if report is not None and os.fspath(report) != "-" \
-                and not os.path.isdir(os.path.dirname(os.path.abspath(report))):
-            folder = os.path.dirname(os.path.abspath(report))
-            raise UsageError(f"--report {report}: output folder '{folder}' does not exist")
+        if report is not None and os.fspath(report) != "-" and not os.path.isdir(folder_of(report)):
+            raise UsageError(f"--report {report}: output folder '{folder_of(report)}' does not exist")
         named = [os.fspath(p) for p in (*outputs, report) if p is not None]
         _require_output_folders(named)
         _require_distinct_outputs(named, [os.fspath(p) for p in inputs if p is not None], report)

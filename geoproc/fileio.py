@@ -18,13 +18,21 @@ from collections.abc import Callable
 from geoproc.errors import InputError
 
 
+def folder_of(path: str | os.PathLike) -> str:
+    """The folder a file ``path`` is written in, as the file system resolves it:
+    the path's text up to its last separator (``.`` when there is none), with
+    any ``..`` left for the system to resolve after a symbolic link, where
+    ``os.path.abspath`` would drop the link's folder and name another one."""
+    return os.path.dirname(os.fspath(path)) or os.curdir
+
+
 def _temp_name_beside(path: str) -> str:
     """A fresh name for a temporary file in the folder of ``path`` (not created):
     a dot, at most the first 200 bytes of the target's name (so that it stays
     within the 255-byte name limit whatever the target's length), 16 random hex
     digits and ``.tmp``."""
     base = os.fsencode(os.path.basename(path))[:200]
-    folder = os.fsencode(os.path.dirname(os.path.abspath(path)))
+    folder = os.fsencode(folder_of(path))
     return os.fsdecode(os.path.join(folder, b"." + base + b"." + secrets.token_hex(8).encode() + b".tmp"))
 
 

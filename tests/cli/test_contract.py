@@ -1163,3 +1163,21 @@ def test_info_summarizes_an_animation(cli, fixture_dir, tmp_path):
     assert p.returncode == 2 and "--no-clean: not used for an animation" in p.stderr
     p = cli("info", fixture_dir / "torus.ply", "--report", rep)
     assert p.returncode == 0 and "frames" not in json.loads(rep.read_text())["metrics"]
+
+
+def test_an_output_folder_is_the_one_the_file_system_resolves(cli, fixture_dir, tmp_path):
+    # '..' after a symbolic link leads to the link target's parent; the path's text had been
+    # normalised instead, refusing a folder that exists and passing one that does not
+    (tmp_path / "sub" / "deep").mkdir(parents=True)
+    (tmp_path / "sub" / "only").mkdir()
+    (tmp_path / "lnk").symlink_to(tmp_path / "sub" / "deep")
+    src = fixture_dir / "torus.ply"
+    p = cli("perturb", src, "--seed", "1", "-o", f"{tmp_path}/lnk/../only/x.ply", "--report",
+            f"{tmp_path}/lnk/../only/r.json")
+    assert p.returncode == 0, p.stderr
+    assert sorted(q.name for q in (tmp_path / "sub" / "only").iterdir()) == ["r.json", "x.ply"]
+    for option, name in (("-o", "x.ply"), ("--report", "r.json")):
+        args = ["-o", str(tmp_path / "y.ply")] if option == "--report" else []
+        p = cli("perturb", src, "--seed", "1", *args, option, f"{tmp_path}/lnk/../sub/{name}")
+        assert p.returncode == 2 and f"output folder '{tmp_path}/lnk/../sub' does not exist" in p.stderr, p.stderr
+    assert not (tmp_path / "y.ply").exists() and not (tmp_path / "sub" / "sub").exists()
