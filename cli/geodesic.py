@@ -147,9 +147,10 @@ def geodesic(
     = HeatUnderflow.log_domain,
     reference: Annotated[str | None, typer.Option(
         "--reference", help="Compare with a reference distance: exact (libigl's exact geodesics from the "
-        "same sources), or a file of distances, one per vertex: a .npy, or a mesh with the same vertices "
-        "(within 1e-6 of its bounding-box diagonal) holding them in the vertex property --field-name names "
-        "(another run's output, say); +inf marks vertices no source reaches. Reports pearson_r, rmse, mae, "
+        "same sources), or a file of distances, one per vertex (- for stdin): a .npy, or a mesh with the same "
+        "vertices (within 1e-6 of its bounding-box diagonal, float32 copies too) holding them in the vertex "
+        "property --field-name names (another run's output, say); +inf marks vertices no source reaches. "
+        "Reports pearson_r, rmse, mae, "
         "mean/max_relative_error.", metavar="exact|FILE", show_default=False)] = None,
     field_name: Annotated[str, typer.Option("--field-name", help="Name of the output vertex property: an identifier "
                                           "(letters, digits, _) other than x, y, z.")]
@@ -220,6 +221,10 @@ def geodesic(
         where = m.log.path or mesh  # notes on the mesh name it, as errors do
         if renumbered:
             run.note(f"{where}: source indices refer to the cleaned mesh (--no-clean keeps the stored numbering)")
+        stored = None  # --reference FILE, read and checked before the work
+        if reference not in (None, "exact"):
+            with run.timer("reference"):
+                stored = _reference_file(run, reference, m, field_name, no_clean)
         # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read
         from geoproc.geodesic.compare import compare_to_reference
         from geoproc.geodesic.distance import geodesic_distance
@@ -228,7 +233,7 @@ def geodesic(
             res = geodesic_distance(m.V, m.F, srcs, m_name, time_factor=time_factor, time=time,
                                     steps=steps, laplacian=laplacian.value if laplacian else None,
                                     solver=solver.value, operators=operators.value if operators else None,
-                                    path=m.log.path, progress=update, also_exact=reference is not None,
+                                    path=m.log.path, progress=update, also_exact=reference == "exact",
                                     heat_underflow=heat_underflow.value)
         run.timings["setup"] = res.timings.get("setup", 0.0)
         run.timings["solve"] = res.timings.get("solve", 0.0)
@@ -278,14 +283,11 @@ def geodesic(
                    "--time-factor or -m log-heat gives them one)" if m_name == "varadhan" else "")
             run.note(f"{where}: {run.metrics['nonfinite_distance_vertices']} vertices connected to a source have no "
                      f"finite distance{why}: nonfinite_distance_vertices counts them")
-        if reference is not None:
+        if reference == "exact":
             with run.timer("reference"):
-                if reference == "exact":
-                    ref = geodesic_distance(m.V, m.F, srcs, "exact", path=m.log.path).distance
-                else:
-                    ref = _reference_file(run, reference, m, field_name, no_clean)
-            cmp = compare_to_reference(d, ref)
-            run.metrics.update(cmp)
+                stored = geodesic_distance(m.V, m.F, srcs, "exact", path=m.log.path).distance
+        if stored is not None:
+            run.metrics.update(compare_to_reference(d, stored))
         out = m.copy()
         run.note_replaced("vertex", [field_name], out.vertex_fields)
         out.vertex_fields[field_name] = d
@@ -318,32 +320,37 @@ does not report is refused before the input is read."""
 
 def _reference_file(run, path: str, m, field_name: str, no_clean: bool) -> np.ndarray:
     """The reference distances of ``--reference FILE`` for the vertices of
-    ``m``: a .npy with one value per vertex, or the ``field_name`` property of
-    a mesh with the same vertices (loaded as the input was). Finite values and
-    +inf (unreached) only."""
+    ``m``: a .npy with one value per vertex (by its extension, or on standard
+    input by its first bytes), or the ``field_name`` property of a mesh with
+    the same vertices (loaded as the input was). Finite values and +inf
+    (unreached) only, some of them above 0."""
     from geoproc.mesh import load_mesh
-    from geoproc.mesh.validate import npy_vertex_values
+    from geoproc.mesh.validate import npy_vertex_values, scalar_vertex_properties
 
-    if path.lower().endswith(".npy"):
-        values = run.read_input(path, lambda name, data: npy_vertex_values(data, m, name),
-                                "reference distances (.npy)").reshape(-1)
-    else:
-        ref = run.read_input(path, lambda name, data: load_mesh(name, clean=not no_clean, stdin_bytes=data))
+    def read(name: str, data: bytes | None):
+        if name.lower().endswith(".npy") or (data is not None and data.startswith(b"\x93NUMPY")):
+            return npy_vertex_values(data, m, name).reshape(-1)
+        ref = load_mesh(name, clean=not no_clean, stdin_bytes=data)
         if len(ref.V) != len(m.V):
-            raise InputError(path, f"the reference mesh has {len(ref.V)} vertices, the mesh {len(m.V)}: it must "
+            raise InputError(name, f"the reference mesh has {len(ref.V)} vertices, the mesh {len(m.V)}: it must "
                                    "be the same mesh, holding the distances as a vertex property")
         far = np.linalg.norm(ref.V - m.V, axis=1)
         diag = float(np.linalg.norm(np.ptp(m.V, axis=0))) if len(m.V) else 0.0
-        if far.max(initial=0.0) > 1e-6 * diag:
+        # a float32 copy (as many tools write) rounds each coordinate by up to 2^-24 of its size
+        allowed = 1e-6 * diag + 2.0**-22 * float(np.abs(m.V).max(initial=0.0))
+        if far.max(initial=0.0) > allowed:
             i = int(np.argmax(far))
-            raise InputError(path, f"the reference mesh's vertex {i} is {far[i]:.3g} from the mesh's (more than "
-                                   "1e-6 of its bounding-box diagonal): it must be the same mesh, with its "
-                                   "vertices in the same order")
-        if field_name not in ref.vertex_fields or ref.vertex_fields[field_name].ndim != 1:
-            have = ", ".join(sorted(k for k, v in ref.vertex_fields.items() if v.ndim == 1)) or "none"
-            raise InputError(path, f"no vertex property '{field_name}' (--field-name) holds the reference "
-                                   f"distances (scalar properties: {have})")
-        values = ref.vertex_fields[field_name]
+            raise InputError(name, f"the reference mesh's vertex {i} is {far[i]:.3g} from the mesh's (more than "
+                                   "1e-6 of its bounding-box diagonal and float32 rounding): it must be the same "
+                                   "mesh, with its vertices in the same order")
+        values = ref.vertex_fields.get(field_name)
+        if values is None or values.ndim != 1:
+            raise InputError(name, f"no vertex property '{field_name}' (--field-name) holds the reference "
+                                   f"distances (scalar properties: {scalar_vertex_properties(ref)})")
+        return values
+
+    npy = path.lower().endswith(".npy")
+    values = run.read_input(path, read, "reference distances (.npy)" if npy else None)
     if values.dtype.kind not in "fiu":
         raise InputError(path, f"reference distances must be real numbers, got dtype {values.dtype}")
     values = np.asarray(values, dtype=np.float64)
@@ -354,8 +361,9 @@ def _reference_file(run, path: str, m, field_name: str, no_clean: bool) -> np.nd
         are = "distances are" if bad.sum() > 1 else "distance is"
         raise InputError(path, f"{int(bad.sum())} reference {are} NaN or -inf (first: vertex "
                                f"{int(np.flatnonzero(bad)[0])}); +inf marks vertices no source reaches")
-    if not np.isfinite(values).any():
-        raise InputError(path, "no reference distance is finite")
+    if not (np.isfinite(values) & (values > 0)).any():
+        raise InputError(path, "no reference distance is finite and above 0: the errors are measured against "
+                               "the largest")
     return values
 
 

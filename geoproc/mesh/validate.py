@@ -218,3 +218,9 @@ def npy_vertex_values(data: bytes, mesh: Mesh, path: str) -> np.ndarray:
                                f"{log.merged_vertices} and dropped {log.removed_unreferenced} unreferenced, "
                                f"leaving {len(mesh.V)}; pass --no-clean to keep every stored vertex")
     return values
+
+
+def scalar_vertex_properties(mesh: Mesh) -> str:
+    """The names of the mesh's one-value-per-vertex properties, sorted and
+    joined by commas (``none`` when there is none), for messages."""
+    return ", ".join(sorted(k for k, v in mesh.vertex_fields.items() if v.ndim == 1)) or "none"

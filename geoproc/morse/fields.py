@@ -11,7 +11,7 @@ import numpy as np
 from geoproc.errors import InputError
 from geoproc.fileio import read_input_bytes
 from geoproc.mesh import Mesh
-from geoproc.mesh.validate import npy_vertex_values, require_vertex_field
+from geoproc.mesh.validate import npy_vertex_values, require_vertex_field, scalar_vertex_properties
 
 COORDINATES = {"x": 0, "y": 1, "z": 2}
 CURVATURES = ("mean-curvature", "gaussian-curvature")
@@ -146,10 +146,9 @@ def vertex_field(mesh: Mesh, spec: str, data: bytes | None = None) -> np.ndarray
             raise InputError(mesh.log.path or None, f"vertex property '{spec}' has {values.shape[1]} "
                              "components; a scalar field is needed")
     else:
-        have = ", ".join(sorted(k for k, v in mesh.vertex_fields.items() if v.ndim == 1)) or "none"
         raise InputError(
             mesh.log.path or None,
-            f"no vertex property '{spec}' (scalar properties: {have}); use a property name, "
+            f"no vertex property '{spec}' (scalar properties: {scalar_vertex_properties(mesh)}); use a property name, "
             "x, y, z, a .npy file, mean-curvature or gaussian-curvature",
         )
     return require_vertex_field(mesh, values, spec)

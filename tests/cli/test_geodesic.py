@@ -59,6 +59,40 @@ def test_reference_file_gives_the_same_metrics_as_the_exact_reference(cli, fixtu
     assert p.returncode == 0 and _report(tmp_path / "r.json")["metrics"]["rmse"] == got["exact"]["rmse"]
 
 
+def test_reference_files_from_stdin_float32_and_on_non_manifold_meshes(cli, tmp_path, make_fixtures):
+    # a stored reference needs none of the exact reference's checks (two spheres touching at a
+    # vertex: exact refuses them); a .npy comes through standard input too; a float32 copy of a
+    # mesh far from the origin is the same mesh
+    from plyfile import PlyData, PlyElement
+
+    V, F = make_fixtures.icosphere(2)
+    mirrored = V - 2 * (V @ V[0] - 1)[:, None] * V[0]
+    two = Mesh(np.concatenate([V, mirrored]) + 100.0, np.concatenate([F, np.where(F == 0, 0, F + len(V))[:, ::-1]]))
+    src, d_ply, d_npy = tmp_path / "two.ply", tmp_path / "d.ply", tmp_path / "d.npy"
+    save_mesh(src, two)
+    p = cli("geodesic", src, "-s", "5", "-m", "exact", "-o", tmp_path / "x.ply")
+    assert p.returncode == 2 and "--reference exact needs" not in p.stderr and "non-manifold" in p.stderr
+    p = cli("geodesic", src, "-s", "5", "-o", d_ply, "--quiet")
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(d_ply)
+    np.save(d_npy, m.vertex_fields["distance"])
+    vertex = np.empty(len(m.V), dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"), ("distance", "f8")])
+    for k, c in enumerate("xyz"):
+        vertex[c] = m.V[:, k]
+    vertex["distance"] = m.vertex_fields["distance"]
+    face = np.empty(len(m.F), dtype=[("vertex_indices", "i4", (3,))])
+    face["vertex_indices"] = m.F
+    f32 = tmp_path / "f32.ply"
+    PlyData([PlyElement.describe(vertex, "vertex"), PlyElement.describe(face, "face")]).write(str(f32))
+    for ref, stdin in ((d_ply, None), ("-", d_npy.read_bytes()), (f32, None)):
+        rep = tmp_path / "r.json"
+        p = cli("geodesic", src, "-s", "5", "-m", "varadhan", "--reference", ref, "-o", tmp_path / "v.ply",
+                "--report", rep, "--quiet", stdin=stdin)
+        assert p.returncode == 0, (ref, p.stderr)
+        met = _report(rep)["metrics"]
+        assert met["compared_vertices"] == len(m.V) and 0 < met["mean_relative_error"] < 0.5
+
+
 def test_bad_reference_files_are_one_line_errors(cli, fixture_dir, tmp_path):
     src = fixture_dir / "icosphere.ply"
     n = len(load_mesh(src).V)
@@ -67,11 +101,14 @@ def test_bad_reference_files_are_one_line_errors(cli, fixture_dir, tmp_path):
     v[4] = np.nan
     np.save(nan, v)
     np.save(short, np.ones(n - 1))
+    negative = tmp_path / "negative.npy"
+    np.save(negative, -np.arange(n, dtype=float))  # no positive distance: every error would be null
     for ref, needle in ((tmp_path / "exakt", "--reference " + str(tmp_path / "exakt") + ": no such file (give exact"),
                         (fixture_dir / "torus.ply", "the reference mesh has"),
                         (src, "no vertex property 'distance' (--field-name) holds the reference distances"),
                         (nan, "1 reference distance is NaN or -inf (first: vertex 4)"),
-                        (short, f"{n - 1} reference distances for {n} vertices")):
+                        (short, f"{n - 1} reference distances for {n} vertices"),
+                        (negative, "no reference distance is finite and above 0")):
         out = tmp_path / "o.ply"
         p = cli("geodesic", src, "-s", "0", "--reference", ref, "-o", out)
         lines = p.stderr.strip().splitlines()
@@ -679,3 +716,17 @@ def test_sources_read_from_a_file_are_in_the_report_and_renumbering_is_explained
             f"{3 * len(g.F)}, and loading merged {3 * len(g.F) - 441} coincident") in p.stderr, p.stderr
     p = cli("geodesic", tmp_path / "split.ply", "--sources-file", "-", "-o", tmp_path / "o.ply", stdin=b"500\n")
     assert p.returncode == 2 and "(--no-clean keeps the stored numbering)" in p.stderr, p.stderr
+
+
+def test_a_bad_reference_file_is_refused_before_the_work(fixture_dir, tmp_path, monkeypatch, capsys):
+    import geoproc.geodesic.distance
+    from geoproc_cli import main as cli_main
+
+    short = tmp_path / "short.npy"
+    np.save(short, np.ones(3))
+    monkeypatch.setattr(geoproc.geodesic.distance, "geodesic_distance", lambda *a, **k: pytest.fail("the work ran"))
+    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", str(fixture_dir / "torus.ply"), "-s", "0", "--reference",
+                                     str(short), "-o", str(tmp_path / "d.ply")])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    assert stop.value.code == 2 and "3 reference distances for" in capsys.readouterr().err
