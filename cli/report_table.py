@@ -167,7 +167,7 @@ def _check_summary(rep: dict) -> Text:
     return Text(f"{len(failed)} of {len(checks)} failed: {', '.join(failed)}", style="bold red")
 
 
-USAGE = "usage: python -m geoproc_cli.report_table [FOLDER] [--csv OUT.csv]  (FOLDER default out/demo)"
+USAGE = "usage: python -m geoproc_cli.report_table [FOLDER] [--csv OUT.csv|-]  (FOLDER default out/demo)"
 HELP = """Prints one row per geoproc JSON report in FOLDER.
   --csv OUT.csv   write every report's params, metrics and timings as CSV
                   instead (one row per report, one column per name; - for
@@ -187,8 +187,8 @@ def _arguments(args: list[str]) -> tuple[str | None, str | None] | None:
             folder, i = a, i + 1
         else:
             return None
-    if csv_path == "":
-        return None
+    if csv_path is not None and csv_path != "-" and not csv_path.lower().endswith(".csv"):
+        return None  # (a report's own .json among them is then never overwritten)
     return folder, csv_path
 
 
@@ -239,8 +239,8 @@ def _write_csv(path: str, text: str) -> int:
         return 0
     from geoproc.fileio import write_bytes_atomic
 
-    try:
-        write_bytes_atomic(path, text.encode())
+    try:  # file names that are not UTF-8 come back as they were stored (as on standard output)
+        write_bytes_atomic(path, text.encode("utf-8", "surrogateescape"))
     except OSError as e:
         print(f"report_table: error: {path}: cannot write ({e.strerror or e})", file=sys.stderr)
         return 2
@@ -250,12 +250,13 @@ def _write_csv(path: str, text: str) -> int:
 def run(argv: list[str]) -> int:
     """:func:`main`, with Ctrl-C or a termination signal one error line and
     status 130 or 128 + the signal's number, as for geoproc's commands."""
-    from geoproc_cli.entry import install_signal_handlers, interruption_line
+    from geoproc_cli.entry import install_signal_handlers, interruption_line, outputs_committed
 
     install_signal_handlers()
     try:
         code = main(argv)
         sys.stdout.flush()
+        outputs_committed()  # a signal from here on would only misreport a finished run
         return code
     except KeyboardInterrupt as exc:
         text, code = interruption_line(exc)

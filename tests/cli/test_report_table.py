@@ -151,6 +151,7 @@ def test_csv_has_a_column_per_name_and_every_digit(tmp_path, capsys):
 def test_csv_arguments_and_unwritable_files_exit_2_with_one_line(tmp_path, capsys):
     _write(tmp_path, "a.json", {"command": "info", "metrics": {"genus": 0}})
     for args in (["--csv"], [str(tmp_path), "--csv"], ["--csv=", str(tmp_path)],
+                 [str(tmp_path), "--csv", str(tmp_path / "a.json")],  # a report is never overwritten
                  [str(tmp_path), "--csv", "a.csv", "--csv", "b.csv"], [str(tmp_path), "extra"]):
         assert main(["report_table", *args]) == 2
         err = capsys.readouterr().err.strip().splitlines()
@@ -160,3 +161,15 @@ def test_csv_arguments_and_unwritable_files_exit_2_with_one_line(tmp_path, capsy
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(missing) in err[0] and "cannot write" in err[0]
     assert not missing.parent.exists()
+
+
+def test_csv_keeps_file_names_that_are_not_utf8(tmp_path, capsys):
+    # a report of an input named with a byte that is not UTF-8 holds it as a lone surrogate:
+    # written back as that byte, as on standard output (it had been a UnicodeEncodeError)
+    import json as _json
+
+    (tmp_path / "r.json").write_text(_json.dumps({"command": "info", "metrics": {"genus": 0},
+                                                  "inputs": [{"path": "t\udcff.ply"}]}))
+    out = tmp_path / "r.csv"
+    assert main(["report_table", str(tmp_path), "--csv", str(out)]) == 0
+    assert b"t\xff.ply" in out.read_bytes()
