@@ -96,8 +96,9 @@ def morse_simplify(
         help="Give each fan of faces at a non-manifold vertex (where separate fans meet at one point, as "
         "in many scans) its own vertex at the same position, instead of refusing the mesh. The output "
         "then has more vertices than the input; its int property input_vertex gives each one's input "
-        "vertex (reading the output again merges the copies, as coincident vertices, unless --no-clean "
-        "is given). Edges with more than two faces are still refused.")] = False,
+        "vertex (-1 for the new vertices of --barycentric; reading the output again merges the copies, as "
+        "coincident vertices, unless --no-clean is given). Edges with more than two faces are still "
+        "refused.")] = False,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,
@@ -174,6 +175,7 @@ def morse_simplify(
         from geoproc.morse.window_repair import TIE_ROUNDING
 
         npy = read_input_bytes(npy_path, "field file (.npy)") if npy_path else None
+        n_vertices = m.n_vertices  # the input's as loaded, for the report
         split, source = _split_fans(run, m, mesh) if split_nonmanifold else (m, None)
         with run.timer("field"):  # curvatures of the split surface; the other fields are the input's values
             f = vertex_field(split, field) if field in CURVATURES else vertex_field(m, field, npy)
@@ -188,7 +190,6 @@ def morse_simplify(
             raise UsageError("--field cell_dim with --barycentric: the output's 'cell_dim' property holds "
                              "each subdivision vertex's cell dimension; copy the field under another name")
         run.note_replaced("vertex", [k for k in written if k != field], m.vertex_fields)
-        n_vertices = m.n_vertices  # the input's, for the report
         used = referenced_vertices(m.F, m.n_vertices)  # (all but under --no-clean)
         if barycentric and not used.all():  # the subdivision is of the surface: they are left out
             run.note(f"{m.log.path or mesh}: {int((~used).sum())} vertices no face uses are left out of the "
@@ -224,6 +225,9 @@ def morse_simplify(
             run.note(_beyond_note(beyond, threshold, max_change, summary, TIE_ROUNDING))
         if barycentric:
             carried = {k: subdivision_values(res, m.F, v) for k, v in m.vertex_fields.items()}  # interpolated
+            if source is not None:  # an index, not a quantity: only the mesh's own vertices have one
+                carried["input_vertex"] = np.where(res.dim == 0, carried["input_vertex"], -1).astype(
+                    m.vertex_fields["input_vertex"].dtype)
             if name not in ("nx", "ny", "nz"):  # (a normal component simplified as the field stays the field)
                 run.refresh_normals(res.V, res.F, carried)  # interpolated normals are neither unit nor the surface's
             out = Mesh(res.V, res.F, {**carried, name: g, f"{name}_original": summary.f_ref,
@@ -265,9 +269,10 @@ def _split_fans(run, m: Mesh, mesh: str) -> tuple[Mesh, np.ndarray | None]:
     V, F, source = split_nonmanifold_vertices(m.V, m.F)
     path = m.log.path or mesh
     if len(V) == len(m.V):
-        run.note(f"{path}: no vertex joins separate fans of faces; --split-nonmanifold changed nothing "
-                 "(the output has no input_vertex property)")
+        run.note(f"{path}: no vertex joins separate fans of faces; --split-nonmanifold changed nothing and "
+                 "adds no input_vertex property")
         return m, None
+    run.note_replaced("vertex", ["input_vertex"], m.vertex_fields)
     split = len(np.unique(source[len(m.V):]))
     run.note(f"{path}: split {split} non-manifold {'vertex' if split == 1 else 'vertices'} into "
              f"{split + len(V) - len(m.V)} (one per fan of "

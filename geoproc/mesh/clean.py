@@ -154,7 +154,9 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray
     """Give every fan of faces its own vertex (a bowtie's two fans become two
     vertices at the same position). The corners fall into the same vertices
     as with MeshLab's ``meshing_repair_non_manifold_vertices`` at
-    ``vertdispratio=0``, which gives no map back to the input's vertices.
+    ``vertdispratio=0`` run until it changes nothing (one run leaves part of
+    a vertex with three or more fans joined), which gives no map back to the
+    input's vertices.
 
     A vertex with one fan (or none) keeps its index; each further fan of a
     vertex gets a new vertex appended, in order of the input vertex and then

@@ -231,8 +231,23 @@ def test_split_nonmanifold_gives_each_fan_its_vertex(cli, fixture_dir, tmp_path,
     np.testing.assert_allclose(k[copies], K[0], rtol=1e-9)
     p = cli("morse-simplify", fixture_dir / "torus.ply", "--field", "x", "--persistence", "0", "-o", out,
             "--split-nonmanifold")
-    assert p.returncode == 0 and "--split-nonmanifold changed nothing" in p.stderr
+    assert p.returncode == 0 and "--split-nonmanifold changed nothing and adds no input_vertex" in p.stderr
     assert "input_vertex" not in load_mesh(out).vertex_fields
+    # on the barycentric subdivision only the mesh's own vertices have an input vertex
+    p = cli("morse-simplify", fixture_dir / "bowtie.obj", "--field", "x", "--persistence", "0", "-o", out,
+            "--split-nonmanifold", "--barycentric", "--report", rep)
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(out, clean=False)
+    dim, iv = m.vertex_fields["cell_dim"], m.vertex_fields["input_vertex"]
+    assert np.array_equal(iv[dim == 0], [0, 1, 2, 3, 4, 0]) and (iv[dim > 0] == -1).all()
+    assert json.loads(rep.read_text())["metrics"]["vertices"] == 5  # the input's, as loaded
+    # an input_vertex the input carries (from an earlier run) is replaced, with a note
+    bow = load_mesh(fixture_dir / "bowtie.obj")
+    again, src = tmp_path / "again.ply", tmp_path / "bow.ply"
+    save_mesh(src, Mesh(bow.V, bow.F, vertex_fields={"input_vertex": np.full(len(bow.V), 9, dtype=np.int32)}))
+    p = cli("morse-simplify", src, "--field", "x", "--persistence", "0", "-o", again, "--split-nonmanifold")
+    assert p.returncode == 0 and "replacing the input's vertex property 'input_vertex'" in p.stderr
+    assert np.array_equal(load_mesh(again, clean=False).vertex_fields["input_vertex"], [0, 1, 2, 3, 4, 0])
 
 
 def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):
