@@ -148,7 +148,7 @@ def denoise(
                                      "once).")] = 16,
     threshold: Annotated[float | None, typer.Option("--threshold", help="--outliers cut on the score, >= 0, in "
                                                     "median point spacings (default max(0.5, 3 x the median "
-                                                    "score), which follows the noise of the inliers; the "
+                                                    "score), which rises with the inliers' noise; the "
                                                     "report's threshold metric gives the cut used).",
                                                     show_default=False)] = None,
     keep_all: Annotated[bool, flag("--keep-all", help="--outliers: write every point with "
