@@ -77,7 +77,7 @@ ReportOpt = Annotated[
 CheckOpt = Annotated[
     list[str] | None,
     typer.Option("--check", help="Gate on one of the metrics listed below, as 'METRIC<=VALUE' (operators <=, <, "
-                 ">=, >, ==); repeatable; exit 1 when any fails.", metavar="'METRIC<=VALUE'", show_default=False),
+                 ">=, >, ==, !=); repeatable; exit 1 when any fails.", metavar="'METRIC<=VALUE'", show_default=False),
 ]
 QuietOpt = Annotated[bool, flag("--quiet", "-q", help="No progress bar or notes on stderr.")]
 DebugOpt = Annotated[bool, flag("--debug", help="Show the full traceback on errors.")]

@@ -11,10 +11,11 @@ from dataclasses import dataclass
 
 from geoproc.errors import UsageError
 
-_OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "<": operator.lt, ">": operator.gt}
+_OPS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne, "<": operator.lt,
+        ">": operator.gt}
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")  # ASCII, finite
-_SPLIT_OPERATOR = re.compile(r"^\s*[A-Za-z_][A-Za-z0-9_.]*\s*([<>=])\s+=\s*\S+\s*$")
-_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.]*)\s*(<=|>=|==|<|>)\s*(\S*)\s*$")
+_SPLIT_OPERATOR = re.compile(r"^\s*[A-Za-z_][A-Za-z0-9_.]*\s*([<>=!])\s+=\s*\S+\s*$")
+_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.]*)\s*(<=|>=|==|!=|<|>)\s*(\S*)\s*$")
 
 
 @dataclass(frozen=True)
@@ -27,26 +28,27 @@ class Check:
     text: str
 
     def passes(self, measured: float) -> bool:
-        """True when ``measured op value`` holds (NaN never passes)."""
-        return bool(_OPS[self.op](measured, self.value))
+        """True when ``measured op value`` holds (NaN never passes, != included)."""
+        return measured == measured and bool(_OPS[self.op](measured, self.value))
 
 
 def parse_check(text: str) -> Check:
-    """Parse ``'name<=value'`` (operators <=, <, >=, >, ==); UsageError if malformed."""
+    """Parse ``'name<=value'`` (operators <=, <, >=, >, ==, !=); UsageError if malformed."""
     split = _SPLIT_OPERATOR.match(text)
     if split and split.group(1) + "=" in _OPS:  # 'x< =1', 'x < = 1', 'x= =1'
         raise UsageError(f"--check '{text}': a space splits the operator '{split.group(1)}='; write it without one")
     m = _PATTERN.match(text)
     if not m:
         raise UsageError(
-            f"--check '{text}': expected NAME OP NUMBER with OP one of <=, <, >=, >, == "
+            f"--check '{text}': expected NAME OP NUMBER with OP one of <=, <, >=, >, ==, != "
             "(for example 'rmse<=0.01')"
         )
     name, op, raw = m.groups()
     if not raw:  # 'x<=' would otherwise read as 'x' < '='
         raise UsageError(f"--check '{text}': no number after '{op}'")
-    if raw[:1] in "<>=!":  # 'genus<>1', 'x=<1': an operator not in the list
-        raise UsageError(f"--check '{text}': unknown operator '{op}{raw[0]}'; use <=, <, >=, > or ==")
+    if raw[:1] in "<>=!":  # 'genus<>1', 'x=<1', 'x<<=1': an operator not in the list
+        extra = re.match(r"[<>=!]+", raw).group(0)
+        raise UsageError(f"--check '{text}': unknown operator '{op}{extra}'; use <=, <, >=, >, == or !=")
     if not _NUMBER.fullmatch(raw) or not math.isfinite(float(raw)):
         raise UsageError(f"--check '{text}': '{raw}' is not a finite decimal number")
     if float(raw) == 0 and re.search(r"[1-9]", raw.lower().split("e")[0]):  # 1e-400 reads as 0

@@ -104,11 +104,18 @@ def test_a_check_without_a_number_names_its_operator(op):
     assert str(err.value) == f"--check 'x{op}': no number after '{op}'"
 
 
-@pytest.mark.parametrize("text,op", [("genus<>1", "<>"), ("genus<=>1", "<=>"), ("x>=<2", ">=<"), ("x==!1", "==!")])
+@pytest.mark.parametrize("text,op", [("genus<>1", "<>"), ("genus<=>1", "<=>"), ("x>=<2", ">=<"), ("x==!1", "==!"),
+                                     ("genus<<=1", "<<="), ("x!==1", "!==")])
 def test_an_unknown_operator_is_named(text, op):
     # 'genus<>1' read as 'genus' < '>1' and blamed '>1' for not being a number
     with pytest.raises(UsageError, match=f"unknown operator '{op}'"):
         parse_check(text)
+
+
+def test_not_equal_compares_and_nan_passes_none():
+    c = parse_check("genus!=0")
+    assert c.op == "!=" and c.passes(1.0) and not c.passes(0.0) and not c.passes(float("nan"))
+    assert not parse_check("x<=1").passes(float("nan"))
 
 
 def test_unknown_metric_is_a_usage_error_listing_names():
