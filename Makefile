@@ -77,6 +77,7 @@ DEMO_STEPS := demo-info demo-morse-simplify demo-wos-solve demo-geodesic demo-pe
 
 demo-summary: $(DEMO_STEPS)
 	$(PY) -m geoproc_cli.report_table $(DEMO)
+	$(PY) -m geoproc_cli.report_table $(DEMO) --csv $(DEMO)/reports.csv
 
 # ---- benchmarks against peer libraries (never part of `make test`) ----
 # the bench extras alone, once per change of the package metadata: reinstalling the
