@@ -100,7 +100,7 @@ def wos_solve(
     boundary: Annotated[str | None, typer.Option(
         "--boundary", help="Dirichlet data as an expression in x and y: numbers, + - * / **, "
         "parentheses, sin cos tan exp log sqrt abs atan2 sinh cosh, pi, e. Default: the "
-        "JSON's per-vertex 'values'.", metavar="'EXPR'", show_default=False)] = None,
+        "JSON's per-vertex 'values' (given, it replaces them, with a note).", metavar="'EXPR'", show_default=False)] = None,
     neumann: Annotated[str | None, typer.Option(
         "--neumann", help="Flux du/dn (outward normal) on the segments the JSON marks Neumann, "
         "as an expression; marked segments without it have zero flux.", metavar="'EXPR'",
@@ -202,6 +202,8 @@ def wos_solve(
         if dom.traced:
             run.note(f"{domain}: traced {len(dom.loops)} loop(s), {dom.n_segments} segments, "
                      f"area {dom.area:.6g} px^2")
+        if g is not None and dom.values is not None:
+            run.note(f"{domain}: --boundary replaces the domain's own 'values' (they are not used)")
         # Dirichlet data beyond what the EXR holds, which the solution reaches near there, is
         # refused before the walks (npass had overflowed on it and blamed data past 1e307)
         from geoproc.wos.problem import dirichlet_data_bound

@@ -539,3 +539,12 @@ def test_the_exr_says_where_it_lies(cli, inputs, tmp_path):
     expected = {f"geoproc:{k}": m[k] for k in ("grid_left", "grid_top", "pixel_size")}
     assert exr_attributes(str(out)) == expected == exr_attributes(str(se))
     assert expected["geoproc:grid_left"] == 1e12 + 0.5 and expected["geoproc:grid_top"] == 4.0
+
+
+def test_boundary_given_with_domain_values_says_it_replaces_them(cli, tmp_path):
+    dom = tmp_path / "v.json"
+    dom.write_text(json.dumps({"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]], "values": [[0, 1, 2, 3]]}))
+    p = cli("wos-solve", dom, "--boundary", "x", "--grid", "8", "--walks", "2", "-o", tmp_path / "u.exr")
+    assert p.returncode == 0 and f"{dom}: --boundary replaces the domain's own 'values'" in p.stderr
+    p = cli("wos-solve", dom, "--grid", "8", "--walks", "2", "-o", tmp_path / "u.exr")
+    assert p.returncode == 0 and "replaces" not in p.stderr
