@@ -100,7 +100,8 @@ def wos_solve(
     boundary: Annotated[str | None, typer.Option(
         "--boundary", help="Dirichlet data as an expression in x and y: numbers, + - * / **, "
         "parentheses, sin cos tan exp log sqrt abs atan2 sinh cosh, pi, e. Default: the "
-        "JSON's per-vertex 'values' (given, it replaces them, with a note).", metavar="'EXPR'", show_default=False)] = None,
+        "JSON's per-vertex 'values' (given, it replaces them, with a note).", metavar="'EXPR'",
+        show_default=False)] = None,
     neumann: Annotated[str | None, typer.Option(
         "--neumann", help="Flux du/dn (outward normal) on the segments the JSON marks Neumann, "
         "as an expression; marked segments without it have zero flux.", metavar="'EXPR'",
