@@ -594,7 +594,10 @@ def _animation_outliers(run, input, output, threshold, refined) -> None:
 
 
 def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
-    if input == "-" or not is_animation_path(input):
+    if input == "-":  # (np.load needs a file it can seek in)
+        raise UsageError("-: --dynamic reads an animation from a file or folder (.npz or frame meshes), "
+                         "not from standard input")
+    if not is_animation_path(input):
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
     if not output.lower().endswith(".npz"):
         raise UsageError(f"{output}: an animation is written as .npz")

@@ -911,3 +911,8 @@ def test_fit_options_unused_are_noted(cli, fixture_dir, tmp_path):
     p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--normal-iterations", "0",
             "--sigma-r", "0.3", "-o", out)
     assert "note: --sigma-r not used: no filter pass ran (--normal-iterations 0)" in p.stderr
+
+
+def test_dynamic_from_standard_input_says_where_animations_are_read(cli, tmp_path):
+    p = cli("denoise", "-", "--dynamic", "-o", tmp_path / "d.npz", stdin=b"PK\x03\x04")
+    assert _one_line_error(p) and "-: --dynamic reads an animation from a file or folder" in p.stderr
