@@ -730,3 +730,20 @@ def test_a_bad_reference_file_is_refused_before_the_work(fixture_dir, tmp_path, 
     with pytest.raises(SystemExit) as stop:
         cli_main.main()
     assert stop.value.code == 2 and "3 reference distances for" in capsys.readouterr().err
+
+
+def test_exact_is_its_own_reference(fixture_dir, tmp_path, monkeypatch, capsys):
+    # -m exact --reference exact had computed the exact distances twice
+    import geoproc.geodesic.exact as exact
+    from geoproc_cli import main as cli_main
+
+    calls = []
+    real = exact.exact_geodesic_distance
+    monkeypatch.setattr(exact, "exact_geodesic_distance", lambda *a, **k: calls.append(1) or real(*a, **k))
+    rep = tmp_path / "r.json"
+    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", str(fixture_dir / "torus.ply"), "-s", "0", "-m", "exact",
+                                     "--reference", "exact", "-o", str(tmp_path / "d.ply"), "--report", str(rep)])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    assert stop.value.code == 0 and len(calls) == 1
+    assert _report(rep)["metrics"]["max_relative_error"] == 0.0
