@@ -44,7 +44,7 @@ REFERENCE_METRICS = ("compared_vertices", "nonfinite_vertices", "pearson_r", "rm
 """The comparison with exact geodesics, reported only with ``--reference``."""
 
 METRIC_UNITS = {
-    "rmse, mae, mean_relative_error (= mae), max_relative_error": "of |d - exact| over the largest exact distance",
+    "rmse, mae, mean_relative_error (= mae), max_relative_error": "of |d - reference| over the largest reference distance",
     "max_distance, mean_distance, mean_edge_length": "in the mesh's length unit",
     "t": "in its area unit",
 }
