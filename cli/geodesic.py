@@ -41,10 +41,11 @@ Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
 
 REFERENCE_METRICS = ("compared_vertices", "nonfinite_vertices", "pearson_r", "rmse", "mae", "mean_relative_error",
                      "max_relative_error")
-"""The comparison with exact geodesics, reported only with ``--reference``."""
+"""The comparison with the reference distances, reported only with ``--reference``."""
 
 METRIC_UNITS = {
-    "rmse, mae, mean_relative_error (= mae), max_relative_error": "of |d - reference| over the largest reference distance",
+    "rmse, mae, mean_relative_error (= mae), max_relative_error":
+        "of |d - reference| over the largest reference distance",
     "max_distance, mean_distance, mean_edge_length": "in the mesh's length unit",
     "t": "in its area unit",
 }
