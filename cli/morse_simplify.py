@@ -186,6 +186,9 @@ def morse_simplify(
             run.add_input(field, npy)
         name = field_name(field)
         written = (name, f"{name}_original") + (("cell_dim",) if barycentric else ())
+        if split_nonmanifold and name == "input_vertex":
+            raise UsageError("--field input_vertex with --split-nonmanifold: the output's 'input_vertex' property "
+                             "maps each vertex to its input vertex; copy the field under another name")
         if barycentric and name == "cell_dim":
             raise UsageError("--field cell_dim with --barycentric: the output's 'cell_dim' property holds "
                              "each subdivision vertex's cell dimension; copy the field under another name")
@@ -225,9 +228,9 @@ def morse_simplify(
             run.note(_beyond_note(beyond, threshold, max_change, summary, TIE_ROUNDING))
         if barycentric:
             carried = {k: subdivision_values(res, m.F, v) for k, v in m.vertex_fields.items()}  # interpolated
-            if source is not None:  # an index, not a quantity: only the mesh's own vertices have one
-                carried["input_vertex"] = np.where(res.dim == 0, carried["input_vertex"], -1).astype(
-                    m.vertex_fields["input_vertex"].dtype)
+            if "input_vertex" in carried and name != "input_vertex":  # an index, not a quantity: only
+                carried["input_vertex"] = np.where(  # the mesh's own vertices have one (-1 elsewhere)
+                    res.dim == 0, carried["input_vertex"], -1).astype(m.vertex_fields["input_vertex"].dtype)
             if name not in ("nx", "ny", "nz"):  # (a normal component simplified as the field stays the field)
                 run.refresh_normals(res.V, res.F, carried)  # interpolated normals are neither unit nor the surface's
             out = Mesh(res.V, res.F, {**carried, name: g, f"{name}_original": summary.f_ref,

@@ -93,13 +93,16 @@ def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[
 
     Returns the table, the number of reports in it and one note per
     ``*.json`` file that could not be read."""
-    t = Table(title=Text(f"geoproc reports in {folder}"))
+    from geoproc_cli.common import escaped  # undecodable bytes in names shown escaped, as in error lines
+
+    t = Table(title=Text(escaped(f"geoproc reports in {folder}")))
     for col in ("report", "command", "input", "metrics", "checks", "total s"):
         t.add_column(col)
     reports, notes = folder_reports(folder)
     for path, rep in reports:
         shown = [f"{k}={_shown_value(v)}" for k, v in headline_metrics(rep["metrics"])][:max_metrics]
-        t.add_row(Text(path.name), Text(str(rep["command"])), Text(_input_names(rep)), Text(" ".join(shown)),
+        t.add_row(Text(escaped(path.name)), Text(escaped(str(rep["command"]))), Text(escaped(_input_names(rep))),
+                  Text(escaped(" ".join(shown))),
                   _check_summary(rep), _total_seconds(rep))
     return t, len(reports), notes
 
@@ -234,13 +237,15 @@ def main(argv: list[str]) -> int:
 def _write_csv(path: str, text: str) -> int:
     """Write the CSV to ``path`` (a temporary file renamed into place) or to
     standard output for ``-``; 2 with one line when the file cannot be written."""
+    data = text.encode("utf-8", "surrogateescape")  # names that are not UTF-8 come back as they were stored
     if path == "-":
-        sys.stdout.write(text)
+        sys.stdout.flush()
+        sys.stdout.buffer.write(data)
         return 0
     from geoproc.fileio import write_bytes_atomic
 
-    try:  # file names that are not UTF-8 come back as they were stored (as on standard output)
-        write_bytes_atomic(path, text.encode("utf-8", "surrogateescape"))
+    try:
+        write_bytes_atomic(path, data)
     except OSError as e:
         print(f"report_table: error: {path}: cannot write ({e.strerror or e})", file=sys.stderr)
         return 2

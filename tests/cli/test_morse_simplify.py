@@ -248,6 +248,17 @@ def test_split_nonmanifold_gives_each_fan_its_vertex(cli, fixture_dir, tmp_path,
     p = cli("morse-simplify", src, "--field", "x", "--persistence", "0", "-o", again, "--split-nonmanifold")
     assert p.returncode == 0 and "replacing the input's vertex property 'input_vertex'" in p.stderr
     assert np.array_equal(load_mesh(again, clean=False).vertex_fields["input_vertex"], [0, 1, 2, 3, 4, 0])
+    # a map carried from an earlier split is -1 on the subdivision's new vertices too
+    p = cli("morse-simplify", again, "--no-clean", "--field", "x", "--persistence", "0", "--barycentric", "-o", out)
+    assert p.returncode == 0, p.stderr
+    m = load_mesh(out, clean=False)
+    dim, iv = m.vertex_fields["cell_dim"], m.vertex_fields["input_vertex"]
+    assert np.array_equal(iv[dim == 0], [0, 1, 2, 3, 4, 0]) and (iv[dim > 0] == -1).all()
+    # the map cannot be the field simplified in the same run
+    p = cli("morse-simplify", src, "--field", "input_vertex", "--persistence", "0", "--split-nonmanifold", "-o",
+            tmp_path / "iv.ply")
+    assert p.returncode == 2 and "--field input_vertex with --split-nonmanifold" in p.stderr
+    assert not (tmp_path / "iv.ply").exists()
 
 
 def test_bad_fields_and_threshold(cli, fixture_dir, tmp_path):

@@ -173,3 +173,20 @@ def test_csv_keeps_file_names_that_are_not_utf8(tmp_path, capsys):
     out = tmp_path / "r.csv"
     assert main(["report_table", str(tmp_path), "--csv", str(out)]) == 0
     assert b"t\xff.ply" in out.read_bytes()
+
+
+def test_names_that_are_not_utf8_on_a_strict_standard_output(tmp_path):
+    # under a UTF-8 locale standard output is strict: a report naming a file with a byte that
+    # is not UTF-8 had made the table and --csv - end in a UnicodeEncodeError traceback
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "r.json").write_text(json.dumps({"command": "info", "metrics": {"genus": 0},
+                                                 "inputs": [{"path": "t\udcff.ply"}]}))
+    env = {**os.environ, "PYTHONIOENCODING": "utf-8:strict", "COLUMNS": "200"}
+    for extra in ([], ["--csv", "-"]):
+        p = subprocess.run([sys.executable, "-m", "geoproc_cli.report_table", str(tmp_path), *extra],
+                           capture_output=True, env=env, timeout=60)
+        assert p.returncode == 0, p.stderr.decode()
+        assert (b"t\xff.ply" if extra else b"t\\udcff.ply") in p.stdout
