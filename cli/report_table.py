@@ -190,8 +190,8 @@ def _arguments(args: list[str]) -> tuple[str | None, str | None] | None:
             folder, i = a, i + 1
         else:
             return None
-    if csv_path is not None and csv_path != "-" and not csv_path.lower().endswith(".csv"):
-        return None  # (a report's own .json among them is then never overwritten)
+    if csv_path == "":
+        return None
     return folder, csv_path
 
 
@@ -210,6 +210,11 @@ def main(argv: list[str]) -> int:
         return 2
     folder = Path(parsed[0]) if parsed[0] else Path("out/demo")
     csv_path = parsed[1]
+    if csv_path is not None and csv_path != "-" and not csv_path.lower().endswith(".csv"):
+        # (a report's own .json among them is then never overwritten)
+        print(f"report_table: error: --csv {csv_path}: the name must end in .csv (or be - for standard output)",
+              file=sys.stderr)
+        return 2
     if not folder.is_dir():
         what = "not a folder" if folder.exists() else "no such folder"
         print(f"report_table: error: {folder}: {what}", file=sys.stderr)

@@ -151,11 +151,14 @@ def test_csv_has_a_column_per_name_and_every_digit(tmp_path, capsys):
 def test_csv_arguments_and_unwritable_files_exit_2_with_one_line(tmp_path, capsys):
     _write(tmp_path, "a.json", {"command": "info", "metrics": {"genus": 0}})
     for args in (["--csv"], [str(tmp_path), "--csv"], ["--csv=", str(tmp_path)],
-                 [str(tmp_path), "--csv", str(tmp_path / "a.json")],  # a report is never overwritten
                  [str(tmp_path), "--csv", "a.csv", "--csv", "b.csv"], [str(tmp_path), "extra"]):
         assert main(["report_table", *args]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("report_table: error: usage:")
+    assert main(["report_table", str(tmp_path), "--csv", str(tmp_path / "a.json")]) == 2  # never over a report
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a.json: the name must end in .csv" in err[0]
+    assert json.loads((tmp_path / "a.json").read_text())["command"] == "info"
     missing = tmp_path / "no" / "r.csv"
     assert main(["report_table", str(tmp_path), f"--csv={missing}"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
