@@ -46,7 +46,7 @@ def parse_check(text: str) -> Check:
     name, op, raw = m.groups()
     if not raw:  # 'x<=' would otherwise read as 'x' < '='
         raise UsageError(f"--check '{text}': no number after '{op}'")
-    if raw[:1] in "<>=!":  # 'genus<>1', 'x=<1', 'x<<=1': an operator not in the list
+    if raw[:1] in "<>=!":  # 'genus<>1', 'x<<=1', 'x==!1': an operator not in the list
         extra = re.match(r"[<>=!]+", raw).group(0)
         raise UsageError(f"--check '{text}': unknown operator '{op}{extra}'; use <=, <, >=, >, == or !=")
     if not _NUMBER.fullmatch(raw) or not math.isfinite(float(raw)):

@@ -791,14 +791,22 @@ def test_termination_while_writing_leaves_nothing_staged(fixture_dir, tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
 
 
+def _perturb_under(script: str, fixture_dir, out, *extra: str):
+    """``perturb torus.ply --seed 1 -o out [extra]`` run by ``python -c script``
+    (the script sets up what it injects, then calls geoproc's entry point)."""
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
+                           "-o", str(out), *extra], capture_output=True, text=True, timeout=120)
+
+
 @pytest.mark.parametrize("sig, status, line", [("SIGTERM", 143, "error: terminated (SIGTERM)"),
                                                ("SIGINT", 130, "error: interrupted")])
 def test_a_signal_while_libigl_loads_is_an_interruption(fixture_dir, tmp_path, sig, status, line):
     # libigl's nanobind extension turned the exception the handler raised while it created its
     # enumerations into a C++ exception: abort, exit 134, a 31-line traceback. The signal is
     # sent here at that moment (the first enumeration made while igl loads)
-    import subprocess
-    import sys
 
     script = (
         "import enum, os, signal, sys\n"
@@ -813,8 +821,7 @@ def test_a_signal_while_libigl_loads_is_an_interruption(fixture_dir, tmp_path, s
         "main()\n"
     )
     out = tmp_path / "o.ply"
-    p = subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
-                        "-o", str(out)], capture_output=True, text=True, timeout=120)
+    p = _perturb_under(script, fixture_dir, out)
     assert p.returncode == status and p.stderr.strip() == line, p.stderr[-3000:]
     assert list(tmp_path.iterdir()) == []
 
@@ -844,8 +851,6 @@ def test_an_output_folder_that_cannot_take_a_file_is_refused_before_the_work(fix
 def test_a_signal_once_the_outputs_are_in_place_is_ignored(fixture_dir, tmp_path):
     # a SIGTERM in the last tens of milliseconds (notes, exit) made a finished run exit 143,
     # most often without an error line, its outputs complete
-    import subprocess
-    import sys
 
     script = (
         "import os, signal\n"
@@ -859,8 +864,7 @@ def test_a_signal_once_the_outputs_are_in_place_is_ignored(fixture_dir, tmp_path
         "main()\n"
     )
     out, rep = tmp_path / "o.ply", tmp_path / "r.json"
-    p = subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
-                        "-o", str(out), "--report", str(rep)], capture_output=True, text=True, timeout=120)
+    p = _perturb_under(script, fixture_dir, out, "--report", str(rep))
     assert p.returncode == 0 and p.stderr == "", (p.returncode, p.stderr[-2000:])
     assert out.stat().st_size > 0 and json.loads(rep.read_text())["command"] == "perturb"
 
@@ -869,8 +873,6 @@ def test_a_signal_while_python_exits_after_the_outputs_are_in_place_is_ignored(f
     # Python's exit puts its signal handlers back to the default action: a SIGTERM in the
     # fraction of a second the exit takes killed a finished run (exit 143, no error line).
     # It is sent here from an object that the interpreter's exit destroys
-    import subprocess
-    import sys
 
     script = (
         "import os, signal, time\n"
@@ -883,8 +885,7 @@ def test_a_signal_while_python_exits_after_the_outputs_are_in_place_is_ignored(f
         "main()\n"
     )
     out = tmp_path / "o.ply"
-    p = subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
-                        "-o", str(out)], capture_output=True, text=True, timeout=120)
+    p = _perturb_under(script, fixture_dir, out)
     assert p.returncode == 0 and p.stderr == "", (p.returncode, p.stderr[-2000:])
     assert out.stat().st_size > 0
 
@@ -893,8 +894,6 @@ def test_a_signal_that_an_import_wraps_is_an_interruption(fixture_dir, tmp_path)
     # Python 3.11 wraps an exception raised inside a descriptor's __set_name__ in a
     # RuntimeError: a SIGHUP while typer's imports (platform's cached_property) ran gave a
     # 62-line traceback and exit 1, the status of a failed --check
-    import subprocess
-    import sys
 
     script = (
         "import functools, os, signal\n"
@@ -910,8 +909,7 @@ def test_a_signal_that_an_import_wraps_is_an_interruption(fixture_dir, tmp_path)
         "main()\n"
     )
     out = tmp_path / "o.ply"
-    p = subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
-                        "-o", str(out)], capture_output=True, text=True, timeout=120)
+    p = _perturb_under(script, fixture_dir, out)
     assert p.returncode == 129 and p.stderr == "error: terminated (SIGHUP)\n", (p.returncode, p.stderr[-2000:])
     assert not out.exists()
 
