@@ -221,12 +221,12 @@ def main(argv: list[str]) -> int:
         return 2
     if csv_path is not None:
         reports, notes = folder_reports(folder)
+        count = len(reports)
     else:
-        table, rows, notes = summary_table(folder)
-        reports = [None] * rows
+        table, count, notes = summary_table(folder)
     for note in notes:
         print(f"report_table: {note}", file=sys.stderr)
-    if not reports:
+    if not count:
         print(f"report_table: error: {folder}: no geoproc reports (*.json with command and metrics)",
               file=sys.stderr)
         return 2
