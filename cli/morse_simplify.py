@@ -12,7 +12,7 @@ import typer
 from geoproc.errors import UsageError
 from geoproc.fileio import read_input_bytes
 from geoproc.mesh import Mesh
-from geoproc.mesh.validate import require_edge_manifold, require_manifold, require_triangle_mesh
+from geoproc.mesh.validate import require_edge_manifold, require_triangle_mesh, require_vertex_manifold
 from geoproc.report import json_bytes
 from geoproc_cli.common import (
     LOAD_METRICS,
@@ -160,9 +160,9 @@ def morse_simplify(
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
         require_edge_manifold(m.F, m.log.path or None, "; morse-simplify needs a manifold mesh")
-        if not split_nonmanifold:  # (the edges are checked: only a vertex can be what it names)
-            require_manifold(m, "; morse-simplify needs a manifold mesh (--split-nonmanifold gives each fan "
-                                "of faces at a vertex its own vertex)")
+        if not split_nonmanifold:
+            require_vertex_manifold(m, "; morse-simplify needs a manifold mesh (--split-nonmanifold gives each "
+                                       "fan of faces at a vertex its own vertex)")
         # the methods (scipy, the compiled kernels) load once the mesh is read and checked
         from geoproc.mesh.clean import remove_unreferenced_vertices
         from geoproc.mesh.topology import orientation_status, referenced_vertices

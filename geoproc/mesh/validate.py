@@ -129,14 +129,19 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> Non
 def require_manifold(mesh: Mesh, why: str = "") -> None:
     """Refuse a mesh with a repeated-vertex face or a non-manifold edge or
     vertex, naming the first one."""
+    require_edge_manifold(mesh.F, mesh.log.path or None, why)
+    require_vertex_manifold(mesh, why)
+
+
+def require_vertex_manifold(mesh: Mesh, why: str = "") -> None:
+    """Refuse a mesh with a vertex where separate fans of faces meet, naming the
+    first; ``why`` ends the message."""
     from geoproc.mesh.topology import nonmanifold_vertices
 
-    path = mesh.log.path or None
-    require_edge_manifold(mesh.F, path, why)
     bad_v = nonmanifold_vertices(mesh.F, len(mesh.V))
     if len(bad_v):
         raise InputError(
-            path, f"non-manifold: {len(bad_v)} vertices join separate fans of faces "
+            mesh.log.path or None, f"non-manifold: {len(bad_v)} vertices join separate fans of faces "
             f"(first: vertex {int(bad_v[0])}){why}"
         )
 

@@ -52,7 +52,6 @@ class GridSpec:
         return np.stack([X.ravel(), Y.ravel()], axis=1)
 
 
-
 def suggested_epsilon(diagonal: float, deepest: float | None = None) -> float:
     """The stopping distance that is to a domain what the default 0.001 is to
     a unit square: 0.001 / sqrt(2) of the bounding-box ``diagonal``, and no
@@ -62,6 +61,7 @@ def suggested_epsilon(diagonal: float, deepest: float | None = None) -> float:
     length units."""
     eps = 1e-3 / np.sqrt(2.0) * diagonal
     return float(eps if deepest is None else min(eps, deepest / 500))
+
 
 def grid_over(domain: Domain, n: int) -> GridSpec:
     """Square-pixel grid over the domain's bounding box, ``n`` pixels along its
