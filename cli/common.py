@@ -152,6 +152,7 @@ class Run:
         self.metrics: dict = {}
         self.timings: dict[str, float] = {}
         self._outputs: list[tuple[str, bytes]] = []
+        self._frame_folders: list[tuple[str, list[str]]] = []  # (folder, frame file names written there)
         self._notes: list[str] = []
         self._stdin_read = False
         self._t0 = time.perf_counter()
@@ -370,6 +371,34 @@ class Run:
             self.note(f"{name}: STL stores each triangle's corners as 32-bit floats; read back: "
                       f"{' and '.join(changes)} (a .ply output keeps them)")
 
+    def write_animation(self, path: str, anim) -> None:
+        """Queue an animation output: a folder of frames when ``path`` names a
+        folder (:meth:`write_frames`), else a ``.npz`` file (see
+        :func:`require_animation_output`)."""
+        from geoproc.animation import animation_to_bytes, names_folder
+
+        require_animation_output(path)
+        if names_folder(path):
+            self.write_frames(path, anim)
+        else:
+            self.write_bytes(path, animation_to_bytes(anim))
+
+    def write_frames(self, folder: str, anim) -> None:
+        """Queue an animation as a folder of binary PLY frames, ``frame_0000.ply``
+        and on (see :func:`geoproc.animation.animation_to_frames`), written with
+        the other outputs: the folder is made when the run succeeds, and the
+        ``frame_N.ply`` files an earlier run left there beyond these are removed
+        once these are in place."""
+        from geoproc.animation import animation_to_frames, unwritable_frame_fields
+
+        bad = unwritable_frame_fields(anim)
+        if bad:
+            raise UsageError(f"{folder}: field '{bad[0]}' cannot be a PLY vertex property of a frame (an "
+                             "identifier other than x, y, z); write a .npz")
+        frames = animation_to_frames(anim)
+        self._frame_folders.append((folder, [name for name, _ in frames]))
+        self._outputs += [(os.path.join(folder, name), data) for name, data in frames]
+
     def write_stdout(self, data: bytes) -> None:
         """Queue bytes for standard output; written only when the run succeeds."""
         self._outputs.append(("-", data))
@@ -381,22 +410,33 @@ class Run:
         The files are staged beside their destinations, standard output gets
         its bytes, and only then are the files renamed into place (so an
         unwritable report, or a full or closed standard output, leaves no file
-        behind).
+        behind). A folder of frames is made first, removed again if the
+        writing fails, and cleared of an earlier run's extra frames after it.
         """
-        _require_output_folders([name for name, _ in self._outputs])
-        self.timings["total"] = time.perf_counter() - self._t0
-        outputs = list(self._outputs)
-        if report is not None:
-            rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings, checks)
-            outputs.append((os.fspath(report), report_json(rep).encode()))
-        _require_distinct_outputs([name for name, _ in outputs], [i["path"] for i in self.inputs], report)
-        piped = b"".join(data for name, data in outputs if name == "-")
+        folders = [folder for folder, _ in self._frame_folders]
+        _require_frame_folders(folders, [i["path"] for i in self.inputs])
+        created = _made_folders(folders)
         try:
-            write_files_atomic([(name, data) for name, data in outputs if name != "-"],
-                               before_rename=lambda: _write_stdout(piped) if piped else None)
-        except OSError as exc:
-            name = exc.filename or "output"
-            raise UsageError(f"{name}: cannot write: {exc.strerror or exc}") from None
+            _require_output_folders([name for name, _ in self._outputs])
+            self.timings["total"] = time.perf_counter() - self._t0
+            outputs = list(self._outputs)
+            if report is not None:
+                rep = build_report(self.command, self.inputs, self.params, self.metrics, self.timings, checks)
+                outputs.append((os.fspath(report), report_json(rep).encode()))
+            _require_distinct_outputs([name for name, _ in outputs], [i["path"] for i in self.inputs], report)
+            piped = b"".join(data for name, data in outputs if name == "-")
+            try:
+                write_files_atomic([(name, data) for name, data in outputs if name != "-"],
+                                   before_rename=lambda: _write_stdout(piped) if piped else None)
+            except OSError as exc:
+                name = exc.filename or "output"
+                raise UsageError(f"{name}: cannot write: {exc.strerror or exc}") from None
+        except BaseException:
+            for folder in reversed(created):  # no empty output folder is left behind
+                with contextlib.suppress(OSError):
+                    os.rmdir(folder)
+            raise
+        _remove_stale_frames(self._frame_folders)
 
 
 def _stray_stdout_dropped() -> contextlib.AbstractContextManager:
@@ -508,6 +548,64 @@ def _require_output_folders(names: list[str]) -> None:
             raise UsageError(f"{name}: cannot write: output folder '{folder}' is not writable")
 
 
+def _require_frame_folders(folders: list[str], inputs: list[str]) -> None:
+    """Refuse a frame-folder output that is not a folder, whose parent folder
+    does not exist or cannot take it, that is an input, or that holds mesh
+    files other than ``frame_N.ply`` (read back as an animation, they would
+    be taken for frames)."""
+    from geoproc.animation import foreign_frame_files
+
+    sources = {os.path.realpath(p) for p in inputs if p != "-"}
+    for folder in folders:
+        if not folder.strip("/" + os.sep):
+            raise UsageError(f"{folder}: name a folder for the frames other than the root")
+        real = os.path.realpath(folder)
+        if os.path.exists(real) and not os.path.isdir(real):
+            raise UsageError(f"{folder}: cannot write the frames: is a file, not a folder")
+        if real in sources:
+            raise UsageError(f"{folder}: is also an input; write the frames to another folder")
+        parent = os.path.dirname(real)
+        if not os.path.isdir(real) and not os.path.isdir(parent):
+            raise UsageError(f"{folder}: output folder '{parent}' does not exist")
+        where = real if os.path.isdir(real) else parent
+        if not os.access(where, os.W_OK | os.X_OK):
+            raise UsageError(f"{folder}: cannot write: folder '{where}' is not writable")
+        foreign = foreign_frame_files(real)
+        if foreign:
+            more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
+            raise UsageError(f"{folder}: holds mesh files other than frame_N.ply ({foreign[0]}{more}), which "
+                             "would be read back as frames; name a new or empty folder")
+
+
+def _made_folders(folders: list[str]) -> list[str]:
+    """Make the frame folders that are not there; returns those made."""
+    made = []
+    for folder in folders:
+        real = os.path.realpath(folder)
+        if not os.path.isdir(real):
+            try:
+                os.mkdir(real)
+            except OSError as exc:
+                for done in reversed(made):
+                    with contextlib.suppress(OSError):
+                        os.rmdir(done)
+                raise UsageError(f"{folder}: cannot make the folder: {exc.strerror or exc}") from None
+            made.append(real)
+    return made
+
+
+def _remove_stale_frames(folders: list[tuple[str, list[str]]]) -> None:
+    """Remove the ``frame_N.ply`` files an earlier run left in each frame folder
+    beyond the frames this run wrote there (a shorter animation, or another
+    name width), so that the folder reads back as this run's animation."""
+    from geoproc.animation import stale_frame_files
+
+    for folder, written in folders:
+        for name in stale_frame_files(os.path.realpath(folder), written):
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(os.path.join(os.path.realpath(folder), name))
+
+
 def _require_finite_options(params: dict) -> None:
     """Refuse nan or inf in a numeric option (every float parameter is the
     option of the same name, ``sigma_r`` for ``--sigma-r``)."""
@@ -596,6 +694,25 @@ def require_ply_output(output: str, what: str, also: tuple[str, ...] = ()) -> No
     raise UsageError(f"{output}: {what}, which only PLY keeps; use a .ply output")
 
 
+def require_animation_output(output: str) -> None:
+    """UsageError unless ``output`` can take an animation: a ``.npz`` file, or
+    a folder of frames (a name ending in ``/``, or an existing folder)."""
+    from geoproc.animation import names_folder
+
+    if not (names_folder(output) or output.lower().endswith(".npz")):
+        raise UsageError(f"{output}: an animation is written as .npz or as a folder of frames (a name ending "
+                         "in '/')")
+
+
+def frame_folder_outputs(output: str, animation: bool) -> tuple[list[str], list[str]]:
+    """``command_run``'s ``outputs`` and ``folders`` for a command whose one
+    output is ``output``: a folder of frames when the input is an
+    ``animation`` and ``output`` names a folder, else a file."""
+    from geoproc.animation import names_folder
+
+    return ([], [output]) if animation and names_folder(output) else ([output], [])
+
+
 def refuse_options(ctx: typer.Context, names: tuple[str, ...], why: str) -> None:
     """UsageError when any parameter of ``names`` was given, e.g.
     ``refuse_options(ctx, ("k", "keep_all"), "only with --outliers")`` gives
@@ -616,6 +733,7 @@ def command_run(
     quiet: bool = False,
     debug: bool = False,
     outputs: Sequence[str | os.PathLike | None] = (),
+    folders: Sequence[str] = (),
     inputs: Sequence[str | os.PathLike | None] = (),
     metrics: Collection[str] | None = None,
     needs: Mapping[str, Collection[str]] | None = None,
@@ -627,7 +745,10 @@ def command_run(
     and ``inputs`` (the input paths) are checked before the body runs: every
     output folder exists, no two outputs share a path, and no output is an
     input. A mistyped output path then fails at once, not after the work;
-    the outputs are checked again when they are written. ``metrics`` (every
+    the outputs are checked again when they are written. ``folders`` are
+    outputs that are folders of frames (see :meth:`Run.write_frames`), checked
+    likewise before the body: each is a folder or can be made, is not an
+    input, and holds no mesh file it would not write. ``metrics`` (every
     metric name the command can report) lets a ``--check`` on any other name
     fail at once as well, and so does ``needs`` (for each option not given,
     such as ``--reference``, the metrics only it reports) and ``text_metrics``
@@ -655,6 +776,7 @@ def command_run(
         named = [os.fspath(p) for p in (*outputs, report) if p is not None]
         _require_output_folders(named)
         _require_distinct_outputs(named, [os.fspath(p) for p in inputs if p is not None], report)
+        _require_frame_folders(list(folders), [os.fspath(p) for p in inputs if p is not None])
         with _stray_stdout_dropped() if "-" in named else contextlib.nullcontext():
             yield run
         # raises on unknown metric names; each line names the run's first input, as error lines name the file

@@ -10,7 +10,7 @@ from typing import Annotated, NamedTuple
 import numpy as np
 import typer
 
-from geoproc.animation import Animation, animation_to_bytes, is_animation_path
+from geoproc.animation import Animation, is_animation_path
 from geoproc.denoise import COHERENCE, DEFAULT_METHOD, METHODS
 from geoproc.errors import InputError, UsageError, shown_number
 from geoproc.mesh import Mesh, load_mesh
@@ -26,9 +26,11 @@ from geoproc_cli.common import (
     choices_metavar,
     command_run,
     flag,
+    frame_folder_outputs,
     metrics_epilog,
     options_given,
     refuse_options,
+    require_animation_output,
     require_memory,
     require_ply_output,
 )
@@ -82,7 +84,11 @@ def denoise(
                                          "with --dynamic.", metavar="INPUT")],
     output: Annotated[str, typer.Option("--output", "-o", help="Output: a mesh (.ply keeps the per-face "
                                         "'feature' property; - is binary PLY on stdout), the inlier cloud "
-                                        "with --outliers, .npz with --dynamic.", metavar="OUT")],
+                                        "with --outliers; for an animation (--dynamic, or --outliers on "
+                                        "one), .npz or a folder (a name ending in '/', or an existing "
+                                        "folder) of binary PLY frames frame_0000.ply, ... (made if needed; "
+                                        "frame_N.ply files beyond the new ones are removed).",
+                                        metavar="OUT")],
     method: Annotated[str, typer.Option("--method", "-m", help=f"Normal filter: {', '.join(METHODS)}.",
                                         metavar=choices_metavar(METHODS))]
     = DEFAULT_METHOD,
@@ -199,8 +205,11 @@ def denoise(
               "clean": not no_clean}
     mode = denoise_mode(input, outliers, dynamic)
     params.update(_options_not_used(mode, features, method))
+    files, folders = frame_folder_outputs(output, mode in (DYNAMIC, MOVING_CLOUD) and input != "-"
+                                          and is_animation_path(input))
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output], inputs=[input, reference], metrics=METRICS, text_metrics=TEXT_METRICS,
+                     outputs=files, folders=folders, inputs=[input, reference], metrics=METRICS,
+                     text_metrics=TEXT_METRICS,
                      needs=_metric_needs(Choices(mode, method, features, refined, reference))) as run:
         if method not in METHODS:
             raise UsageError(f"--method {method}: use one of {', '.join(METHODS)}")
@@ -341,7 +350,7 @@ def _unused_option_groups(mode: str, features: str, method: str) -> list[tuple[t
     else:
         groups.append((_OUTLIER_OPTIONS, "only with --outliers"))
     if mode == DYNAMIC:
-        groups.append((_FEATURE_OPTIONS + ("no_clean",), "not used by --dynamic (the .npz output has no "
+        groups.append((_FEATURE_OPTIONS + ("no_clean",), "not used by --dynamic (the animation output has no "
                        "feature property; frames are read as stored)"))
     else:
         groups.append((("coherence",), "only with --dynamic"))
@@ -565,8 +574,7 @@ SCORE_FIELDS = ("outlier_score", "outlier_detected")
 
 
 def _animation_outliers(run, input, output, threshold, refined) -> None:
-    if not output.lower().endswith(".npz"):
-        raise UsageError(f"{output}: an animation is written as .npz")
+    require_animation_output(output)
     anim = run.load_animation(input)
     require_memory(ANIMATION_OUTLIER_BYTES * anim.V.size,
                    f"--outliers on {anim.n_frames} frames of {anim.V.shape[1]} points")
@@ -590,7 +598,7 @@ def _animation_outliers(run, input, output, threshold, refined) -> None:
     V = res.refined if refined else anim.V
     if refined:
         run.refresh_normals(V, anim.F, fields)
-    run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, fields, output)))
+    run.write_animation(output, Animation(V, anim.F, fields, output))
 
 
 def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
@@ -599,8 +607,7 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
                          "not from standard input")
     if not is_animation_path(input):
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
-    if not output.lower().endswith(".npz"):
-        raise UsageError(f"{output}: an animation is written as .npz")
+    require_animation_output(output)
     anim = run.load_animation(input)
     if anim.n_frames < 3:
         raise InputError(anim.path, f"has {anim.n_frames} frame{'s' if anim.n_frames != 1 else ''}; --dynamic "
@@ -645,7 +652,7 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
                                     float(max(values)) if key == "max_normal_angle_deg" else float(np.mean(values)))
     fields = dict(anim.fields)
     run.refresh_normals(V, anim.F, fields)
-    run.write_bytes(output, animation_to_bytes(Animation(V, anim.F, fields, output)))
+    run.write_animation(output, Animation(V, anim.F, fields, output))
 
 
 def register(app: typer.Typer) -> None:

@@ -7,7 +7,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from geoproc.animation import Animation, animation_to_bytes, is_animation_path
+from geoproc.animation import Animation, is_animation_path, names_folder
 from geoproc.errors import InputError, UsageError, frame_error
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import DIRECTIONS, NoiseSpec, noise_scale, outlier_flags, perturb_positions
@@ -20,8 +20,10 @@ from geoproc_cli.common import (
     ReportOpt,
     choices_metavar,
     command_run,
+    frame_folder_outputs,
     metrics_epilog,
     refuse_options,
+    require_animation_output,
     require_ply_output,
 )
 
@@ -44,8 +46,11 @@ def perturb(
                                          "or an animation (.npz with 'vertices' (frames, n, 3) and 'faces', "
                                          "or a folder of frame meshes).", metavar="INPUT")],
     output: Annotated[str, typer.Option("--output", "-o", help="Output file: a mesh (.ply keeps the "
-                                        "'outlier' property; - is binary PLY on stdout), or .npz for an "
-                                        "animation.", metavar="OUT")],
+                                        "'outlier' property; - is binary PLY on stdout); for an animation, "
+                                        ".npz or a folder (a name ending in '/', or an existing folder) "
+                                        "of binary PLY frames frame_0000.ply, ... (made if needed; "
+                                        "frame_N.ply files beyond the new ones are removed).",
+                                        metavar="OUT")],
     seed: Annotated[int, typer.Option("--seed", help="Random seed, 0 to 2^64 - 1: the same seed gives the same bytes.",
                                       min=0, max=2**64 - 1)],
     noise: Annotated[float, typer.Option("--noise", help="Gaussian noise standard deviation, >= 0, in mean edge "
@@ -93,8 +98,9 @@ def perturb(
         params["outlier_range"] = None
     needs = ({"a mesh or point cloud (not an animation)": LOAD_METRICS} if animation
              else {"an animation (.npz or a folder of frames)": ("frames",)})
+    files, folders = frame_folder_outputs(output, animation)
     with command_run("perturb", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=[output], inputs=[input], metrics=METRICS, needs=needs) as run:
+                     outputs=files, folders=folders, inputs=[input], metrics=METRICS, needs=needs) as run:
         if noise < 0:
             raise UsageError(f"--noise {noise}: must be >= 0")
         if direction not in DIRECTIONS:
@@ -106,7 +112,7 @@ def perturb(
             refuse_options(ctx, ("direction", "impulsive"), "not used with --noise 0")
         if outliers == 0:
             refuse_options(ctx, ("outlier_range",), "only with --outliers FRACTION > 0")
-        else:
+        elif not (animation and names_folder(output)):  # (frames are PLY files)
             require_ply_output(output, "the outliers are flagged in a vertex property", also=("npz",))
         if not outlier_range > 0:  # reached only with --outliers > 0 (refused above otherwise)
             raise UsageError(f"--outlier-range {outlier_range}: must be > 0 (0 would move no outlier)")
@@ -114,8 +120,7 @@ def perturb(
                          outlier_range=outlier_range)
         rng = np.random.default_rng(seed)
         if animation:
-            if not output.lower().endswith(".npz"):
-                raise UsageError(f"{output}: an animation is written as .npz")
+            require_animation_output(output)
             refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")
             anim = run.load_animation(input)
             if len(anim.F):  # a moving point cloud has no faces; its frames are checked as clouds below
@@ -142,7 +147,7 @@ def perturb(
                                 "noise_scale": float(np.mean(scales)),
                                 "rms_displacement": _rms(V - anim.V),
                                 "outlier_vertices": int(flag.sum())})
-            run.write_bytes(output, animation_to_bytes(out))
+            run.write_animation(output, out)
             return
         mesh = run.load_mesh(input, clean=not no_clean, mesh_output=output)
         if not mesh.is_point_cloud:

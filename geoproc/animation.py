@@ -238,3 +238,73 @@ def animation_to_bytes(anim: Animation) -> bytes:
             np.lib.format.write_array(body, arr, allow_pickle=False)
             zf.writestr(info, body.getvalue())
     return buf.getvalue()
+
+
+FRAME_FILE = re.compile(r"frame_[0-9]+\.ply\Z")
+"""Names of the files a frame-folder output holds (``frame_0000.ply``, ...)."""
+
+PROPERTY_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+"""Field names a frame's PLY vertex property can take (other than x, y, z)."""
+
+
+def names_folder(path: str) -> bool:
+    """True when an output path names a folder: it ends with ``/`` or is one."""
+    return path.endswith(("/", os.sep)) or os.path.isdir(path)
+
+
+def frame_file_names(n_frames: int) -> list[str]:
+    """``frame_0000.ply`` ... for ``n_frames`` frames, zero-padded to at least
+    four digits and to the same width, so that names sort in frame order."""
+    width = max(4, len(str(max(n_frames - 1, 0))))
+    return [f"frame_{t:0{width}d}.ply" for t in range(n_frames)]
+
+
+def unwritable_frame_fields(anim: Animation) -> list[str]:
+    """Names of ``anim``'s fields that no PLY vertex property can take (a
+    ``.npz`` member may be named anything): not an identifier, or x, y, z."""
+    return [k for k in anim.fields if not PROPERTY_NAME.match(k) or k in ("x", "y", "z")]
+
+
+def animation_to_frames(anim: Animation) -> list[tuple[str, bytes]]:
+    """One binary PLY per frame, as (file name, bytes): positions as doubles,
+    each field as a double vertex property, the faces (none for a moving point
+    cloud) in every frame. Read back as a frame folder, it gives the same
+    positions, faces and fields.
+
+    Raises
+    ------
+    ValueError
+        A field whose name no PLY property can take (see
+        :func:`unwritable_frame_fields`).
+    """
+    from geoproc.mesh import Mesh, mesh_to_bytes
+
+    bad = unwritable_frame_fields(anim)
+    if bad:
+        raise ValueError(f"field {bad[0]!r} cannot be a PLY vertex property")
+    F = np.ascontiguousarray(anim.F, dtype=np.int64)
+    out = []
+    for name, t in zip(frame_file_names(anim.n_frames), range(anim.n_frames), strict=True):
+        fields = {k: np.asarray(v[t], dtype=np.float64) for k, v in sorted(anim.fields.items())}
+        out.append((name, mesh_to_bytes(Mesh(np.asarray(anim.V[t], dtype=np.float64), F, fields), "ply")))
+    return out
+
+
+def foreign_frame_files(folder: str) -> list[str]:
+    """The files in ``folder`` that reading it as an animation would take as
+    frames but that a frame-folder output does not write (mesh files not named
+    ``frame_N.ply``), sorted; [] for a folder that is not there."""
+    from geoproc.mesh.read import MESH_FORMATS
+
+    if not os.path.isdir(folder):
+        return []
+    return sorted(f for f in os.listdir(folder) if file_extension(f) in MESH_FORMATS and not f.startswith(".")
+                  and not FRAME_FILE.match(f) and not os.path.isdir(os.path.join(folder, f)))
+
+
+def stale_frame_files(folder: str, written: list[str]) -> list[str]:
+    """The ``frame_N.ply`` files in ``folder`` other than those ``written``
+    (left by an earlier run with more frames, or another name width)."""
+    keep = set(written)
+    return sorted(f for f in os.listdir(folder) if FRAME_FILE.match(f) and f not in keep
+                  and not os.path.isdir(os.path.join(folder, f)))

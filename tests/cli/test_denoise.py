@@ -916,3 +916,37 @@ def test_fit_options_unused_are_noted(cli, fixture_dir, tmp_path):
 def test_dynamic_from_standard_input_says_where_animations_are_read(cli, tmp_path):
     p = cli("denoise", "-", "--dynamic", "-o", tmp_path / "d.npz", stdin=b"PK\x03\x04")
     assert _one_line_error(p) and "-: --dynamic reads an animation from a file or folder" in p.stderr
+
+
+def test_animations_in_and_out_as_folders_of_frames(cli, dfx, tmp_path):
+    # --dynamic and --outliers on an animation write the same frames to a
+    # folder as to a .npz, and a folder written so reads back as the input
+    Vn, F, V = dfx.noisy_wave(frames=3)
+    src, ref = tmp_path / "noisy.npz", tmp_path / "clean.npz"
+    src.write_bytes(animation_to_bytes(Animation(Vn, F)))
+    ref.write_bytes(animation_to_bytes(Animation(V, F)))
+    p = cli("perturb", ref, "--noise", "0", "--seed", "1", "-o", str(tmp_path / "clean") + "/")
+    assert p.returncode == 0, p.stderr
+    runs = {}
+    for name, out in (("npz", tmp_path / "d.npz"), ("folder", str(tmp_path / "d") + "/")):
+        rep = tmp_path / f"{name}.json"
+        reference = ref if name == "npz" else tmp_path / "clean"
+        p = cli("denoise", src, "--dynamic", "--reference", reference, "-o", out, "--report", rep)
+        assert p.returncode == 0, p.stderr
+        runs[name] = (load_animation(out), _metrics(rep))
+    (a, ma), (b, mb) = runs["npz"], runs["folder"]
+    assert np.array_equal(a.V, b.V) and b.n_frames == 3
+    assert ma["mean_normal_angle_deg"] == mb["mean_normal_angle_deg"]
+    P = dfx.animated_cloud(count=300, frames=4)
+    moving = tmp_path / "moving.npz"
+    moving.write_bytes(animation_to_bytes(Animation(P, np.zeros((0, 3), dtype=np.int64))))
+    for out in (tmp_path / "m.npz", str(tmp_path / "m") + "/"):
+        p = cli("perturb", moving, "--noise", "0.1", "--outliers", "0.1", "--seed", "2", "-o", out)
+        assert p.returncode == 0, p.stderr
+    outs = []
+    for src_m, out in ((tmp_path / "m.npz", tmp_path / "mo.npz"), (tmp_path / "m", str(tmp_path / "mo") + "/")):
+        p = cli("denoise", src_m, "--outliers", "-o", out)
+        assert p.returncode == 0, p.stderr
+        outs.append(load_animation(out))
+    assert np.array_equal(outs[0].V, outs[1].V) and outs[1].F.shape == (0, 3)
+    assert all(np.array_equal(outs[0].fields[k], outs[1].fields[k]) for k in ("outlier_score", "outlier_detected"))

@@ -424,3 +424,68 @@ def test_impulsive_fraction_counts_from_none_to_all(cli, fixture_dir, tmp_path):
     assert runs[None].all() and runs["1"].all() and not runs["0"].any()
     assert runs["0.5"].sum() == round(0.5 * len(V0))
     assert (tmp_path / "iNone.ply").read_bytes() == (tmp_path / "i1.ply").read_bytes()
+
+
+def _wave_npz(path, frames):
+    from geoproc.animation import Animation, animation_to_bytes
+
+    path.write_bytes(animation_to_bytes(Animation(*denoise_fixtures().wave_animation(frames))))
+    return path
+
+
+def test_an_animation_written_as_a_folder_of_frames(cli, tmp_path):
+    # the frames read back as the .npz output does; a rerun with fewer frames
+    # leaves none of the earlier run's extra frames behind
+    src = _wave_npz(tmp_path / "wave.npz", 4)
+    folder, npz = tmp_path / "frames", tmp_path / "n.npz"
+    for out in (str(folder) + "/", npz):
+        p = cli("perturb", src, "--seed", "3", "--outliers", "0.1", "-o", out, "--report", tmp_path / "r.json")
+        assert p.returncode == 0, p.stderr
+    a, b = load_animation(folder), load_animation(npz)
+    assert [os.path.basename(f) for f in a.frame_files] == [f"frame_{t:04d}.ply" for t in range(4)]
+    assert np.array_equal(a.V, b.V) and np.array_equal(a.F, b.F) and a.fields.keys() == b.fields.keys() == {"outlier"}
+    assert np.array_equal(a.fields["outlier"], b.fields["outlier"])
+    assert json.loads((tmp_path / "r.json").read_text())["params"]["output"] == str(npz)
+    (folder / "notes.txt").write_text("kept")
+    p = cli("perturb", _wave_npz(tmp_path / "short.npz", 3), "--seed", "3", "-o", folder)  # existing: no '/'
+    assert p.returncode == 0, p.stderr
+    assert sorted(os.listdir(folder)) == ["frame_0000.ply", "frame_0001.ply", "frame_0002.ply", "notes.txt"]
+    assert load_animation(folder).n_frames == 3
+
+
+@pytest.mark.parametrize("case", ["foreign mesh", "input", "no parent", "not a name", "bad frame"])
+def test_a_frame_folder_that_cannot_take_the_frames_is_refused(cli, tmp_path, case):
+    src = _wave_npz(tmp_path / "wave.npz", 3)
+    out, wanted = str(tmp_path / "out") + "/", None
+    if case == "foreign mesh":  # it would be read back as a frame
+        os.mkdir(out)
+        (tmp_path / "out" / "scan.obj").write_text("v 0 0 0\n")
+        wanted = "holds mesh files other than frame_N.ply (scan.obj)"
+    elif case == "input":
+        assert cli("perturb", src, "--seed", "1", "-o", out).returncode == 0
+        src, wanted = out, "is also an input"
+    elif case == "no parent":
+        out, wanted = str(tmp_path / "a" / "b") + "/", "does not exist"
+    elif case == "not a name":
+        out, wanted = str(tmp_path / "frames"), "an animation is written as .npz or as a folder of frames"
+    else:  # the frames fail after the checks: no folder is made
+        V, F = denoise_fixtures().wave_animation(3)
+        V[1][:, 1:] = 0.0
+        from geoproc.animation import Animation, animation_to_bytes
+
+        src.write_bytes(animation_to_bytes(Animation(V, F)))
+        wanted = "frame 1: degenerate mesh"
+    before = sorted(os.listdir(tmp_path))
+    p = cli("perturb", src, "--seed", "1", "-o", out)
+    assert p.returncode == 2 and wanted in p.stderr and p.stderr.count("\n") == 1, p.stderr
+    assert sorted(os.listdir(tmp_path)) == before
+    if case == "foreign mesh":
+        assert os.listdir(out) == ["scan.obj"]
+
+
+def test_a_field_no_frame_property_can_name_is_refused_without_output(cli, tmp_path):
+    V, F = denoise_fixtures().wave_animation(3)
+    np.savez(tmp_path / "w.npz", vertices=V, faces=F, x=np.zeros(V.shape[:2]))
+    p = cli("perturb", tmp_path / "w.npz", "--seed", "1", "-o", str(tmp_path / "out") + "/")
+    assert p.returncode == 2 and "field 'x' cannot be a PLY vertex property" in p.stderr
+    assert not (tmp_path / "out").exists()

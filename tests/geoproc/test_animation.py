@@ -162,3 +162,62 @@ def test_a_frame_that_is_not_a_regular_file_is_refused(wave, tmp_path):
     os.symlink(tmp_path / "gone.ply", tmp_path / "f8.ply")  # a dangling link: named by the read, as before
     with pytest.raises(InputError, match="f8.ply"):
         load_animation(tmp_path)
+
+
+def test_frames_read_back_as_the_animation(wave, tmp_path):
+    from geoproc.animation import Animation, animation_to_frames
+
+    V, F = wave
+    flags = (np.arange(V.shape[0] * V.shape[1]).reshape(V.shape[:2]) % 7 == 0).astype(np.float64)
+    anim = Animation(V, F, {"outlier": flags, "speed": np.linspace(0, 1, flags.size).reshape(flags.shape)})
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for name, data in animation_to_frames(anim):
+        (folder / name).write_bytes(data)
+    back = load_animation(folder)
+    assert [p.rsplit("/", 1)[1] for p in back.frame_files] == [f"frame_{t:04d}.ply" for t in range(len(V))]
+    assert np.array_equal(back.V, V) and np.array_equal(back.F, F) and back.unread == []
+    assert sorted(back.fields) == ["outlier", "speed"]
+    assert all(np.array_equal(back.fields[k], anim.fields[k]) for k in anim.fields)
+
+
+def test_frame_names_sort_in_frame_order():
+    from geoproc.animation import frame_file_names, natural_key
+
+    assert frame_file_names(3) == ["frame_0000.ply", "frame_0001.ply", "frame_0002.ply"]
+    names = frame_file_names(10001)
+    assert names[-1] == "frame_10000.ply" and names[9999] == "frame_09999.ply"
+    assert sorted(names) == names == sorted(names, key=natural_key)
+
+
+def test_a_moving_cloud_has_frames_without_faces(tmp_path):
+    from geoproc.animation import Animation, animation_to_frames
+
+    V = np.random.default_rng(0).normal(size=(3, 20, 3))
+    for name, data in animation_to_frames(Animation(V, np.zeros((0, 3), dtype=np.int64))):
+        (tmp_path / name).write_bytes(data)
+    back = load_animation(tmp_path)
+    assert np.array_equal(back.V, V) and back.F.shape == (0, 3)
+
+
+def test_fields_no_ply_property_can_name_are_refused(wave):
+    from geoproc.animation import Animation, animation_to_frames, unwritable_frame_fields
+
+    V, F = wave
+    fields = {k: np.zeros(V.shape[:2]) for k in ("ok_1", "x", "two words", "1st")}
+    anim = Animation(V, F, fields)
+    assert unwritable_frame_fields(anim) == ["x", "two words", "1st"]
+    with pytest.raises(ValueError, match="'x' cannot be a PLY vertex property"):
+        animation_to_frames(anim)
+
+
+def test_foreign_and_stale_frame_files(tmp_path):
+    from geoproc.animation import foreign_frame_files, stale_frame_files
+
+    for name in ("frame_0000.ply", "frame_0001.ply", "frame_12.ply", "notes.txt", ".hidden.obj", "a.OBJ",
+                 "frame_0000.obj"):
+        (tmp_path / name).write_bytes(b"")
+    (tmp_path / "sub.ply").mkdir()
+    assert foreign_frame_files(str(tmp_path)) == ["a.OBJ", "frame_0000.obj"]
+    assert foreign_frame_files(str(tmp_path / "missing")) == []
+    assert stale_frame_files(str(tmp_path), ["frame_0000.ply"]) == ["frame_0001.ply", "frame_12.ply"]
