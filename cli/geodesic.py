@@ -19,6 +19,7 @@ from geoproc.geodesic.names import (
     LAPLACIANS,
     METHODS,
     OPERATORS,
+    RENDER_VIEWS,
     SOLVERS,
 )
 from geoproc_cli.common import (
@@ -69,6 +70,7 @@ Laplacian = StrEnum("Laplacian", {name.replace("-", "_"): name for name in LAPLA
 Operators = StrEnum("Operators", {name: name for name in OPERATORS})
 Solver = StrEnum("Solver", {name: name for name in SOLVERS})
 HeatUnderflow = StrEnum("HeatUnderflow", {name.replace("-", "_"): name for name in HEAT_UNDERFLOW})
+View = StrEnum("View", {name.replace("-", "minus_"): name for name in RENDER_VIEWS})
 
 
 MAX_INDEX_DIGITS = 20
@@ -158,6 +160,9 @@ def geodesic(
     = "distance",
     render: Annotated[str | None, typer.Option("--render", help="Also draw the mesh colored by distance "
                       "with isolines into this PNG (- for stdout).", metavar="PNG", show_default=False)] = None,
+    render_view: Annotated[View, typer.Option("--render-view", help="With --render: the side the mesh is "
+                           "seen from, orthographic: z (from +z, x right, y up), -z, x (y right, z up), -x, y "
+                           "(-x right, z up) or -y.")] = View.z,
     no_clean: NoCleanOpt = False,
     report: ReportOpt = None,
     check: CheckOpt = None,
@@ -182,7 +187,8 @@ def geodesic(
         "solver": solver.value if m_name == "log-ode" else None,  # the only method that solves with it
         "heat_underflow": heat_underflow.value if m_name == "heat" else None,
         "reference": reference,
-        "field_name": field_name, "render": render, "clean": not no_clean,
+        "field_name": field_name, "render": render, "render_view": render_view.value if render else None,
+        "clean": not no_clean,
     }
     with command_run("geodesic", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=[output, render], inputs=[mesh, sources_file, None if reference == "exact" else reference],
@@ -193,6 +199,8 @@ def geodesic(
         require_ply_output(output, "the distance is a vertex property")
         if render is not None:
             require_extension(render, ".png", "--render", stdout_ok=True)
+        else:
+            refuse_options(ctx, ("render_view",), "only with --render")
         _refuse_unused_options(ctx, m_name, operators.value if operators else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
@@ -299,7 +307,8 @@ def geodesic(
 
             with run.timer("render"):
                 title = f"{os.path.basename(mesh)}: {m_name}"
-                run.write_bytes(render, render_distance_png(m.V, m.F, d, sorted(set(srcs)), title=title))
+                run.write_bytes(render, render_distance_png(m.V, m.F, d, sorted(set(srcs)), view=render_view.value,
+                                                            title=title))
 
 
 

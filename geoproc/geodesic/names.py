@@ -30,3 +30,6 @@ DEFAULT_OPERATORS = {"heat": "auto", "log-heat": "auto"}
 #: geoproc.geodesic.distance.geodesic_distance): solve the step again in the
 #: log domain (the default, first), or keep the plain result.
 HEAT_UNDERFLOW = ("log-domain", "keep")
+RENDER_VIEWS = ("z", "-z", "x", "-x", "y", "-y")
+"""Axes :func:`geoproc.geodesic.render.render_distance_png` looks along: the
+camera on that side of the mesh (``z``: from +z, with x right and y up)."""

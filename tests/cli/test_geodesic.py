@@ -747,3 +747,33 @@ def test_exact_is_its_own_reference(fixture_dir, tmp_path, monkeypatch, capsys):
         cli_main.main()
     assert stop.value.code == 0 and len(calls) == 1
     assert _report(rep)["metrics"]["max_relative_error"] == 0.0
+
+
+def test_render_view_chooses_the_side_the_mesh_is_seen_from(cli, fixture_dir, tmp_path):
+    # the torus lies in the xy plane: from z its hole shows the white background
+    # at the picture's centre; from x its side covers the centre and is flat
+    import io
+
+    import matplotlib.image
+
+    from geoproc.geodesic.render import render_distance_png
+
+    pictures = {}
+    for view in ("z", "x", "-y"):
+        out, png, rep = tmp_path / f"{view}.ply", tmp_path / f"{view}.png", tmp_path / f"{view}.json"
+        p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", out, "--render", png, "--render-view", view,
+                "--report", rep)
+        assert p.returncode == 0, p.stderr
+        assert json.loads(rep.read_text())["params"]["render_view"] == view
+        m = load_mesh(out)
+        data = png.read_bytes()
+        assert data == render_distance_png(m.V, m.F, m.vertex_fields["distance"], [0], view=view,
+                                           title="torus.ply: heat")
+        pictures[view] = matplotlib.image.imread(io.BytesIO(data))[..., :3]
+    white = {v: img.min(axis=2) > 0.99 for v, img in pictures.items()}
+    h, w = white["z"].shape
+    assert white["z"][h // 2, w // 2] and not white["x"][h // 2, w // 2] and not white["-y"][h // 2, w // 2]
+    rows = (~white["x"]).any(axis=1).sum()  # seen from the side: 0.7 tall for 2.7 wide
+    assert rows < 0.45 * (~white["z"]).any(axis=1).sum()
+    p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", tmp_path / "d.ply", "--render-view", "x")
+    assert p.returncode == 2 and "--render-view: only with --render" in p.stderr
