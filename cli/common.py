@@ -229,11 +229,13 @@ class Run:
         self.note_load(mesh)
         return mesh
 
-    def load_animation(self, path: str | os.PathLike):
+    def load_animation(self, path: str | os.PathLike, output: str | None = None):
         """Read an animation (``.npz``, or a folder of frame meshes with equal
         connectivity) under the ``load`` timer and record it as an input with the
-        hash of the bytes parsed (a folder's covers its frame files' names and contents)."""
-        from geoproc.animation import load_animation
+        hash of the bytes parsed (a folder's covers its frame files' names and contents).
+        With ``output``, the animation output it becomes: a folder of frames
+        there refuses, before the work, a field no PLY property can carry."""
+        from geoproc.animation import load_animation, names_folder, unwritable_frame_fields
 
         name = os.fspath(path)
         with self.timer("load"):
@@ -242,6 +244,9 @@ class Run:
             if anim.frame_files:  # the frames in the order read, each checkable with sha256sum
                 self.inputs[-1]["frames"] = [{"path": f, "sha256": h}
                                              for f, h in zip(anim.frame_files, anim.frame_sha256, strict=True)]
+        bad = unwritable_frame_fields(anim) if output is not None and names_folder(output) else []
+        if bad:
+            raise UsageError(_unwritable_field_line(output, bad[0]))
         if anim.unread:
             self.inputs[-1]["not_carried"] = list(anim.unread)
             travel = ("per-vertex scalar properties of every frame" if anim.frame_files
@@ -393,8 +398,7 @@ class Run:
 
         bad = unwritable_frame_fields(anim)
         if bad:
-            raise UsageError(f"{folder}: field '{bad[0]}' cannot be a PLY vertex property of a frame (an "
-                             "identifier other than x, y, z); write a .npz")
+            raise UsageError(_unwritable_field_line(folder, bad[0]))
         frames = animation_to_frames(anim)
         self._frame_folders.append((folder, [name for name, _ in frames]))
         self._outputs += [(os.path.join(folder, name), data) for name, data in frames]
@@ -410,12 +414,21 @@ class Run:
         The files are staged beside their destinations, standard output gets
         its bytes, and only then are the files renamed into place (so an
         unwritable report, or a full or closed standard output, leaves no file
-        behind). A folder of frames is made first, removed again if the
-        writing fails, and cleared of an earlier run's extra frames after it.
+        behind). A folder of frames is made first and removed again if the
+        writing fails; an earlier run's other frame_N.ply files there are
+        hidden just before the renames (put back if the writing fails) and
+        removed after them.
         """
         folders = [folder for folder, _ in self._frame_folders]
         _require_frame_folders(folders, [i["path"] for i in self.inputs])
         created = _made_folders(folders)
+        hidden: list[tuple[str, str]] = []  # an earlier run's extra frames, hidden until the new ones are in
+
+        def before_rename() -> None:
+            _hide_stale_frames(self._frame_folders, hidden)
+            if piped:
+                _write_stdout(piped)
+
         try:
             _require_output_folders([name for name, _ in self._outputs])
             self.timings["total"] = time.perf_counter() - self._t0
@@ -427,16 +440,18 @@ class Run:
             piped = b"".join(data for name, data in outputs if name == "-")
             try:
                 write_files_atomic([(name, data) for name, data in outputs if name != "-"],
-                                   before_rename=lambda: _write_stdout(piped) if piped else None)
+                                   before_rename=before_rename)
             except OSError as exc:
                 name = exc.filename or "output"
                 raise UsageError(f"{name}: cannot write: {exc.strerror or exc}") from None
         except BaseException:
+            _restore_frames(hidden)
             for folder in reversed(created):  # no empty output folder is left behind
                 with contextlib.suppress(OSError):
                     os.rmdir(folder)
             raise
-        _remove_stale_frames(self._frame_folders)
+        outputs_committed()  # in place: a signal from here would only misreport the run
+        _drop_frames(hidden)
 
 
 def _stray_stdout_dropped() -> contextlib.AbstractContextManager:
@@ -488,6 +503,8 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
             else "two outputs"
         raise UsageError(f"{what} both write to standard output; give all but one a file name")
     seen: set = set()
+    inputs = [p for p in inputs if p != "-"] + ["-"] * ("-" in inputs)
+    inputs += [f for p in inputs if p != "-" for f in _frame_files_of(p)]  # a folder's frames are inputs too
     sources = {os.path.realpath(p) for p in inputs if p != "-"}
     sources |= {_file_id(p) for p in inputs if p != "-"} - {None}  # hard links too
     if "-" in inputs:
@@ -503,6 +520,24 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
         if real in sources or (ident is not None and ident in sources):
             raise UsageError(f"{name}: is also an input; write the result to another file")
         seen |= {real, ident} - {None}
+
+
+def _unwritable_field_line(folder: str, name: str) -> str:
+    return (f"{folder}: field '{name}' cannot be a PLY vertex property of a frame (an identifier other than x, "
+            "y, z); write a .npz")
+
+
+def _frame_files_of(path: str) -> list[str]:
+    """The files a folder input is read from (its mesh files, as
+    :func:`geoproc.animation.load_animation` takes them); [] for a file."""
+    from geoproc.fileio import file_extension
+    from geoproc.mesh.read import MESH_FORMATS
+
+    try:
+        names = os.listdir(path) if os.path.isdir(path) else []
+    except OSError:  # unreadable: reading it will say so
+        return []
+    return [os.path.join(path, f) for f in names if file_extension(f) in MESH_FORMATS and not f.startswith(".")]
 
 
 def _stdin_file_identity() -> tuple[int, int] | None:
@@ -550,23 +585,26 @@ def _require_output_folders(names: list[str]) -> None:
 
 def _require_frame_folders(folders: list[str], inputs: list[str]) -> None:
     """Refuse a frame-folder output that is not a folder, whose parent folder
-    does not exist or cannot take it, that is an input, or that holds mesh
-    files other than ``frame_N.ply`` (read back as an animation, they would
-    be taken for frames)."""
-    from geoproc.animation import foreign_frame_files
+    does not exist or cannot take it, that is an input, that holds mesh files
+    other than ``frame_N.ply`` (read back as an animation, they would be taken
+    for frames), or whose ``frame_N.ply`` entries are not plain files (a
+    symbolic link, a pipe, a device or a folder: a frame written there would
+    go elsewhere, or block)."""
+    from geoproc.animation import FRAME_FILE, foreign_frame_files
 
     sources = {os.path.realpath(p) for p in inputs if p != "-"}
     for folder in folders:
-        if not folder.strip("/" + os.sep):
-            raise UsageError(f"{folder}: name a folder for the frames other than the root")
         real = os.path.realpath(folder)
+        if os.path.dirname(real) == real:
+            raise UsageError(f"{folder}: name a folder for the frames other than the root")
         if os.path.exists(real) and not os.path.isdir(real):
             raise UsageError(f"{folder}: cannot write the frames: is a file, not a folder")
         if real in sources:
             raise UsageError(f"{folder}: is also an input; write the frames to another folder")
         parent = os.path.dirname(real)
         if not os.path.isdir(real) and not os.path.isdir(parent):
-            raise UsageError(f"{folder}: output folder '{parent}' does not exist")
+            shown = os.path.dirname(os.path.normpath(folder)) or "."
+            raise UsageError(f"{folder}: output folder '{shown}' does not exist")
         where = real if os.path.isdir(real) else parent
         if not os.access(where, os.W_OK | os.X_OK):
             raise UsageError(f"{folder}: cannot write: folder '{where}' is not writable")
@@ -574,7 +612,14 @@ def _require_frame_folders(folders: list[str], inputs: list[str]) -> None:
         if foreign:
             more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
             raise UsageError(f"{folder}: holds mesh files other than frame_N.ply ({foreign[0]}{more}), which "
-                             "would be read back as frames; name a new or empty folder")
+                             "would be read back as frames; name a new folder or one without other mesh files")
+        if os.path.isdir(real):
+            for name in sorted(os.listdir(real)):
+                full = os.path.join(real, name)
+                if FRAME_FILE.match(name) and (os.path.islink(full) or file_kind(full) != "file"):
+                    what = "a symbolic link" if os.path.islink(full) else "not a plain file"
+                    raise UsageError(f"{folder}: {name} is {what}; the frames are written as plain files "
+                                     "(remove it, or name another folder)")
 
 
 def _made_folders(folders: list[str]) -> list[str]:
@@ -594,16 +639,40 @@ def _made_folders(folders: list[str]) -> list[str]:
     return made
 
 
-def _remove_stale_frames(folders: list[tuple[str, list[str]]]) -> None:
-    """Remove the ``frame_N.ply`` files an earlier run left in each frame folder
-    beyond the frames this run wrote there (a shorter animation, or another
-    name width), so that the folder reads back as this run's animation."""
+def _hide_stale_frames(folders: list[tuple[str, list[str]]], hidden: list[tuple[str, str]]) -> None:
+    """Rename the ``frame_N.ply`` files in each frame folder other than those
+    this run writes there (an earlier run's, from a longer animation or with
+    wider numbers), to hidden names (which no frame folder reads),
+    appending (name, hidden name) to ``hidden`` as each is done, so that a
+    failure can put them back (:func:`_restore_frames`)."""
     from geoproc.animation import stale_frame_files
 
     for folder, written in folders:
-        for name in stale_frame_files(os.path.realpath(folder), written):
-            with contextlib.suppress(FileNotFoundError):
-                os.remove(os.path.join(os.path.realpath(folder), name))
+        real = os.path.realpath(folder)
+        for name in stale_frame_files(real, written):
+            full = os.path.join(real, name)
+            hide = os.path.join(real, f".{name}.{os.getpid()}.stale")
+            try:
+                os.rename(full, hide)
+            except OSError as exc:
+                raise UsageError(f"{folder}: cannot remove the earlier run's {name}: {exc.strerror or exc}; "
+                                 "nothing was written") from None
+            hidden.append((full, hide))
+
+
+def _restore_frames(hidden: list[tuple[str, str]]) -> None:
+    """Put back the frames :func:`_hide_stale_frames` hid (a failed run)."""
+    for full, hide in reversed(hidden):
+        with contextlib.suppress(OSError):
+            os.rename(hide, full)
+
+
+def _drop_frames(hidden: list[tuple[str, str]]) -> None:
+    """Remove the hidden earlier frames once the new ones are in place (one
+    that cannot be removed stays hidden, unread as a frame)."""
+    for _, hide in hidden:
+        with contextlib.suppress(OSError):
+            os.remove(hide)
 
 
 def _require_finite_options(params: dict) -> None:
@@ -771,10 +840,12 @@ def command_run(
                 run.params[key] = 0.0
         if report is not None:
             require_extension(report, ".json", "--report", stdout_ok=True)
-        if report is not None and os.fspath(report) != "-" and not os.path.isdir(folder_of(report)):
+        made = {os.path.realpath(f) for f in folders}  # frame folders the run makes: a report may go there
+        in_made = report is not None and os.fspath(report) != "-" and os.path.realpath(folder_of(report)) in made
+        if report is not None and os.fspath(report) != "-" and not os.path.isdir(folder_of(report)) and not in_made:
             raise UsageError(f"--report {report}: output folder '{folder_of(report)}' does not exist")
         named = [os.fspath(p) for p in (*outputs, report) if p is not None]
-        _require_output_folders(named)
+        _require_output_folders([n for n in named if not (in_made and n == os.fspath(report))])
         _require_distinct_outputs(named, [os.fspath(p) for p in inputs if p is not None], report)
         _require_frame_folders(list(folders), [os.fspath(p) for p in inputs if p is not None])
         with _stray_stdout_dropped() if "-" in named else contextlib.nullcontext():

@@ -87,7 +87,7 @@ def denoise(
                                         "with --outliers; for an animation (--dynamic, or --outliers on "
                                         "one), .npz or a folder (a name ending in '/', or an existing "
                                         "folder) of binary PLY frames frame_0000.ply, ... (made if needed; "
-                                        "frame_N.ply files beyond the new ones are removed).",
+                                        "any other frame_N.ply file there, from an earlier run, is removed).",
                                         metavar="OUT")],
     method: Annotated[str, typer.Option("--method", "-m", help=f"Normal filter: {', '.join(METHODS)}.",
                                         metavar=choices_metavar(METHODS))]
@@ -205,8 +205,8 @@ def denoise(
               "clean": not no_clean}
     mode = denoise_mode(input, outliers, dynamic)
     params.update(_options_not_used(mode, features, method))
-    files, folders = frame_folder_outputs(output, mode in (DYNAMIC, MOVING_CLOUD) and input != "-"
-                                          and is_animation_path(input))
+    # (--dynamic takes a folder output before its input is checked: that check names the input)
+    files, folders = frame_folder_outputs(output, mode in (DYNAMIC, MOVING_CLOUD))
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=files, folders=folders, inputs=[input, reference], metrics=METRICS,
                      text_metrics=TEXT_METRICS,
@@ -575,7 +575,7 @@ SCORE_FIELDS = ("outlier_score", "outlier_detected")
 
 def _animation_outliers(run, input, output, threshold, refined) -> None:
     require_animation_output(output)
-    anim = run.load_animation(input)
+    anim = run.load_animation(input, output)
     require_memory(ANIMATION_OUTLIER_BYTES * anim.V.size,
                    f"--outliers on {anim.n_frames} frames of {anim.V.shape[1]} points")
     if "outlier" not in anim.fields:
@@ -608,7 +608,7 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     if not is_animation_path(input):
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
     require_animation_output(output)
-    anim = run.load_animation(input)
+    anim = run.load_animation(input, output)
     if anim.n_frames < 3:
         raise InputError(anim.path, f"has {anim.n_frames} frame{'s' if anim.n_frames != 1 else ''}; --dynamic "
                          "needs at least 3 (save a single frame as a mesh file and denoise it without --dynamic)")

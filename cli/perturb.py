@@ -7,7 +7,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from geoproc.animation import Animation, is_animation_path, names_folder
+from geoproc.animation import Animation, is_animation_path
 from geoproc.errors import InputError, UsageError, frame_error
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
 from geoproc.perturb import DIRECTIONS, NoiseSpec, noise_scale, outlier_flags, perturb_positions
@@ -49,7 +49,7 @@ def perturb(
                                         "'outlier' property; - is binary PLY on stdout); for an animation, "
                                         ".npz or a folder (a name ending in '/', or an existing folder) "
                                         "of binary PLY frames frame_0000.ply, ... (made if needed; "
-                                        "frame_N.ply files beyond the new ones are removed).",
+                                        "any other frame_N.ply file there, from an earlier run, is removed).",
                                         metavar="OUT")],
     seed: Annotated[int, typer.Option("--seed", help="Random seed, 0 to 2^64 - 1: the same seed gives the same bytes.",
                                       min=0, max=2**64 - 1)],
@@ -112,7 +112,7 @@ def perturb(
             refuse_options(ctx, ("direction", "impulsive"), "not used with --noise 0")
         if outliers == 0:
             refuse_options(ctx, ("outlier_range",), "only with --outliers FRACTION > 0")
-        elif not (animation and names_folder(output)):  # (frames are PLY files)
+        elif not animation:  # (an animation's output is checked below)
             require_ply_output(output, "the outliers are flagged in a vertex property", also=("npz",))
         if not outlier_range > 0:  # reached only with --outliers > 0 (refused above otherwise)
             raise UsageError(f"--outlier-range {outlier_range}: must be > 0 (0 would move no outlier)")
@@ -122,7 +122,7 @@ def perturb(
         if animation:
             require_animation_output(output)
             refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")
-            anim = run.load_animation(input)
+            anim = run.load_animation(input, output)
             if len(anim.F):  # a moving point cloud has no faces; its frames are checked as clouds below
                 require_triangle_frames(anim.V, anim.F, anim.path, anim.frame_files)  # normals and the edge-length unit
             _note_fractions_of_none(run, int(anim.V.shape[1]), impulsive, outliers)

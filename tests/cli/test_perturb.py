@@ -489,3 +489,89 @@ def test_a_field_no_frame_property_can_name_is_refused_without_output(cli, tmp_p
     p = cli("perturb", tmp_path / "w.npz", "--seed", "1", "-o", str(tmp_path / "out") + "/")
     assert p.returncode == 2 and "field 'x' cannot be a PLY vertex property" in p.stderr
     assert not (tmp_path / "out").exists()
+
+
+def _perturb_injected(script: str, *args) -> "subprocess.CompletedProcess":
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-c", script + "from geoproc_cli.entry import main\nmain()\n", "perturb",
+                           *map(str, args)], capture_output=True, text=True, timeout=120)
+
+
+def test_frames_of_an_earlier_run_come_back_when_the_new_ones_cannot_go_in(cli, tmp_path):
+    # an earlier run's extra frames are hidden before the renames: a failure
+    # puts them back, and no new frame, folder entry or report is left
+    folder = tmp_path / "frames"
+    assert cli("perturb", _wave_npz(tmp_path / "long.npz", 5), "--seed", "1", "-o", str(folder) + "/").returncode == 0
+    before = {f: (folder / f).read_bytes() for f in os.listdir(folder)}
+    script = ("import os\n"
+              "rename = os.rename\n"
+              "def failing(a, b, *k, **kw):\n"
+              "    if str(b).endswith('.stale') and '0004' in str(a):\n"
+              "        raise PermissionError(1, 'Operation not permitted', str(a))\n"
+              "    return rename(a, b, *k, **kw)\n"
+              "os.rename = failing\n")
+    rep = tmp_path / "r.json"
+    p = _perturb_injected(script, _wave_npz(tmp_path / "short.npz", 3), "--seed", "2", "-o", folder, "--report", rep)
+    assert p.returncode == 2 and "cannot remove the earlier run's frame_0004.ply: Operation not permitted" in p.stderr, p.stderr
+    assert p.stderr.count("\n") == 1 and not rep.exists()
+    assert {f: (folder / f).read_bytes() for f in os.listdir(folder)} == before
+
+
+def test_a_signal_while_earlier_frames_are_removed_does_not_fail_a_finished_run(tmp_path, cli):
+    # the outputs are in place before the hidden earlier frames are deleted:
+    # a SIGTERM then is dropped (it had given exit 143 with the new frames written)
+    folder = tmp_path / "frames"
+    assert cli("perturb", _wave_npz(tmp_path / "long.npz", 6), "--seed", "1", "-o", str(folder) + "/").returncode == 0
+    script = ("import os, signal\n"
+              "remove = os.remove\n"
+              "def killing(path, *a, **k):\n"
+              "    if 'frame_' in str(path):\n"
+              "        os.kill(os.getpid(), signal.SIGTERM)\n"
+              "    return remove(path, *a, **k)\n"
+              "os.remove = killing\n")
+    p = _perturb_injected(script, _wave_npz(tmp_path / "short.npz", 3), "--seed", "2", "-o", folder)
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    assert sorted(os.listdir(folder)) == ["frame_0000.ply", "frame_0001.ply", "frame_0002.ply"]
+
+
+@pytest.mark.parametrize("entry", ["link to an input frame", "pipe", "folder"])
+def test_a_frame_name_in_the_folder_that_is_not_a_plain_file_is_refused(cli, tmp_path, entry):
+    # frames had been written through a link (onto the input's own frames) or into a pipe (which blocked)
+    frames_in = tmp_path / "in"
+    assert cli("perturb", _wave_npz(tmp_path / "w.npz", 3), "--seed", "1", "-o", str(frames_in) + "/").returncode == 0
+    kept = {f: (frames_in / f).read_bytes() for f in os.listdir(frames_in)}
+    out = tmp_path / "out"
+    out.mkdir()
+    target = out / "frame_0001.ply"
+    if entry == "pipe":
+        os.mkfifo(target)
+    elif entry == "folder":
+        target.mkdir()
+    else:
+        target.symlink_to(frames_in / "frame_0001.ply")
+    p = cli("perturb", frames_in, "--seed", "2", "-o", out)
+    what = "a symbolic link" if entry.startswith("link") else "not a plain file"
+    assert p.returncode == 2 and f"frame_0001.ply is {what}" in p.stderr and p.stderr.count("\n") == 1, p.stderr
+    assert {f: (frames_in / f).read_bytes() for f in os.listdir(frames_in)} == kept
+    assert os.listdir(out) == ["frame_0001.ply"]
+
+
+def test_an_output_linked_to_an_input_frame_is_refused(cli, tmp_path):
+    frames_in = tmp_path / "in"
+    assert cli("perturb", _wave_npz(tmp_path / "w.npz", 3), "--seed", "1", "-o", str(frames_in) + "/").returncode == 0
+    kept = (frames_in / "frame_0000.ply").read_bytes()
+    (tmp_path / "lnk.npz").symlink_to(frames_in / "frame_0000.ply")
+    p = cli("perturb", frames_in, "--seed", "3", "-o", tmp_path / "lnk.npz")
+    assert p.returncode == 2 and "lnk.npz: is also an input" in p.stderr
+    assert (frames_in / "frame_0000.ply").read_bytes() == kept
+
+
+def test_a_report_in_the_frame_folder_the_run_makes(cli, tmp_path):
+    out = tmp_path / "new"
+    p = cli("perturb", _wave_npz(tmp_path / "w.npz", 3), "--seed", "1", "-o", str(out) + "/", "--report",
+            out / "r.json")
+    assert p.returncode == 0, p.stderr
+    assert sorted(os.listdir(out)) == ["frame_0000.ply", "frame_0001.ply", "frame_0002.ply", "r.json"]
+    assert load_animation(out).n_frames == 3
