@@ -491,7 +491,7 @@ def test_a_field_no_frame_property_can_name_is_refused_without_output(cli, tmp_p
     assert not (tmp_path / "out").exists()
 
 
-def _perturb_injected(script: str, *args) -> "subprocess.CompletedProcess":
+def _perturb_injected(script: str, *args) -> subprocess.CompletedProcess:
     import subprocess
     import sys
 
@@ -514,7 +514,8 @@ def test_frames_of_an_earlier_run_come_back_when_the_new_ones_cannot_go_in(cli, 
               "os.rename = failing\n")
     rep = tmp_path / "r.json"
     p = _perturb_injected(script, _wave_npz(tmp_path / "short.npz", 3), "--seed", "2", "-o", folder, "--report", rep)
-    assert p.returncode == 2 and "cannot remove the earlier run's frame_0004.ply: Operation not permitted" in p.stderr, p.stderr
+    wanted = "cannot remove the earlier run's frame_0004.ply: Operation not permitted"
+    assert p.returncode == 2 and wanted in p.stderr, p.stderr
     assert p.stderr.count("\n") == 1 and not rep.exists()
     assert {f: (folder / f).read_bytes() for f in os.listdir(folder)} == before
 
