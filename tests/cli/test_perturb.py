@@ -491,7 +491,8 @@ def test_a_field_no_frame_property_can_name_is_refused_without_output(cli, tmp_p
     assert not (tmp_path / "out").exists()
 
 
-def _perturb_injected(script: str, *args) -> subprocess.CompletedProcess:
+def _perturb_injected(script: str, *args):
+    """``geoproc perturb args`` run by ``python -c script`` (which patches what it injects first)."""
     import subprocess
     import sys
 
