@@ -104,7 +104,9 @@ def wos_solve(
         show_default=False)] = None,
     neumann: Annotated[str | None, typer.Option(
         "--neumann", help="Flux du/dn (outward normal) on the segments the JSON marks Neumann, "
-        "as an expression; marked segments without it have zero flux.", metavar="'EXPR'",
+        "as an expression in x, y and the segment's outward unit normal nx, ny (the flux of a known "
+        "u is its gradient dotted with (nx, ny): 'nx' for u = x); marked segments without it have "
+        "zero flux.", metavar="'EXPR'",
         show_default=False)] = None,
     method: Annotated[Method, typer.Option(
         "--method", "-m", help="naive: plain walks; cv-green / cv-angle: fit a control variate of "
@@ -188,7 +190,7 @@ def wos_solve(
         from geoproc.wos.expression import parse_expression  # plain Python: no numba yet
 
         g = parse_expression(boundary, "--boundary") if boundary is not None else None
-        h = parse_expression(neumann, "--neumann") if neumann is not None else None
+        h = parse_expression(neumann, "--neumann", normals=True) if neumann is not None else None
         if domain != "-":  # a missing domain is refused before numba and matplotlib load
             require_input_file(domain, "domain file")
         from geoproc.wos import load_domain, solve_laplace

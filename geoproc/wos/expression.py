@@ -3,7 +3,8 @@
 An expression such as ``'exp(x)*cos(y)'`` is parsed with :mod:`ast`, checked
 against a whitelist (numbers, ``+ - * / **``, unary minus, parentheses, the
 functions in :data:`FUNCTIONS`, the constants ``pi`` and ``e``, the variables
-``x`` and ``y``) and compiled to a small postfix program. The program is
+``x`` and ``y``, and for a flux the outward unit normal ``nx``, ``ny`` of the
+boundary) and compiled to a small postfix program. The program is
 evaluated either on numpy arrays (:func:`evaluate`) or, point by point, inside
 numba-compiled walks (:func:`geoproc.wos.program.eval_program`, a module of its
 own so that parsing needs no numba). Nothing is ever passed to ``eval``.
@@ -22,6 +23,7 @@ from geoproc.errors import UsageError
 # opcodes of the postfix program
 OP_CONST, OP_X, OP_Y, OP_ADD, OP_SUB, OP_MUL, OP_DIV, OP_POW, OP_NEG = range(9)
 OP_SIN, OP_COS, OP_TAN, OP_EXP, OP_LOG, OP_SQRT, OP_ABS, OP_SINH, OP_COSH, OP_ATAN2 = range(9, 19)
+OP_NX, OP_NY = 19, 20
 
 FUNCTIONS = {
     "sin": OP_SIN, "cos": OP_COS, "tan": OP_TAN, "exp": OP_EXP, "log": OP_LOG,
@@ -29,6 +31,10 @@ FUNCTIONS = {
 }
 CONSTANTS = {"pi": math.pi, "e": math.e}
 VARIABLES = {"x": OP_X, "y": OP_Y}
+NORMAL_VARIABLES = {"nx": OP_NX, "ny": OP_NY}
+"""The outward unit normal of the boundary where a flux is evaluated (``--neumann`` only)."""
+PUSHES = (OP_CONST, OP_X, OP_Y, OP_NX, OP_NY)
+"""Opcodes that push a value and pop none."""
 _BINARY = {ast.Add: OP_ADD, ast.Sub: OP_SUB, ast.Mult: OP_MUL, ast.Div: OP_DIV, ast.Pow: OP_POW}
 MAX_STACK = 32
 
@@ -53,7 +59,7 @@ def _integer_size(value: int) -> str:
         return f"a {value.bit_length()}-bit"
 
 
-def parse_expression(text: str, option: str = "--boundary") -> Expression:
+def parse_expression(text: str, option: str = "--boundary", normals: bool = False) -> Expression:
     """Parse and compile ``text``; raise :class:`UsageError` naming what is wrong.
 
     Parameters
@@ -62,6 +68,9 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
         The expression, e.g. ``'x**3 - 3*x*y**2'``.
     option : str
         Option name used in error messages.
+    normals : bool
+        Whether ``nx`` and ``ny``, the outward unit normal of the boundary
+        segment where the expression is evaluated, may appear (a flux).
     """
     shown = f"{option} '{_shorten(text)}'"  # how every error names the expression
     too_deep = UsageError(f"{shown}: expression nested too deeply")
@@ -72,11 +81,15 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
                          + (f" at character {exc.offset}" if exc.offset else "") + ")") from None
     except (RecursionError, MemoryError):  # the parser's own nesting limit
         raise too_deep from None
-    unknown = sorted({n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
-                     - set(FUNCTIONS) - set(CONSTANTS) - set(VARIABLES))
+    variables = VARIABLES | (NORMAL_VARIABLES if normals else {})
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+    unknown = sorted(names - set(FUNCTIONS) - set(CONSTANTS) - set(variables))
+    if unknown and not normals and set(unknown) <= set(NORMAL_VARIABLES):
+        raise UsageError(f"{shown}: {', '.join(unknown)}, the boundary's outward normal, is for a flux "
+                         "(--neumann) only")
     if unknown:
         raise UsageError(f"{shown}: unknown name{'s' if len(unknown) > 1 else ''} "
-                         f"{', '.join(repr(u) for u in unknown)} (allowed: x, y, pi, e, "
+                         f"{', '.join(repr(u) for u in unknown)} (allowed: x, y, {'nx, ny, ' * normals}pi, e, "
                          f"{', '.join(sorted(FUNCTIONS))})")
     code: list[int] = []
     consts: list[float] = []
@@ -95,8 +108,8 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
                 raise UsageError(f"{shown}: {_integer_size(node.value)} integer is beyond the "
                                  f"floating-point range") from None
         elif isinstance(node, ast.Name):
-            if node.id in VARIABLES:
-                emit(VARIABLES[node.id])
+            if node.id in variables:
+                emit(variables[node.id])
             elif node.id in CONSTANTS:
                 emit(OP_CONST, CONSTANTS[node.id])
             else:
@@ -122,7 +135,7 @@ def parse_expression(text: str, option: str = "--boundary") -> Expression:
             if isinstance(node, ast.BinOp | ast.UnaryOp):
                 what = type(node.op).__name__
             raise UsageError(f"{shown}: '{what}' is not allowed "
-                             "(numbers, x, y, + - * / **, and the listed functions only)")
+                             f"(numbers, x, y, {'nx, ny, ' * normals}+ - * / **, and the listed functions only)")
 
     try:
         visit(tree)
@@ -142,7 +155,7 @@ def _shorten(text: str, limit: int = 60) -> str:
 def _stack_depth(code: np.ndarray) -> int:
     depth = best = 0
     for op in code:
-        if op in (OP_CONST, OP_X, OP_Y):
+        if op in PUSHES:
             depth += 1
         elif op in (OP_ADD, OP_SUB, OP_MUL, OP_DIV, OP_POW, OP_ATAN2):
             depth -= 1
@@ -166,17 +179,29 @@ def translated(expr: Expression, dx: float, dy: float) -> Expression:
 
 
 def is_zero(expr: Expression) -> bool:
-    """Whether ``expr`` is the constant 0 (no x or y in it, and it evaluates to
-    +0 or -0): ``--neumann 0`` is then the zero flux the option's absence means."""
-    if np.isin(expr.code, (OP_X, OP_Y)).any():
+    """Whether ``expr`` is the constant 0 (no x, y, nx or ny in it, and it
+    evaluates to +0 or -0): ``--neumann 0`` is then the zero flux the option's
+    absence means."""
+    if np.isin(expr.code, (OP_X, OP_Y, OP_NX, OP_NY)).any():
         return False
     return bool(evaluate(expr, np.zeros(1), np.zeros(1))[0] == 0.0)
 
 
-def evaluate(expr: Expression, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Evaluate ``expr`` elementwise on arrays ``x``, ``y`` (same shape); float64 result."""
+def uses_normal(expr: Expression) -> bool:
+    """Whether ``expr`` reads the outward normal ``nx`` or ``ny``."""
+    return bool(np.isin(expr.code, (OP_NX, OP_NY)).any())
+
+
+def evaluate(expr: Expression, x: np.ndarray, y: np.ndarray, nx: np.ndarray | None = None,
+             ny: np.ndarray | None = None) -> np.ndarray:
+    """Evaluate ``expr`` elementwise on arrays ``x``, ``y`` (same shape), and the
+    outward unit normal ``nx``, ``ny`` there (same shape; needed when ``expr``
+    reads it, see :func:`uses_normal`); float64 result."""
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
+    if (nx is None or ny is None) and uses_normal(expr):
+        raise ValueError(f"{expr.text!r} reads the boundary normal: give nx and ny")
+    normal = {OP_NX: nx, OP_NY: ny}
     unary = {OP_NEG: np.negative, OP_SIN: np.sin, OP_COS: np.cos, OP_TAN: np.tan, OP_EXP: np.exp,
              OP_LOG: np.log, OP_SQRT: np.sqrt, OP_ABS: np.abs, OP_SINH: np.sinh, OP_COSH: np.cosh}
     binary = {OP_ADD: np.add, OP_SUB: np.subtract, OP_MUL: np.multiply, OP_DIV: np.divide,
@@ -190,6 +215,8 @@ def evaluate(expr: Expression, x: np.ndarray, y: np.ndarray) -> np.ndarray:
                 stack.append(x)
             elif op == OP_Y:
                 stack.append(y)
+            elif op in normal:
+                stack.append(np.broadcast_to(np.asarray(normal[op], dtype=np.float64), x.shape))
             elif op in unary:
                 stack.append(unary[op](stack.pop()))
             else:

@@ -47,7 +47,9 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
         if expr is None or not mask.any():
             continue
         P = segment_samples(domain, mask, samples)
-        bad = ~np.isfinite(evaluate(expr, P[:, 0], P[:, 1]))
+        E = domain.B[mask] - domain.A[mask]  # each sample's segment's outward normal (read by a flux)
+        N = np.repeat(np.stack([E[:, 1], -E[:, 0]], axis=1) / np.linalg.norm(E, axis=1)[:, None], samples, axis=0)
+        bad = ~np.isfinite(evaluate(expr, P[:, 0], P[:, 1], N[:, 0], N[:, 1]))
         if bad.any():
             x, y = P[np.flatnonzero(bad)[0]] + domain.offset  # where the input has it
             raise UsageError(f"{option} is not finite on the boundary of {domain.source} "

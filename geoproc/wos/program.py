@@ -20,6 +20,8 @@ from geoproc.wos.expression import (
     OP_LOG,
     OP_MUL,
     OP_NEG,
+    OP_NX,
+    OP_NY,
     OP_POW,
     OP_SIN,
     OP_SINH,
@@ -32,8 +34,10 @@ from geoproc.wos.expression import (
 
 
 @numba.njit(cache=True, nogil=True)
-def eval_program(code, consts, x, y):
-    """Evaluate a compiled program at one point (numba; used inside walks).
+def eval_program(code, consts, x, y, nx, ny):
+    """Evaluate a compiled program at the point ``(x, y)``, where the boundary's
+    outward unit normal is ``(nx, ny)`` (read by a flux; pass 0.0 elsewhere)
+    (numba; used inside walks).
 
     One slot more than a parsed program may use: a domain far from the origin
     adds its shift to x and y (:func:`geoproc.wos.expression.translated`)."""
@@ -49,6 +53,9 @@ def eval_program(code, consts, x, y):
             sp += 1
         elif op == OP_Y:
             stack[sp] = y
+            sp += 1
+        elif op == OP_NX or op == OP_NY:
+            stack[sp] = nx if op == OP_NX else ny
             sp += 1
         elif op <= OP_POW or op == OP_ATAN2:
             b = stack[sp - 1]

@@ -234,7 +234,8 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
             Zb, Nb = neumann_samples(domain, nb)
             ell = domain.perimeter / ks.M
             dPhi = ell * kernel_normal_matrix(Zb, Nb, ks)
-            hN = ell * (evaluate(flux, Zb[:, 0], Zb[:, 1]) if flux is not None else np.zeros(nb))
+            hN = ell * (evaluate(flux, Zb[:, 0], Zb[:, 1], Nb[:, 0], Nb[:, 1]) if flux is not None
+                        else np.zeros(nb))
         sigma, b, scale = ridge_fit(kernel_matrix(F, ks), u_fit, ridge, dPhi, hN)
         fit_seconds = time.perf_counter() - t0
         total_walks += len(F) * fit_walks
@@ -487,7 +488,7 @@ def declared_flux_gap(expr, flux, domain: Domain, diagonal: float, span: float,
     with np.errstate(over="ignore", invalid="ignore"):
         f0, f1, f2 = (evaluate(expr, *(Z - k * d[:, None] * N).T) for k in (0, 1, 2))
         dudn = (3 * f0 - 4 * f1 + f2) / (2 * d)
-        h = evaluate(flux, Z[:, 0], Z[:, 1]) if flux is not None else np.zeros(len(Z))
+        h = evaluate(flux, Z[:, 0], Z[:, 1], N[:, 0], N[:, 1]) if flux is not None else np.zeros(len(Z))
         if not (np.isfinite(dudn).all() and np.isfinite(h).all()):
             return float("inf")
         size = np.maximum.reduce([np.abs(f0), np.abs(f1), np.abs(f2)])

@@ -33,7 +33,7 @@ TWO_PI = 2.0 * math.pi
 def boundary_value(seg, t, qx, qy, bkind, code, consts, V):
     """Boundary data at a boundary point: expression (bkind 0) or per-vertex values (1)."""
     if bkind == 0:
-        return eval_program(code, consts, qx, qy)
+        return eval_program(code, consts, qx, qy, 0.0, 0.0)
     return (1.0 - t) * V[seg, 0] + t * V[seg, 1]
 
 

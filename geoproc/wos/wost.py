@@ -374,11 +374,11 @@ def _flux_term(px, py, R, on_seg, nxn, nyn, tiny, A, B, nseg, hkind, hcode, hcon
             if r2 <= 0.0 or not _sees(px, py, zx, zy, on_seg, nxn, nyn, i, A, B, nseg, tiny):
                 return 0.0, state
             G = (math.log(R) - 0.5 * math.log(r2)) / TWO_PI
-            h = eval_program(hcode, hconsts, zx, zy) if hkind == 0 else 0.0
+            # outward normal = right of the directed segment (domain on the left)
+            nx = (B[i, 1] - A[i, 1]) / ln if ln > 0.0 else 0.0
+            ny = -(B[i, 0] - A[i, 0]) / ln if ln > 0.0 else 0.0
+            h = eval_program(hcode, hconsts, zx, zy, nx, ny) if hkind == 0 else 0.0
             if ckind != 0:
-                # outward normal = right of the directed segment (domain on the left)
-                nx = (B[i, 1] - A[i, 1]) / ln
-                ny = -(B[i, 0] - A[i, 0]) / ln
                 gx, gy = cv_gradient(zx, zy, ckind, KP, KQ, W, ARC)
                 h -= gx * nx + gy * ny
             return total * G * h, state

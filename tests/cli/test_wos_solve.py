@@ -548,3 +548,20 @@ def test_boundary_given_with_domain_values_says_it_replaces_them(cli, tmp_path):
     assert p.returncode == 0 and f"{dom}: --boundary replaces the domain's own 'values'" in p.stderr
     p = cli("wos-solve", dom, "--grid", "8", "--walks", "2", "-o", tmp_path / "u.exr")
     assert p.returncode == 0 and "replaces" not in p.stderr
+
+
+def test_a_neumann_flux_from_the_outward_normal(cli, tmp_path):
+    # a turned square, Neumann on two opposite sides, u = x y: --neumann 'y*nx + x*ny'
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    P = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) @ np.array([[c, -s], [s, c]]).T
+    dom = tmp_path / "turned.json"
+    dom.write_text(json.dumps({"loops": [P.tolist()], "neumann": [[0, 0], [0, 2]]}))
+    rep = tmp_path / "r.json"
+    p = cli("wos-solve", dom, "--boundary", "x*y", "--neumann", "y*nx + x*ny", "--walks", "64", "--grid", "16",
+            "--exact", "-m", "cv-green", "--kernels", "40", "-o", tmp_path / "u.exr", "--report", rep, "--quiet")
+    assert p.returncode == 0, p.stderr
+    m = json.loads(rep.read_text())["metrics"]
+    assert m["neumann_segments"] == 2 and m["declared_flux_gap"] < 1e-4 and m["rmse"] < 0.03, m
+    p = cli("wos-solve", dom, "--boundary", "x*nx", "--grid", "8", "--walks", "2", "-o", tmp_path / "v.exr")
+    assert p.returncode == 2 and p.stderr.count("\n") == 1
+    assert "--boundary 'x*nx': nx, the boundary's outward normal, is for a flux (--neumann) only" in p.stderr

@@ -1,5 +1,7 @@
 """Safe boundary expressions: parsing, whitelist, numpy and numba evaluation."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -25,7 +27,7 @@ def test_numpy_and_numba_evaluation_match_reference(text, ref):
     e = parse_expression(text)
     want = ref(x, y)
     np.testing.assert_allclose(evaluate(e, x, y), want, rtol=1e-13, atol=1e-13)
-    got = np.array([eval_program(e.code, e.consts, a, b) for a, b in zip(x, y, strict=True)])
+    got = np.array([eval_program(e.code, e.consts, a, b, 0.0, 0.0) for a, b in zip(x, y, strict=True)])
     np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-13)
 
 
@@ -37,7 +39,7 @@ def test_exponentials_overflow_where_the_floats_do():
         e = parse_expression(f"{name}(x)")
         with np.errstate(over="ignore"):
             want = ref(x)
-        got = np.array([eval_program(e.code, e.consts, a, 0.0) for a in x])
+        got = np.array([eval_program(e.code, e.consts, a, 0.0, 0.0, 0.0) for a in x])
         np.testing.assert_allclose(got, want, rtol=1e-13)
         np.testing.assert_allclose(evaluate(e, x, 0 * x), want, rtol=1e-13)
 
@@ -69,3 +71,34 @@ def test_syntax_errors_name_the_character_and_stay_one_short_line():
     with pytest.raises(UsageError) as err:
         parse_expression(long)
     assert len(str(err.value)) < 150 and "unmatched ')' at character 401" in str(err.value)
+
+
+def test_a_flux_reads_the_outward_normal():
+    rng = np.random.default_rng(2)
+    x, y, t = rng.uniform(-1, 1, 20), rng.uniform(-1, 1, 20), rng.uniform(0, 2 * np.pi, 20)
+    nx, ny = np.cos(t), np.sin(t)
+    e = parse_expression("y*nx + x*ny - 2*ny**2", "--neumann", normals=True)  # grad(xy).n - 2 ny^2
+    want = y * nx + x * ny - 2 * ny**2
+    np.testing.assert_allclose(evaluate(e, x, y, nx, ny), want, rtol=1e-14, atol=1e-14)
+    got = np.array([eval_program(e.code, e.consts, *v) for v in zip(x, y, nx, ny, strict=True)])
+    np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-14)
+    with pytest.raises(ValueError, match="reads the boundary normal"):
+        evaluate(e, x, y)
+    from geoproc.wos.expression import is_zero, uses_normal
+
+    assert uses_normal(e) and not uses_normal(parse_expression("x*y"))
+    assert not is_zero(parse_expression("0*nx", "--neumann", normals=True))
+
+
+@pytest.mark.parametrize("text,message", [
+    ("nx", "--boundary 'nx': nx, the boundary's outward normal, is for a flux (--neumann) only"),
+    ("x + nz", "unknown name 'nz' (allowed: x, y, pi, e,"),
+])
+def test_the_normal_is_refused_outside_a_flux(text, message):
+    with pytest.raises(UsageError, match=re.escape(message)):
+        parse_expression(text)
+
+
+def test_an_unknown_name_in_a_flux_lists_the_normal_among_the_allowed():
+    with pytest.raises(UsageError, match=re.escape("unknown name 'nz' (allowed: x, y, nx, ny, pi, e,")):
+        parse_expression("nz", "--neumann", normals=True)

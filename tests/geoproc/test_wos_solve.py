@@ -717,3 +717,29 @@ def test_declared_mean_value_gap_tells_harmonic_functions_from_others():
     assert gap["x*x + y*y"] == pytest.approx(expected, rel=1e-9)
     assert gap["log(sqrt((x-0.05)**2 + y*y))"] > 0.1  # a singular point inside the disk
     assert np.isnan(declared_mean_value_gap(parse_expression("x"), X[:0], depth[:0]))
+
+
+def test_wost_flux_from_the_outward_normal_on_tilted_walls():
+    # a square turned by 30 degrees, Neumann on two opposite sides, u = x y:
+    # the flux is grad u . n = y nx + x ny, which no expression in x and y
+    # alone gives on both walls; the walks are unbiased with it, and the
+    # declared solution's flux gap is 0 (a wrong normal, y nx - x ny, is not)
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    R = np.array([[c, -s], [s, c]])
+    P = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) @ R.T
+    d = build_domain([P], [np.array([1, 0, 1, 0], bool)])
+    g = parse_expression("x*y")
+    h = parse_expression("y*nx + x*ny", "--neumann", normals=True)
+    pb = WalkProblem(d, g, h, 1e-3)
+    X = np.array([[0.0, 0.0], [0.5, 0.2], [-0.4, 0.6], [0.3, -0.7]])
+    assert d.contains(X).all()
+    mean, se = _seed_errors(pb, X, X[:, 0] * X[:, 1], 256, 12)
+    assert (np.abs(mean) <= 3 * se + 2e-3).all(), (mean, se)
+    assert (se < 0.03).all()
+    zero = _seed_errors(WalkProblem(d, g, None, 1e-3), X, X[:, 0] * X[:, 1], 256, 12)[0]
+    assert np.abs(zero).max() > 0.05  # the flux matters here: zero flux is far off
+    from geoproc.wos.solve import declared_flux_gap
+
+    wrong = parse_expression("y*nx - x*ny", "--neumann", normals=True)
+    assert declared_flux_gap(g, h, d, 2 * np.sqrt(2), 2.0) < 1e-4
+    assert declared_flux_gap(g, wrong, d, 2 * np.sqrt(2), 2.0) > 0.1
