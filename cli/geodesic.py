@@ -152,12 +152,15 @@ def geodesic(
         "--reference", help="Compare with a reference distance: exact (libigl's exact geodesics from the "
         "same sources), or a file of distances, one per vertex (- for stdin): a .npy, or a mesh with the same "
         "vertices (within 1e-6 of its bounding-box diagonal, float32 copies too) holding them in the vertex "
-        "property --field-name names (another run's output, say); +inf marks vertices no source reaches. "
+        "property --reference-field names (another run's output, say); +inf marks vertices no source reaches. "
         "Reports pearson_r, rmse, mae, "
         "mean/max_relative_error.", metavar="exact|FILE", show_default=False)] = None,
     field_name: Annotated[str, typer.Option("--field-name", help="Name of the output vertex property: an identifier "
                                           "(letters, digits, _) other than x, y, z.")]
     = "distance",
+    reference_field: Annotated[str | None, typer.Option(
+        "--reference-field", help="With --reference MESH: the vertex property holding the reference "
+        "distances. Default: the --field-name value.", metavar="NAME", show_default=False)] = None,
     render: Annotated[str | None, typer.Option("--render", help="Also draw the mesh colored by distance "
                       "with isolines into this PNG (- for stdout).", metavar="PNG", show_default=False)] = None,
     render_view: Annotated[View, typer.Option("--render-view", help="With --render: the side the mesh is "
@@ -187,6 +190,9 @@ def geodesic(
         "solver": solver.value if m_name == "log-ode" else None,  # the only method that solves with it
         "heat_underflow": heat_underflow.value if m_name == "heat" else None,
         "reference": reference,
+        # the property read from a reference mesh (None for exact or a .npy; set once a '-' is read)
+        "reference_field": (reference_field or field_name) if reference not in (None, "exact")
+        and not str(reference).lower().endswith(".npy") else None,
         "field_name": field_name, "render": render, "render_view": render_view.value if render else None,
         "clean": not no_clean,
     }
@@ -204,6 +210,9 @@ def geodesic(
         _refuse_unused_options(ctx, m_name, operators.value if operators else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
+        if reference in (None, "exact") or reference.lower().endswith(".npy"):
+            refuse_options(ctx, ("reference_field",), "only with --reference MESH (a mesh file holding the "
+                                                      "distances as a vertex property)")
         if reference not in (None, "exact", "-") and not os.path.exists(reference):  # before the work
             raise UsageError(f"--reference {reference}: no such file (give exact, or a .npy or mesh file of "
                              "distances)")
@@ -233,7 +242,8 @@ def geodesic(
         stored = None  # --reference FILE, read and checked before the work
         if reference not in (None, "exact"):
             with run.timer("reference"):
-                stored = _reference_file(run, reference, m, field_name, no_clean)
+                stored = _reference_file(run, reference, m, reference_field or field_name, no_clean,
+                                         reference_field is not None)
         # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read
         from geoproc.geodesic.compare import compare_to_reference
         from geoproc.geodesic.distance import geodesic_distance
@@ -329,17 +339,22 @@ METHOD_METRICS = (
 does not report is refused before the input is read."""
 
 
-def _reference_file(run, path: str, m, field_name: str, no_clean: bool) -> np.ndarray:
+def _reference_file(run, path: str, m, field_name: str, no_clean: bool, named: bool = False) -> np.ndarray:
     """The reference distances of ``--reference FILE`` for the vertices of
     ``m``: a .npy with one value per vertex (by its extension, or on standard
     input by its first bytes), or the ``field_name`` property of a mesh with
-    the same vertices (loaded as the input was). Finite values and +inf
-    (unreached) only, some of them above 0."""
+    the same vertices (loaded as the input was; ``named``: given by
+    --reference-field, which a .npy on standard input refuses). Finite values
+    and +inf (unreached) only, some of them above 0."""
     from geoproc.mesh import load_mesh
     from geoproc.mesh.validate import npy_vertex_values, scalar_vertex_properties
 
     def read(name: str, data: bytes | None):
         if name.lower().endswith(".npy") or (data is not None and data.startswith(b"\x93NUMPY")):
+            if named:
+                raise UsageError("--reference-field: the reference on standard input is a .npy, which has no "
+                                 "vertex properties")
+            run.params["reference_field"] = None
             return npy_vertex_values(data, m, name).reshape(-1)
         ref = load_mesh(name, clean=not no_clean, stdin_bytes=data)
         if len(ref.V) != len(m.V):
@@ -356,7 +371,8 @@ def _reference_file(run, path: str, m, field_name: str, no_clean: bool) -> np.nd
                                    "mesh, with its vertices in the same order")
         values = ref.vertex_fields.get(field_name)
         if values is None or values.ndim != 1:
-            raise InputError(name, f"no vertex property '{field_name}' (--field-name) holds the reference "
+            option = "--reference-field" if named else "--field-name; --reference-field names another"
+            raise InputError(name, f"no vertex property '{field_name}' ({option}) holds the reference "
                                    f"distances (scalar properties: {scalar_vertex_properties(ref)})")
         return values
 

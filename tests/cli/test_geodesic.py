@@ -105,7 +105,7 @@ def test_bad_reference_files_are_one_line_errors(cli, fixture_dir, tmp_path):
     np.save(negative, -np.arange(n, dtype=float))  # no positive distance: every error would be null
     for ref, needle in ((tmp_path / "exakt", "--reference " + str(tmp_path / "exakt") + ": no such file (give exact"),
                         (fixture_dir / "torus.ply", "the reference mesh has"),
-                        (src, "no vertex property 'distance' (--field-name) holds the reference distances"),
+                        (src, "no vertex property 'distance' (--field-name; --reference-field names another)"),
                         (nan, "1 reference distance is NaN or -inf (first: vertex 4)"),
                         (short, f"{n - 1} reference distances for {n} vertices"),
                         (negative, "no reference distance is finite and above 0")):
@@ -777,3 +777,35 @@ def test_render_view_chooses_the_side_the_mesh_is_seen_from(cli, fixture_dir, tm
     assert rows < 0.45 * (~white["z"]).any(axis=1).sum()
     p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", tmp_path / "d.ply", "--render-view", "x")
     assert p.returncode == 2 and "--render-view: only with --render" in p.stderr
+
+
+def test_reference_field_names_the_property_read_from_a_reference_mesh(cli, fixture_dir, tmp_path):
+    # the exact run stored as 'exact'; the heat run writes 'distance' and reads 'exact'
+    # (the one --field-name had named both, so two runs could not be compared as stored)
+    torus, golden = fixture_dir / "torus.ply", tmp_path / "golden.ply"
+    p = cli("geodesic", torus, "-s", "0", "-m", "exact", "--field-name", "exact", "-o", golden, "-q")
+    assert p.returncode == 0, p.stderr
+    got = {}
+    for ref, extra in (("exact", []), (golden, ["--reference-field", "exact"])):
+        rep = tmp_path / "r.json"
+        p = cli("geodesic", torus, "-s", "0", "--reference", ref, *extra, "-o", tmp_path / "h.ply", "--report", rep,
+                "-q")
+        assert p.returncode == 0, p.stderr
+        r = _report(rep)
+        got[str(ref)] = r["metrics"]["rmse"]
+        assert r["params"]["reference_field"] == (None if ref == "exact" else "exact")
+        assert r["params"]["field_name"] == "distance" and "distance" in load_mesh(tmp_path / "h.ply").vertex_fields
+    assert got[str(golden)] == got["exact"] > 0
+    p = cli("geodesic", torus, "-s", "0", "--reference", golden, "-o", tmp_path / "h.ply")
+    assert p.returncode == 2 and "no vertex property 'distance' (--field-name; --reference-field names another)" \
+        in p.stderr
+    npy = tmp_path / "d.npy"
+    np.save(npy, load_mesh(golden).vertex_fields["exact"])
+    for ref in ("exact", npy):
+        p = cli("geodesic", torus, "-s", "0", "--reference", ref, "--reference-field", "exact", "-o",
+                tmp_path / "x.ply")
+        assert p.returncode == 2 and "--reference-field: only with --reference MESH" in p.stderr
+    p = cli("geodesic", torus, "-s", "0", "--reference", "-", "--reference-field", "exact", "-o", tmp_path / "x.ply",
+            stdin=npy.read_bytes())
+    assert p.returncode == 2 and "--reference-field: the reference on standard input is a .npy" in p.stderr
+    assert not (tmp_path / "x.ply").exists()
