@@ -71,11 +71,13 @@ def read_report(path: Path) -> dict | None:
     return rep
 
 
-def folder_reports(folder: Path) -> tuple[list[tuple[Path, dict]], list[str]]:
+def folder_reports(folder: Path, recursive: bool = False) -> tuple[list[tuple[Path, dict]], list[str]]:
     """Every geoproc report in ``folder`` (``*.json``, any case, sorted by
-    name) with its path, and one note per such file that could not be read."""
+    name; with ``recursive``, in its subfolders too, sorted by path, not
+    entering hidden folders nor following links to folders) with its path,
+    and one note per such file that could not be read."""
     reports, notes = [], []
-    for path in sorted(p for p in folder.iterdir() if p.suffix.lower() == ".json"):  # as --report accepts them
+    for path in _json_files(folder, recursive):
         if not path.is_file():
             continue
         try:
@@ -88,8 +90,22 @@ def folder_reports(folder: Path) -> tuple[list[tuple[Path, dict]], list[str]]:
     return reports, notes
 
 
-def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[str]]:
-    """One row per report in ``folder``: command, input, a few metrics, total time.
+def _json_files(folder: Path, recursive: bool) -> list[Path]:
+    """The ``*.json`` names (any case, as --report accepts them) in ``folder``,
+    sorted; with ``recursive`` also those in its subfolders, by their path
+    below ``folder`` (the parts compared in turn)."""
+    if not recursive:
+        return sorted(p for p in folder.iterdir() if p.suffix.lower() == ".json")
+    found = []
+    for root, dirs, files in os.walk(folder, onerror=lambda e: None):  # followlinks=False: no loop
+        dirs[:] = [d for d in dirs if not d.startswith(".")]
+        found += [Path(root) / f for f in files if Path(f).suffix.lower() == ".json"]
+    return sorted(found, key=lambda p: p.relative_to(folder).parts)
+
+
+def summary_table(folder: Path, max_metrics: int = 5, recursive: bool = False) -> tuple[Table, int, list[str]]:
+    """One row per report in ``folder`` (and its subfolders with ``recursive``):
+    its path below ``folder``, command, input, a few metrics, total time.
 
     Returns the table, the number of reports in it and one note per
     ``*.json`` file that could not be read."""
@@ -98,13 +114,18 @@ def summary_table(folder: Path, max_metrics: int = 5) -> tuple[Table, int, list[
     t = Table(title=Text(escaped(f"geoproc reports in {folder}")))
     for col in ("report", "command", "input", "metrics", "checks", "total s"):
         t.add_column(col)
-    reports, notes = folder_reports(folder)
+    reports, notes = folder_reports(folder, recursive)
     for path, rep in reports:
         shown = [f"{k}={_shown_value(v)}" for k, v in headline_metrics(rep["metrics"])][:max_metrics]
-        t.add_row(Text(escaped(path.name)), Text(escaped(str(rep["command"]))), Text(escaped(_input_names(rep))),
-                  Text(escaped(" ".join(shown))),
+        t.add_row(Text(escaped(_report_name(path, folder))), Text(escaped(str(rep["command"]))),
+                  Text(escaped(_input_names(rep))), Text(escaped(" ".join(shown))),
                   _check_summary(rep), _total_seconds(rep))
     return t, len(reports), notes
+
+
+def _report_name(path: Path, folder: Path) -> str:
+    """The report's path below ``folder`` (its name, for one directly in it)."""
+    return path.relative_to(folder).as_posix()
 
 
 def _csv_value(v) -> str:
@@ -117,8 +138,9 @@ def _csv_value(v) -> str:
     return json.dumps(v, separators=(",", ":"), allow_nan=True)
 
 
-def reports_csv(reports: list[tuple[Path, dict]]) -> str:
-    """One CSV row per report: ``report``, ``command``, ``geoproc_version``, ``created``,
+def reports_csv(reports: list[tuple[Path, dict]], folder: Path | None = None) -> str:
+    """One CSV row per report: ``report`` (its path below ``folder``, its name
+    without one), ``command``, ``geoproc_version``, ``created``,
     ``inputs`` (paths joined by ``;``), ``checks_failed`` (count, empty
     without checks), then a column ``params.NAME``, ``metrics.NAME`` and
     ``timings_s.NAME`` for every name in any report (metrics in the order of
@@ -150,7 +172,8 @@ def reports_csv(reports: list[tuple[Path, dict]]) -> str:
         checks = rep.get("checks")
         failed = sum(1 for c in checks if not (isinstance(c, dict) and c.get("passed") is True)) \
             if isinstance(checks, list) and checks else None
-        row = [path.name, *(_csv_value(rep.get(k)) for k in ("command", "geoproc_version", "created")), ";".join(paths),
+        name = _report_name(path, folder) if folder is not None else path.name
+        row = [name, *(_csv_value(rep.get(k)) for k in ("command", "geoproc_version", "created")), ";".join(paths),
                _csv_value(failed)]
         for sec, keys in sections:
             block = rep.get(sec) if isinstance(rep.get(sec), dict) else {}
@@ -170,19 +193,25 @@ def _check_summary(rep: dict) -> Text:
     return Text(f"{len(failed)} of {len(checks)} failed: {', '.join(failed)}", style="bold red")
 
 
-USAGE = "usage: python -m geoproc_cli.report_table [FOLDER] [--csv OUT.csv|-]  (FOLDER default out/demo)"
+USAGE = ("usage: python -m geoproc_cli.report_table [FOLDER] [-r|--recursive] [--csv OUT.csv|-]  "
+         "(FOLDER default out/demo)")
 HELP = """Prints one row per geoproc JSON report in FOLDER.
-  --csv OUT.csv   write every report's params, metrics and timings as CSV
-                  instead (one row per report, one column per name; - for
-                  standard output)"""
+  -r, --recursive  also the reports in FOLDER's subfolders (not hidden ones,
+                   not through links to folders); rows named by their path
+                   below FOLDER
+  --csv OUT.csv    write every report's params, metrics and timings as CSV
+                   instead (one row per report, one column per name; - for
+                   standard output)"""
 
 
-def _arguments(args: list[str]) -> tuple[str | None, str | None] | None:
-    """(folder, csv path) from the arguments, None when they are not usable."""
-    folder, csv_path, i = None, None, 0
+def _arguments(args: list[str]) -> tuple[str | None, str | None, bool] | None:
+    """(folder, csv path, recursive) from the arguments, None when they are not usable."""
+    folder, csv_path, recursive, i = None, None, False, 0
     while i < len(args):
         a = args[i]
-        if a == "--csv" and i + 1 < len(args) and csv_path is None:
+        if a in ("-r", "--recursive") and not recursive:
+            recursive, i = True, i + 1
+        elif a == "--csv" and i + 1 < len(args) and csv_path is None:
             csv_path, i = args[i + 1], i + 2
         elif a.startswith("--csv=") and csv_path is None:
             csv_path, i = a[len("--csv="):], i + 1
@@ -192,7 +221,7 @@ def _arguments(args: list[str]) -> tuple[str | None, str | None] | None:
             return None
     if csv_path == "":
         return None
-    return folder, csv_path
+    return folder, csv_path, recursive
 
 
 def main(argv: list[str]) -> int:
@@ -209,7 +238,7 @@ def main(argv: list[str]) -> int:
         print(f"report_table: error: {USAGE}", file=sys.stderr)
         return 2
     folder = Path(parsed[0]) if parsed[0] else Path("out/demo")
-    csv_path = parsed[1]
+    csv_path, recursive = parsed[1], parsed[2]
     if csv_path is not None and csv_path != "-" and not csv_path.lower().endswith(".csv"):
         # (a report's own .json among them is then never overwritten)
         print(f"report_table: error: --csv {csv_path}: the name must end in .csv (or be - for standard output)",
@@ -220,18 +249,19 @@ def main(argv: list[str]) -> int:
         print(f"report_table: error: {folder}: {what}", file=sys.stderr)
         return 2
     if csv_path is not None:
-        reports, notes = folder_reports(folder)
+        reports, notes = folder_reports(folder, recursive)
         count = len(reports)
     else:
-        table, count, notes = summary_table(folder)
+        table, count, notes = summary_table(folder, recursive=recursive)
     for note in notes:
         print(f"report_table: {note}", file=sys.stderr)
     if not count:
-        print(f"report_table: error: {folder}: no geoproc reports (*.json with command and metrics)",
+        where = " (or its subfolders)" if recursive else " (-r also reads its subfolders)"
+        print(f"report_table: error: {folder}: no geoproc reports (*.json with command and metrics){where}",
               file=sys.stderr)
         return 2
     if csv_path is not None:
-        return _write_csv(csv_path, reports_csv(reports))
+        return _write_csv(csv_path, reports_csv(reports, folder))
     console = Console()
     if not console.is_terminal:
         console = Console(width=160)

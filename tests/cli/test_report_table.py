@@ -111,7 +111,7 @@ def test_a_full_standard_output_and_a_termination_are_one_error_line(tmp_path):
     assert p.returncode == 2 and p.stderr.startswith("report_table: error: cannot write standard output"), p.stderr
     script = ("import os, signal, sys\n"
               "from geoproc_cli import report_table\n"
-              "report_table.summary_table = lambda folder: os.kill(os.getpid(), signal.SIGTERM)\n"
+              "report_table.summary_table = lambda *a, **k: os.kill(os.getpid(), signal.SIGTERM)\n"
               "sys.exit(report_table.run(['report_table', sys.argv[1]]))\n")
     p = subprocess.run([sys.executable, "-c", script, str(tmp_path)], capture_output=True, text=True, timeout=60)
     assert p.returncode == 143 and p.stderr == "report_table: error: terminated (SIGTERM)\n", p.stderr
@@ -193,3 +193,25 @@ def test_names_that_are_not_utf8_on_a_strict_standard_output(tmp_path):
                            capture_output=True, env=env, timeout=60)
         assert p.returncode == 0, p.stderr.decode()
         assert (b"t\xff.ply" if extra else b"t\\udcff.ply") in p.stdout
+
+
+def test_recursive_reads_the_reports_in_subfolders(tmp_path, capsys):
+    # a batch writing out/<mesh>/<run>.json: -r gives one row per report, named by its path below the folder
+    for sub, rmse in (("bunny", 0.25), ("cow/heat", 0.5), (".hidden", 9.0)):
+        (tmp_path / sub).mkdir(parents=True)
+        _write(tmp_path / sub, "r.json", {"command": "example", "metrics": {"rmse": rmse}})
+    _write(tmp_path, "top.json", {"command": "example", "metrics": {"rmse": 0.125}})
+    (tmp_path / "loop").symlink_to(tmp_path, target_is_directory=True)  # not followed: no endless walk
+    assert main(["report_table", str(tmp_path), "--csv", "-", "-r"]) == 0
+    rows = capsys.readouterr().out.splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["bunny/r.json", "cow/heat/r.json", "top.json"]
+    assert [r.rsplit(",", 1)[-1] for r in rows[1:]] == ["0.25", "0.5", "0.125"]
+    assert main(["report_table", "--recursive", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "cow/heat/r.json" in out and "bunny/r.json" in out and ".hidden" not in out
+    assert main(["report_table", str(tmp_path), "--csv", "-"]) == 0  # without -r: the folder's own
+    assert [r.split(",")[0] for r in capsys.readouterr().out.splitlines()[1:]] == ["top.json"]
+    (tmp_path / "top.json").unlink()
+    assert main(["report_table", str(tmp_path)]) == 2
+    assert "no geoproc reports (*.json with command and metrics) (-r also reads its subfolders)" in \
+        capsys.readouterr().err
