@@ -10,7 +10,8 @@ benchmark's dynamic run can be repeated with ``geoproc perturb`` and
 
 Usage: python bench/elephant_animation.py OUT.npz|OUT/ [--step 16]
 (every ``step``-th frame; 16 gives the 29 frames of the README's table; a name
-ending in ``/`` writes a folder of frame_N.ply files).
+ending in ``/``, or a folder that exists, gets frame_N.ply files, and loses
+the other frame_N.ply files an earlier run left there).
 """
 
 from __future__ import annotations
@@ -23,7 +24,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from geoproc.animation import Animation, animation_to_bytes, animation_to_frames  # noqa: E402
+from geoproc.animation import (  # noqa: E402
+    Animation,
+    animation_to_bytes,
+    animation_to_frames,
+    foreign_frame_files,
+    names_folder,
+    stale_frame_files,
+)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -39,13 +47,24 @@ def main(argv: list[str] | None = None) -> int:
     if args.step < 1:
         print(f"error: --step {args.step}: must be >= 1", file=sys.stderr)
         return 2
+    folder = names_folder(args.out)
+    if not folder and not args.out.lower().endswith(".npz"):
+        print(f"error: {args.out}: name a .npz file or a folder (ending in '/')", file=sys.stderr)
+        return 2
+    if folder and foreign_frame_files(args.out):
+        print(f"error: {args.out}: holds mesh files other than frame_N.ply, which would be read as frames",
+              file=sys.stderr)
+        return 2
     V, F = elephant(args.step)
     anim = Animation(V, F)
-    if args.out.endswith("/"):
-        folder = Path(args.out)
-        folder.mkdir(parents=True, exist_ok=True)
-        for name, data in animation_to_frames(anim):
-            (folder / name).write_bytes(data)
+    if folder:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        frames = animation_to_frames(anim)
+        for name, data in frames:
+            (out / name).write_bytes(data)
+        for name in stale_frame_files(str(out), [name for name, _ in frames]):  # a longer earlier run's
+            (out / name).unlink()
     else:
         Path(args.out).write_bytes(animation_to_bytes(anim))
     print(f"{args.out}: {V.shape[0]} frames of {V.shape[1]} vertices, {len(F)} faces")

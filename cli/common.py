@@ -603,7 +603,8 @@ def _require_frame_folders(folders: list[str], inputs: list[str]) -> None:
             raise UsageError(f"{folder}: is also an input; write the frames to another folder")
         parent = os.path.dirname(real)
         if not os.path.isdir(real) and not os.path.isdir(parent):
-            shown = os.path.dirname(os.path.normpath(folder)) or "."
+            linked = os.path.islink(os.path.normpath(folder))  # a dangling link: its target's folder is missing
+            shown = parent if linked else os.path.dirname(os.path.normpath(folder)) or "."
             raise UsageError(f"{folder}: output folder '{shown}' does not exist")
         where = real if os.path.isdir(real) else parent
         if not os.access(where, os.W_OK | os.X_OK):
@@ -846,8 +847,10 @@ def command_run(
             raise UsageError(f"--report {report}: output folder '{folder_of(report)}' does not exist")
         named = [os.fspath(p) for p in (*outputs, report) if p is not None]
         _require_output_folders([n for n in named if not (in_made and n == os.fspath(report))])
-        _require_distinct_outputs(named, [os.fspath(p) for p in inputs if p is not None], report)
         _require_frame_folders(list(folders), [os.fspath(p) for p in inputs if p is not None])
+        # a frame folder is an output too: a report of the same name would clash with it
+        _require_distinct_outputs(named + [os.fspath(f) for f in folders],
+                                  [os.fspath(p) for p in inputs if p is not None], report)
         with _stray_stdout_dropped() if "-" in named else contextlib.nullcontext():
             yield run
         # raises on unknown metric names; each line names the run's first input, as error lines name the file

@@ -205,8 +205,10 @@ def denoise(
               "clean": not no_clean}
     mode = denoise_mode(input, outliers, dynamic)
     params.update(_options_not_used(mode, features, method))
-    # (--dynamic takes a folder output before its input is checked: that check names the input)
-    files, folders = frame_folder_outputs(output, mode in (DYNAMIC, MOVING_CLOUD))
+    animation = input != "-" and is_animation_path(input)
+    # --dynamic on what is not an animation is refused in the run, before any output check could name -o
+    files, folders = ([], []) if mode == DYNAMIC and not animation else \
+        frame_folder_outputs(output, mode in (DYNAMIC, MOVING_CLOUD))
     with command_run("denoise", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=files, folders=folders, inputs=[input, reference], metrics=METRICS,
                      text_metrics=TEXT_METRICS,

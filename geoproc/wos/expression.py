@@ -83,9 +83,10 @@ def parse_expression(text: str, option: str = "--boundary", normals: bool = Fals
         raise too_deep from None
     variables = VARIABLES | (NORMAL_VARIABLES if normals else {})
     names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
-    unknown = sorted(names - set(FUNCTIONS) - set(CONSTANTS) - set(variables))
-    if unknown and not normals and set(unknown) <= set(NORMAL_VARIABLES):
-        raise UsageError(f"{shown}: {', '.join(unknown)}, the boundary's outward normal, is for a flux "
+    unknown = sorted(names - set(FUNCTIONS) - set(CONSTANTS) - set(VARIABLES) - set(NORMAL_VARIABLES))
+    normal = sorted(names & set(NORMAL_VARIABLES)) if not normals else []
+    if normal and not unknown:
+        raise UsageError(f"{shown}: {', '.join(normal)}, the boundary's outward normal, is for a flux "
                          "(--neumann) only")
     if unknown:
         raise UsageError(f"{shown}: unknown name{'s' if len(unknown) > 1 else ''} "
@@ -122,6 +123,8 @@ def parse_expression(text: str, option: str = "--boundary", normals: bool = Fals
             visit(node.operand)
             if isinstance(node.op, ast.USub):
                 emit(OP_NEG)
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in variables:
+            raise UsageError(f"{shown}: '{node.func.id}' is a variable, not a function")
         elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS:
             name = node.func.id
             want = 2 if name == "atan2" else 1

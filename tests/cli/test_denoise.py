@@ -950,3 +950,12 @@ def test_animations_in_and_out_as_folders_of_frames(cli, dfx, tmp_path):
         outs.append(load_animation(out))
     assert np.array_equal(outs[0].V, outs[1].V) and outs[1].F.shape == (0, 3)
     assert all(np.array_equal(outs[0].fields[k], outs[1].fields[k]) for k in ("outlier_score", "outlier_detected"))
+
+
+def test_dynamic_on_a_mesh_names_the_input_before_a_folder_output(cli, fixture_dir, tmp_path):
+    # a folder of meshes as -o had been refused for its meshes, hiding that the input is no animation
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    (folder / "cube.ply").write_bytes((fixture_dir / "cube.ply").read_bytes())
+    p = cli("denoise", folder / "cube.ply", "--dynamic", "-o", folder)
+    assert _one_line_error(p) and "cube.ply: --dynamic needs an animation" in p.stderr

@@ -577,3 +577,12 @@ def test_a_report_in_the_frame_folder_the_run_makes(cli, tmp_path):
     assert p.returncode == 0, p.stderr
     assert sorted(os.listdir(out)) == ["frame_0000.ply", "frame_0001.ply", "frame_0002.ply", "r.json"]
     assert load_animation(out).n_frames == 3
+
+
+def test_frame_folder_clashes_and_missing_targets_are_named_before_the_work(cli, tmp_path):
+    src = _wave_npz(tmp_path / "w.npz", 3)
+    p = cli("perturb", src, "--seed", "1", "-o", str(tmp_path / "x.json") + "/", "--report", tmp_path / "x.json")
+    assert p.returncode == 2 and "given for two outputs" in p.stderr and not (tmp_path / "x.json").exists()
+    (tmp_path / "dl").symlink_to(tmp_path / "gone" / "x")  # a dangling link: its target's folder is missing
+    p = cli("perturb", src, "--seed", "1", "-o", str(tmp_path / "dl") + "/")
+    assert p.returncode == 2 and f"output folder '{tmp_path / 'gone'}' does not exist" in p.stderr, p.stderr

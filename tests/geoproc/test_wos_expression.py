@@ -102,3 +102,13 @@ def test_the_normal_is_refused_outside_a_flux(text, message):
 def test_an_unknown_name_in_a_flux_lists_the_normal_among_the_allowed():
     with pytest.raises(UsageError, match=re.escape("unknown name 'nz' (allowed: x, y, nx, ny, pi, e,")):
         parse_expression("nz", "--neumann", normals=True)
+
+
+@pytest.mark.parametrize("text,normals,message", [
+    ("nx + nz", False, "unknown name 'nz' (allowed: x, y, pi, e,"),
+    ("nx(1)", False, "nx, the boundary's outward normal, is for a flux (--neumann) only"),
+    ("nx(1)", True, "'nx' is a variable, not a function"),
+])
+def test_misused_normal_names_get_one_message_each(text, normals, message):
+    with pytest.raises(UsageError, match=re.escape(message)):
+        parse_expression(text, "--neumann" if normals else "--boundary", normals=normals)
