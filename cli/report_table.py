@@ -117,10 +117,18 @@ def summary_table(folder: Path, max_metrics: int = 5, recursive: bool = False) -
     reports, notes = folder_reports(folder, recursive)
     for path, rep in reports:
         shown = [f"{k}={_shown_value(v)}" for k, v in headline_metrics(rep["metrics"])][:max_metrics]
-        t.add_row(Text(escaped(_report_name(path, folder))), Text(escaped(str(rep["command"]))),
+        t.add_row(Text(escaped(_report_name(path, folder))), Text(escaped(_command_shown(rep))),
                   Text(escaped(_input_names(rep))), Text(escaped(" ".join(shown))),
                   _check_summary(rep), _total_seconds(rep))
     return t, len(reports), notes
+
+
+def _command_shown(rep: dict) -> str:
+    """The command, with its method when the report's params name one
+    (``geodesic -m log-heat``): runs of one command differ most by it."""
+    params = rep.get("params")
+    method = params.get("method") if isinstance(params, dict) else None
+    return f"{rep['command']} -m {method}" if isinstance(method, str) and method else str(rep["command"])
 
 
 def _report_name(path: Path, folder: Path) -> str:

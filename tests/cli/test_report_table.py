@@ -215,3 +215,15 @@ def test_recursive_reads_the_reports_in_subfolders(tmp_path, capsys):
     assert main(["report_table", str(tmp_path)]) == 2
     assert "no geoproc reports (*.json with command and metrics) (-r also reads its subfolders)" in \
         capsys.readouterr().err
+
+
+def test_the_command_column_names_the_method(tmp_path, capsys):
+    # runs of one command over several methods had read alike but for the report's name
+    for name, method in (("a.json", "log-heat"), ("b.json", None), ("c.json", 3)):
+        params = {"method": method} if method is not None else {}
+        _write(tmp_path, name, {"command": "example", "params": params, "metrics": {"rmse": 0.5}})
+    assert main(["report_table", str(tmp_path)]) == 0
+    lines = [" ".join(line.split()) for line in capsys.readouterr().out.splitlines()]
+    row = {n: next(line for line in lines if n in line) for n in ("a.json", "b.json", "c.json")}
+    assert "example -m log-heat" in row["a.json"]
+    assert "-m" not in row["b.json"] and "-m" not in row["c.json"]  # none, or not a name: the command alone
