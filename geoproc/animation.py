@@ -7,6 +7,8 @@ runs compare as numbers: ``frame2.ply`` before ``frame10.ply``; hidden files,
 whose names start with a dot, and subfolders are not frames), whose
 per-vertex properties present in every frame become the fields (except
 properties named ``vertices`` or ``faces``, the ``.npz`` names of the geometry).
+Written as ``.npz`` (:func:`animation_to_bytes`) or as one binary PLY per frame
+(:func:`animation_to_frames`, ``frame_0000.ply`` and on), which reads back the same.
 """
 
 from __future__ import annotations
@@ -284,7 +286,7 @@ def animation_to_frames(anim: Animation) -> list[tuple[str, bytes]]:
         raise ValueError(f"field {bad[0]!r} cannot be a PLY vertex property")
     F = np.ascontiguousarray(anim.F, dtype=np.int64)
     out = []
-    for name, t in zip(frame_file_names(anim.n_frames), range(anim.n_frames), strict=True):
+    for t, name in enumerate(frame_file_names(anim.n_frames)):
         fields = {k: np.asarray(v[t], dtype=np.float64) for k, v in sorted(anim.fields.items())}
         out.append((name, mesh_to_bytes(Mesh(np.asarray(anim.V[t], dtype=np.float64), F, fields), "ply")))
     return out
