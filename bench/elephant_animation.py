@@ -28,10 +28,11 @@ from geoproc.animation import (  # noqa: E402
     Animation,
     animation_to_bytes,
     animation_to_frames,
-    foreign_frame_files,
+    frame_folder_problem,
     names_folder,
     stale_frame_files,
 )
+from geoproc.fileio import write_files_atomic  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -51,22 +52,25 @@ def main(argv: list[str] | None = None) -> int:
     if not folder and not args.out.lower().endswith(".npz"):
         print(f"error: {args.out}: name a .npz file or a folder (ending in '/')", file=sys.stderr)
         return 2
-    if folder and foreign_frame_files(args.out):
-        print(f"error: {args.out}: holds mesh files other than frame_N.ply, which would be read as frames",
-              file=sys.stderr)
+    problem = frame_folder_problem(args.out) if folder else None
+    if problem:
+        print(f"error: {args.out}: {problem}", file=sys.stderr)
         return 2
     V, F = elephant(args.step)
     anim = Animation(V, F)
-    if folder:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        frames = animation_to_frames(anim)
-        for name, data in frames:
-            (out / name).write_bytes(data)
-        for name in stale_frame_files(str(out), [name for name, _ in frames]):  # a longer earlier run's
-            (out / name).unlink()
-    else:
-        Path(args.out).write_bytes(animation_to_bytes(anim))
+    try:  # each file staged beside its place and renamed once all are written
+        if folder:
+            out = Path(args.out)
+            out.mkdir(exist_ok=True)
+            frames = animation_to_frames(anim)
+            write_files_atomic([(out / name, data) for name, data in frames])
+            for name in stale_frame_files(str(out), [name for name, _ in frames]):  # a longer earlier run's
+                (out / name).unlink()
+        else:
+            write_files_atomic([(args.out, animation_to_bytes(anim))])
+    except OSError as exc:
+        print(f"error: {exc.filename or args.out}: cannot write ({exc.strerror or exc})", file=sys.stderr)
+        return 2
     print(f"{args.out}: {V.shape[0]} frames of {V.shape[1]} vertices, {len(F)} faces")
     return 0
 

@@ -590,7 +590,7 @@ def _require_frame_folders(folders: list[str], inputs: list[str]) -> None:
     for frames), or whose ``frame_N.ply`` entries are not plain files (a
     symbolic link, a pipe, a device or a folder: a frame written there would
     go elsewhere, or block)."""
-    from geoproc.animation import FRAME_FILE, foreign_frame_files
+    from geoproc.animation import frame_folder_problem
 
     sources = {os.path.realpath(p) for p in inputs if p != "-"}
     for folder in folders:
@@ -609,18 +609,9 @@ def _require_frame_folders(folders: list[str], inputs: list[str]) -> None:
         where = real if os.path.isdir(real) else parent
         if not os.access(where, os.W_OK | os.X_OK):
             raise UsageError(f"{folder}: cannot write: folder '{where}' is not writable")
-        foreign = foreign_frame_files(real)
-        if foreign:
-            more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
-            raise UsageError(f"{folder}: holds mesh files other than frame_N.ply ({foreign[0]}{more}), which "
-                             "would be read back as frames; name a new folder or one without other mesh files")
-        if os.path.isdir(real):
-            for name in sorted(os.listdir(real)):
-                full = os.path.join(real, name)
-                if FRAME_FILE.match(name) and (os.path.islink(full) or file_kind(full) != "file"):
-                    what = "a symbolic link" if os.path.islink(full) else "not a plain file"
-                    raise UsageError(f"{folder}: {name} is {what}; the frames are written as plain files "
-                                     "(remove it, or name another folder)")
+        problem = frame_folder_problem(real)
+        if problem:
+            raise UsageError(f"{folder}: {problem}")
 
 
 def _made_folders(folders: list[str]) -> list[str]:

@@ -607,6 +607,8 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     if input == "-":  # (np.load needs a file it can seek in)
         raise UsageError("-: --dynamic reads an animation from a file or folder (.npz or frame meshes), "
                          "not from standard input")
+    if not os.path.exists(input):
+        raise InputError(input, "no such file or folder")
     if not is_animation_path(input):
         raise UsageError(f"{input}: --dynamic needs an animation (.npz or a folder of frame meshes)")
     require_animation_output(output)

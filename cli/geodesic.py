@@ -191,7 +191,8 @@ def geodesic(
         "heat_underflow": heat_underflow.value if m_name == "heat" else None,
         "reference": reference,
         # the property read from a reference mesh (None for exact or a .npy; set once a '-' is read)
-        "reference_field": (reference_field or field_name) if reference not in (None, "exact")
+        "reference_field": (field_name if reference_field is None else reference_field)
+        if reference not in (None, "exact")
         and not str(reference).lower().endswith(".npy") else None,
         "field_name": field_name, "render": render, "render_view": render_view.value if render else None,
         "clean": not no_clean,
@@ -210,6 +211,8 @@ def geodesic(
         _refuse_unused_options(ctx, m_name, operators.value if operators else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
+        if reference_field is not None and not reference_field:
+            raise UsageError("--reference-field '': give the name of a vertex property")
         if reference in (None, "exact") or reference.lower().endswith(".npy"):
             refuse_options(ctx, ("reference_field",), "only with --reference MESH (a mesh file holding the "
                                                       "distances as a vertex property)")
@@ -242,7 +245,8 @@ def geodesic(
         stored = None  # --reference FILE, read and checked before the work
         if reference not in (None, "exact"):
             with run.timer("reference"):
-                stored = _reference_file(run, reference, m, reference_field or field_name, no_clean,
+                stored = _reference_file(run, reference, m, field_name if reference_field is None
+                                         else reference_field, no_clean,
                                          reference_field is not None)
         # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read
         from geoproc.geodesic.compare import compare_to_reference

@@ -77,7 +77,9 @@ def folder_reports(folder: Path, recursive: bool = False) -> tuple[list[tuple[Pa
     entering hidden folders nor following links to folders) with its path,
     and one note per such file that could not be read."""
     reports, notes = [], []
-    for path in _json_files(folder, recursive):
+    paths, unread = _json_files(folder, recursive)
+    notes += [f"{f}: cannot read the folder ({e.strerror or e})" for f, e in unread]
+    for path in paths:
         if not path.is_file():
             continue
         try:
@@ -90,17 +92,26 @@ def folder_reports(folder: Path, recursive: bool = False) -> tuple[list[tuple[Pa
     return reports, notes
 
 
-def _json_files(folder: Path, recursive: bool) -> list[Path]:
+def _json_files(folder: Path, recursive: bool) -> tuple[list[Path], list[tuple[str, OSError]]]:
     """The ``*.json`` names (any case, as --report accepts them) in ``folder``,
     sorted; with ``recursive`` also those in its subfolders, by their path
-    below ``folder`` (the parts compared in turn)."""
+    below ``folder`` (the parts compared in turn). Also the folders that could
+    not be listed, with the error."""
+    unread: list[tuple[str, OSError]] = []
     if not recursive:
-        return sorted(p for p in folder.iterdir() if p.suffix.lower() == ".json")
+        try:
+            return sorted(p for p in folder.iterdir() if p.suffix.lower() == ".json"), unread
+        except OSError as exc:
+            return [], [(str(folder), exc)]
     found = []
-    for root, dirs, files in os.walk(folder, onerror=lambda e: None):  # followlinks=False: no loop
+
+    def unlisted(exc: OSError) -> None:
+        unread.append((exc.filename or str(folder), exc))
+
+    for root, dirs, files in os.walk(folder, onerror=unlisted):  # followlinks=False: no loop
         dirs[:] = [d for d in dirs if not d.startswith(".")]
         found += [Path(root) / f for f in files if Path(f).suffix.lower() == ".json"]
-    return sorted(found, key=lambda p: p.relative_to(folder).parts)
+    return sorted(found, key=lambda p: p.relative_to(folder).parts), unread
 
 
 def summary_table(folder: Path, max_metrics: int = 5, recursive: bool = False) -> tuple[Table, int, list[str]]:
@@ -256,6 +267,12 @@ def main(argv: list[str]) -> int:
         what = "not a folder" if folder.exists() else "no such folder"
         print(f"report_table: error: {folder}: {what}", file=sys.stderr)
         return 2
+    try:
+        with os.scandir(folder) as entries:
+            next(entries, None)
+    except OSError as exc:  # (had been blamed on standard output)
+        print(f"report_table: error: {folder}: cannot read the folder ({exc.strerror or exc})", file=sys.stderr)
+        return 2
     if csv_path is not None:
         reports, notes = folder_reports(folder, recursive)
         count = len(reports)
@@ -264,7 +281,8 @@ def main(argv: list[str]) -> int:
     for note in notes:
         print(f"report_table: {note}", file=sys.stderr)
     if not count:
-        where = " (or its subfolders)" if recursive else " (-r also reads its subfolders)"
+        where = " in it or its subfolders" if recursive else \
+            "; -r also reads its subfolders" if _has_subfolders(folder) else ""
         print(f"report_table: error: {folder}: no geoproc reports (*.json with command and metrics){where}",
               file=sys.stderr)
         return 2
@@ -275,6 +293,13 @@ def main(argv: list[str]) -> int:
         console = Console(width=160)
     console.print(table)
     return 0
+
+
+def _has_subfolders(folder: Path) -> bool:
+    try:
+        return any(p.is_dir() and not p.name.startswith(".") for p in folder.iterdir())
+    except OSError:
+        return False
 
 
 def _write_csv(path: str, text: str) -> int:

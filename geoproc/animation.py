@@ -304,6 +304,27 @@ def foreign_frame_files(folder: str) -> list[str]:
                   and not FRAME_FILE.match(f) and not os.path.isdir(os.path.join(folder, f)))
 
 
+def frame_folder_problem(folder: str) -> str | None:
+    """Why an existing ``folder`` cannot take a frame-folder output, or None:
+    it holds mesh files other than ``frame_N.ply`` (read back, they would be
+    taken for frames), or a ``frame_N.ply`` that is not a plain file (a
+    symbolic link, a pipe, a device or a folder: a frame written there would
+    go elsewhere, or block)."""
+    foreign = foreign_frame_files(folder)
+    if foreign:
+        more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
+        return (f"holds mesh files other than frame_N.ply ({foreign[0]}{more}), which would be read back as "
+                "frames; name a new folder or one without other mesh files")
+    if not os.path.isdir(folder):
+        return None
+    for name in sorted(os.listdir(folder)):
+        full = os.path.join(folder, name)
+        if FRAME_FILE.match(name) and (os.path.islink(full) or not os.path.isfile(full)):
+            what = "a symbolic link" if os.path.islink(full) else "not a plain file"
+            return f"{name} is {what}; the frames are written as plain files (remove it, or name another folder)"
+    return None
+
+
 def stale_frame_files(folder: str, written: list[str]) -> list[str]:
     """The ``frame_N.ply`` files in ``folder`` other than those ``written``
     (left by an earlier run with more frames, or another name width)."""

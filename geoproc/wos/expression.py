@@ -89,9 +89,10 @@ def parse_expression(text: str, option: str = "--boundary", normals: bool = Fals
         raise UsageError(f"{shown}: {', '.join(normal)}, the boundary's outward normal, is for a flux "
                          "(--neumann) only")
     if unknown:
+        also = f"; {', '.join(normal)}, the boundary's outward normal, is for --neumann only" if normal else ""
         raise UsageError(f"{shown}: unknown name{'s' if len(unknown) > 1 else ''} "
                          f"{', '.join(repr(u) for u in unknown)} (allowed: x, y, {'nx, ny, ' * normals}pi, e, "
-                         f"{', '.join(sorted(FUNCTIONS))})")
+                         f"{', '.join(sorted(FUNCTIONS))}){also}")
     code: list[int] = []
     consts: list[float] = []
 
@@ -125,6 +126,8 @@ def parse_expression(text: str, option: str = "--boundary", normals: bool = Fals
                 emit(OP_NEG)
         elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in variables:
             raise UsageError(f"{shown}: '{node.func.id}' is a variable, not a function")
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in CONSTANTS:
+            raise UsageError(f"{shown}: '{node.func.id}' is a constant, not a function")
         elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS:
             name = node.func.id
             want = 2 if name == "atan2" else 1

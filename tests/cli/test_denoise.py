@@ -959,3 +959,5 @@ def test_dynamic_on_a_mesh_names_the_input_before_a_folder_output(cli, fixture_d
     (folder / "cube.ply").write_bytes((fixture_dir / "cube.ply").read_bytes())
     p = cli("denoise", folder / "cube.ply", "--dynamic", "-o", folder)
     assert _one_line_error(p) and "cube.ply: --dynamic needs an animation" in p.stderr
+    p = cli("denoise", folder / "gone.ply", "--dynamic", "-o", tmp_path / "o.npz")
+    assert _one_line_error(p) and "gone.ply: no such file or folder" in p.stderr

@@ -809,3 +809,5 @@ def test_reference_field_names_the_property_read_from_a_reference_mesh(cli, fixt
             stdin=npy.read_bytes())
     assert p.returncode == 2 and "--reference-field: the reference on standard input is a .npy" in p.stderr
     assert not (tmp_path / "x.ply").exists()
+    p = cli("geodesic", torus, "-s", "0", "--reference", golden, "--reference-field", "", "-o", tmp_path / "x.ply")
+    assert p.returncode == 2 and "--reference-field '': give the name of a vertex property" in p.stderr

@@ -213,8 +213,38 @@ def test_recursive_reads_the_reports_in_subfolders(tmp_path, capsys):
     assert [r.split(",")[0] for r in capsys.readouterr().out.splitlines()[1:]] == ["top.json"]
     (tmp_path / "top.json").unlink()
     assert main(["report_table", str(tmp_path)]) == 2
-    assert "no geoproc reports (*.json with command and metrics) (-r also reads its subfolders)" in \
+    assert "no geoproc reports (*.json with command and metrics); -r also reads its subfolders" in \
         capsys.readouterr().err
+    assert main(["report_table", str(tmp_path / "cow" / "heat"), "-r"]) == 0
+    capsys.readouterr()
+    (tmp_path / "cow" / "heat" / "r.json").unlink()
+    assert main(["report_table", str(tmp_path / "cow" / "heat")]) == 2  # no subfolder: no hint
+    assert capsys.readouterr().err.rstrip().endswith("(*.json with command and metrics)")
+
+
+def test_folders_that_cannot_be_read_are_named(tmp_path, capsys, monkeypatch):
+    # an unreadable subfolder had been skipped without a word; an unreadable folder itself
+    # was blamed on standard output ("cannot write standard output: Permission denied")
+    import os
+
+    for sub in ("open", "locked"):
+        (tmp_path / sub).mkdir()
+        _write(tmp_path / sub, "r.json", {"command": "example", "metrics": {"rmse": 0.5}})
+    scandir = os.scandir
+
+    def refusing(path="."):
+        if "locked" in str(path):
+            raise PermissionError(13, "Permission denied", str(path))
+        return scandir(path)
+
+    monkeypatch.setattr(os, "scandir", refusing)
+    assert main(["report_table", str(tmp_path), "-r", "--csv", "-"]) == 0
+    captured = capsys.readouterr()
+    assert [r.split(",")[0] for r in captured.out.splitlines()[1:]] == ["open/r.json"]
+    assert f"report_table: {tmp_path / 'locked'}: cannot read the folder (Permission denied)" in captured.err
+    assert main(["report_table", str(tmp_path / "locked")]) == 2
+    assert capsys.readouterr().err == (f"report_table: error: {tmp_path / 'locked'}: cannot read the folder "
+                                       "(Permission denied)\n")
 
 
 def test_the_command_column_names_the_method(tmp_path, capsys):

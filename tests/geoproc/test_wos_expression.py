@@ -108,6 +108,9 @@ def test_an_unknown_name_in_a_flux_lists_the_normal_among_the_allowed():
     ("nx + nz", False, "unknown name 'nz' (allowed: x, y, pi, e,"),
     ("nx(1)", False, "nx, the boundary's outward normal, is for a flux (--neumann) only"),
     ("nx(1)", True, "'nx' is a variable, not a function"),
+    ("nx + foo", False, "unknown name 'foo' (allowed: x, y, pi, e,"),
+    ("nx + foo", False, "; nx, the boundary's outward normal, is for --neumann only"),
+    ("pi(x)", False, "'pi' is a constant, not a function"),
 ])
 def test_misused_normal_names_get_one_message_each(text, normals, message):
     with pytest.raises(UsageError, match=re.escape(message)):
