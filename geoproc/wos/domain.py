@@ -85,6 +85,13 @@ class Domain:
         return float(np.linalg.norm(self.B - self.A, axis=1)[self.neumann].sum())
 
     @property
+    def outward_normals(self) -> np.ndarray:
+        """(S, 2) unit normal of each segment, pointing out of the domain: to the
+        right of the directed segment, the domain lying on its left."""
+        E = self.B - self.A
+        return np.stack([E[:, 1], -E[:, 0]], axis=1) / np.linalg.norm(E, axis=1)[:, None]
+
+    @property
     def has_neumann(self) -> bool:
         return bool(self.neumann.any())
 

@@ -224,7 +224,7 @@ def neumann_samples_and_ends(domain: Domain, m: int) -> tuple[np.ndarray, np.nda
     k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(length) - 1)
     t = (s - cum[k]) / length[k]
     P = domain.A[sel[k]] + t[:, None] * E[k]
-    N = np.stack([E[k, 1], -E[k, 0]], axis=1) / length[k, None]
+    N = domain.outward_normals[sel[k]]
     return P, N, np.minimum(t, 1 - t) * length[k]
 
 

@@ -47,8 +47,7 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
         if expr is None or not mask.any():
             continue
         P = segment_samples(domain, mask, samples)
-        E = domain.B[mask] - domain.A[mask]  # each sample's segment's outward normal (read by a flux)
-        N = np.repeat(np.stack([E[:, 1], -E[:, 0]], axis=1) / np.linalg.norm(E, axis=1)[:, None], samples, axis=0)
+        N = np.repeat(domain.outward_normals[mask], samples, axis=0)  # each sample's segment's (read by a flux)
         bad = ~np.isfinite(evaluate(expr, P[:, 0], P[:, 1], N[:, 0], N[:, 1]))
         if bad.any():
             x, y = P[np.flatnonzero(bad)[0]] + domain.offset  # where the input has it
