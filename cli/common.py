@@ -421,7 +421,7 @@ class Run:
         """
         folders = [folder for folder, _ in self._frame_folders]
         _require_frame_folders(folders, [i["path"] for i in self.inputs])
-        created = _made_folders(folders)
+        created: list[str] = []  # the frame folders this run made, removed again if it fails
         hidden: list[tuple[str, str]] = []  # an earlier run's extra frames, hidden until the new ones are in
 
         def before_rename() -> None:
@@ -430,6 +430,7 @@ class Run:
                 _write_stdout(piped)
 
         try:
+            _make_folders(folders, created)
             _require_output_folders([name for name, _ in self._outputs])
             self.timings["total"] = time.perf_counter() - self._t0
             outputs = list(self._outputs)
@@ -503,8 +504,7 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
             else "two outputs"
         raise UsageError(f"{what} both write to standard output; give all but one a file name")
     seen: set = set()
-    inputs = [p for p in inputs if p != "-"] + ["-"] * ("-" in inputs)
-    inputs += [f for p in inputs if p != "-" for f in _frame_files_of(p)]  # a folder's frames are inputs too
+    inputs = list(inputs) + [f for p in inputs if p != "-" for f in _frame_files_of(p)]  # a folder's frames too
     sources = {os.path.realpath(p) for p in inputs if p != "-"}
     sources |= {_file_id(p) for p in inputs if p != "-"} - {None}  # hard links too
     if "-" in inputs:
@@ -528,16 +528,14 @@ def _unwritable_field_line(folder: str, name: str) -> str:
 
 
 def _frame_files_of(path: str) -> list[str]:
-    """The files a folder input is read from (its mesh files, as
+    """The files a folder input is read from (as
     :func:`geoproc.animation.load_animation` takes them); [] for a file."""
-    from geoproc.fileio import file_extension
-    from geoproc.mesh.read import MESH_FORMATS
+    from geoproc.animation import frame_file_candidates
 
     try:
-        names = os.listdir(path) if os.path.isdir(path) else []
+        return [os.path.join(path, f) for f in frame_file_candidates(path)] if os.path.isdir(path) else []
     except OSError:  # unreadable: reading it will say so
         return []
-    return [os.path.join(path, f) for f in names if file_extension(f) in MESH_FORMATS and not f.startswith(".")]
 
 
 def _stdin_file_identity() -> tuple[int, int] | None:
@@ -614,21 +612,17 @@ def _require_frame_folders(folders: list[str], inputs: list[str]) -> None:
             raise UsageError(f"{folder}: {problem}")
 
 
-def _made_folders(folders: list[str]) -> list[str]:
-    """Make the frame folders that are not there; returns those made."""
-    made = []
+def _make_folders(folders: list[str], made: list[str]) -> None:
+    """Make the frame folders that are not there, appending each to ``made``
+    as it is made (so that a failure can remove those made before it)."""
     for folder in folders:
         real = os.path.realpath(folder)
         if not os.path.isdir(real):
             try:
                 os.mkdir(real)
             except OSError as exc:
-                for done in reversed(made):
-                    with contextlib.suppress(OSError):
-                        os.rmdir(done)
                 raise UsageError(f"{folder}: cannot make the folder: {exc.strerror or exc}") from None
             made.append(real)
-    return made
 
 
 def _hide_stale_frames(folders: list[tuple[str, list[str]]], hidden: list[tuple[str, str]]) -> None:

@@ -178,12 +178,19 @@ def natural_key(name: str) -> tuple[list, str]:
     return [int(p) if i % 2 else p for i, p in enumerate(parts)], name
 
 
-def _load_frame_folder(name: str) -> Animation:
-    from geoproc.mesh import load_mesh
+def frame_file_candidates(folder: str) -> list[str]:
+    """The names in ``folder`` a frame folder is read from, unsorted: mesh files
+    (.obj, .ply, .off, .stl), not hidden (a name starting with a dot), not folders."""
     from geoproc.mesh.read import MESH_FORMATS
 
-    files = sorted((f for f in os.listdir(name) if file_extension(f) in MESH_FORMATS and not f.startswith(".")
-                    and not os.path.isdir(os.path.join(name, f))), key=natural_key)
+    return [f for f in os.listdir(folder) if file_extension(f) in MESH_FORMATS and not f.startswith(".")
+            and not os.path.isdir(os.path.join(folder, f))]
+
+
+def _load_frame_folder(name: str) -> Animation:
+    from geoproc.mesh import load_mesh
+
+    files = sorted(frame_file_candidates(name), key=natural_key)
     if not files:
         raise InputError(name, "folder holds no frame meshes (.obj, .ply, .off, .stl)")
     for f in files:  # a pipe named like a frame had blocked the read, a link to /dev/zero filled the memory
@@ -296,12 +303,9 @@ def foreign_frame_files(folder: str) -> list[str]:
     """The files in ``folder`` that reading it as an animation would take as
     frames but that a frame-folder output does not write (mesh files not named
     ``frame_N.ply``), sorted; [] for a folder that is not there."""
-    from geoproc.mesh.read import MESH_FORMATS
-
     if not os.path.isdir(folder):
         return []
-    return sorted(f for f in os.listdir(folder) if file_extension(f) in MESH_FORMATS and not f.startswith(".")
-                  and not FRAME_FILE.match(f) and not os.path.isdir(os.path.join(folder, f)))
+    return sorted(f for f in frame_file_candidates(folder) if not FRAME_FILE.match(f))
 
 
 def frame_folder_problem(folder: str) -> str | None:
