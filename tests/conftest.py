@@ -67,6 +67,16 @@ def run_cli(*args: str, stdin: bytes | None = None, cwd: Path | None = None):
     return proc
 
 
+def run_cli_under(script: str, *args):
+    """Run ``python -c script args`` (a script that sets up what it injects,
+    then calls geoproc's entry point, which reads ``args``), text output."""
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-c", script, *map(str, args)], capture_output=True, text=True,
+                          timeout=120)
+
+
 @pytest.fixture(scope="session")
 def cli():
     """The :func:`run_cli` helper, as a fixture."""

@@ -19,6 +19,7 @@ from geoproc.mesh import Mesh, load_mesh, read_mesh_bytes
 from geoproc.report import validate_report
 from geoproc_cli.common import CheckOpt, ReportOpt, command_run, metrics_epilog
 from geoproc_cli.main import app
+from tests.conftest import run_cli_under
 
 BAD_INPUTS = [
     ("truncated.ply", "PLY header declares 42 vertex rows and 80 face rows (at least 1088 bytes)"),
@@ -793,12 +794,8 @@ def test_termination_while_writing_leaves_nothing_staged(fixture_dir, tmp_path):
 
 def _perturb_under(script: str, fixture_dir, out, *extra: str):
     """``perturb torus.ply --seed 1 -o out [extra]`` run by ``python -c script``
-    (the script sets up what it injects, then calls geoproc's entry point)."""
-    import subprocess
-    import sys
-
-    return subprocess.run([sys.executable, "-c", script, "perturb", str(fixture_dir / "torus.ply"), "--seed", "1",
-                           "-o", str(out), *extra], capture_output=True, text=True, timeout=120)
+    (:func:`tests.conftest.run_cli_under`)."""
+    return run_cli_under(script, "perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", out, *extra)
 
 
 @pytest.mark.parametrize("sig, status, line", [("SIGTERM", 143, "error: terminated (SIGTERM)"),

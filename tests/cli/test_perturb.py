@@ -13,7 +13,7 @@ from geoproc.animation import load_animation
 from geoproc.mesh import Mesh, load_mesh, save_mesh
 from geoproc.perturb import noise_scale
 from geoproc.report import validate_report
-from tests.conftest import load_fixture_module
+from tests.conftest import load_fixture_module, run_cli_under
 
 
 def denoise_fixtures():
@@ -492,12 +492,8 @@ def test_a_field_no_frame_property_can_name_is_refused_without_output(cli, tmp_p
 
 
 def _perturb_injected(script: str, *args):
-    """``geoproc perturb args`` run by ``python -c script`` (which patches what it injects first)."""
-    import subprocess
-    import sys
-
-    return subprocess.run([sys.executable, "-c", script + "from geoproc_cli.entry import main\nmain()\n", "perturb",
-                           *map(str, args)], capture_output=True, text=True, timeout=120)
+    """``geoproc perturb args`` run after ``script`` (which patches what it injects)."""
+    return run_cli_under(script + "from geoproc_cli.entry import main\nmain()\n", "perturb", *args)
 
 
 def test_frames_of_an_earlier_run_come_back_when_the_new_ones_cannot_go_in(cli, tmp_path):
