@@ -123,10 +123,14 @@ LOAD_METRICS = tuple(_LOAD_LOG_FIELDS)
 what loading changed (:meth:`Run.note_load`)."""
 
 
+_LOAD_LOG_FOR_MESSAGES = ("collapsed_faces", "first_collapsed_face")  # named in refusals, not reported
+
+
 def load_summary(log) -> dict:
-    """A mesh's load log as a dict, its counts named as the report's :data:`LOAD_METRICS`."""
+    """A mesh's load log as a dict, its counts named as the report's :data:`LOAD_METRICS`
+    (what only messages use left out)."""
     names = {field: metric for metric, field in _LOAD_LOG_FIELDS.items()}
-    return {names.get(k, k): v for k, v in log.as_dict().items()}
+    return {names.get(k, k): v for k, v in log.as_dict().items() if k not in _LOAD_LOG_FOR_MESSAGES}
 
 
 def metrics_epilog(names: Sequence[str], text: Sequence[str] = (), units: dict[str, str] | None = None) -> str:

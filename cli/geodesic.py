@@ -40,8 +40,8 @@ from geoproc_cli.common import (
 Method = Enum("Method", {m.replace("-", "_"): m for m in METHODS}, type=str)
 
 
-REFERENCE_METRICS = ("compared_vertices", "nonfinite_vertices", "pearson_r", "rmse", "mae", "mean_relative_error",
-                     "max_relative_error")
+REFERENCE_METRICS = ("compared_vertices", "nonfinite_vertices", "reference_nonfinite_vertices", "pearson_r", "rmse",
+                     "mae", "mean_relative_error", "max_relative_error")
 """The comparison with the reference distances, reported only with ``--reference``."""
 
 METRIC_UNITS = {
@@ -257,7 +257,7 @@ def geodesic(
                                     steps=steps, laplacian=laplacian.value if laplacian else None,
                                     solver=solver.value, operators=operators.value if operators else None,
                                     path=m.log.path, progress=update, also_exact=reference == "exact",
-                                    heat_underflow=heat_underflow.value)
+                                    heat_underflow=heat_underflow.value, load_log=m.log)
         run.timings["setup"] = res.timings.get("setup", 0.0)
         run.timings["solve"] = res.timings.get("solve", 0.0)
         d = res.distance
@@ -312,6 +312,10 @@ def geodesic(
                                                                        path=m.log.path).distance
         if stored is not None:
             run.metrics.update(compare_to_reference(d, stored))
+            if run.metrics["reference_nonfinite_vertices"]:
+                run.note(f"{run.metrics['reference_nonfinite_vertices']} vertices with a finite distance have none "
+                         "in the reference (it does not reach them: other sources or another mesh?); they are "
+                         "not compared, reference_nonfinite_vertices counts them")
         out = m.copy()
         run.note_replaced("vertex", [field_name], out.vertex_fields)
         out.vertex_fields[field_name] = d

@@ -159,7 +159,7 @@ def morse_simplify(
             require_extension(critical, ".json", "--critical", stdout_ok=True)
         m = run.load_mesh(mesh, clean=not no_clean)
         require_triangle_mesh(m)
-        require_edge_manifold(m.F, m.log.path or None, "; morse-simplify needs a manifold mesh")
+        require_edge_manifold(m.F, m.log.path or None, "; morse-simplify needs a manifold mesh", m.log)
         if not split_nonmanifold:
             require_vertex_manifold(m, "; morse-simplify needs a manifold mesh (--split-nonmanifold gives each "
                                        "fan of faces at a vertex its own vertex)")

@@ -12,7 +12,9 @@ def compare_to_reference(d: np.ndarray, ref: np.ndarray) -> dict:
 
     Compared over the vertices where ``ref`` is finite. A vertex where ``ref``
     is finite but ``d`` is not is counted in ``nonfinite_vertices`` and left
-    out of the other metrics (which are then over the rest). With fewer than
+    out of the other metrics (which are then over the rest); one where ``d``
+    is finite but ``ref`` is not (a reference from other sources, or another
+    mesh, that does not reach it) in ``reference_nonfinite_vertices``. With fewer than
     two compared vertices, or ``max(ref) = 0`` (every vertex a source), the
     error metrics are NaN.
 
@@ -22,14 +24,15 @@ def compare_to_reference(d: np.ndarray, ref: np.ndarray) -> dict:
         ``pearson_r`` (correlation of d and ref), ``rmse`` and ``mae`` of
         ``(d - ref) / max(ref)``, ``mean_relative_error`` = mean ``|d - ref| /
         max(ref)`` (equal to ``mae`` by this definition), ``max_relative_error``
-        = max ``|d - ref| / max(ref)``, ``compared_vertices`` and
-        ``nonfinite_vertices``.
+        = max ``|d - ref| / max(ref)``, ``compared_vertices``,
+        ``nonfinite_vertices`` and ``reference_nonfinite_vertices``.
     """
     d = np.asarray(d, dtype=np.float64)
     ref = np.asarray(ref, dtype=np.float64)
     reach = np.isfinite(ref)
     ok = reach & np.isfinite(d)
-    out = {"compared_vertices": int(ok.sum()), "nonfinite_vertices": int((reach & ~ok).sum())}
+    out = {"compared_vertices": int(ok.sum()), "nonfinite_vertices": int((reach & ~ok).sum()),
+           "reference_nonfinite_vertices": int((~reach & np.isfinite(d)).sum())}
     scale = float(ref[reach].max()) if reach.any() else 0.0
     if ok.sum() < 2 or not scale > 0:  # nothing to compare, or every vertex a source
         return out | {k: float("nan") for k in

@@ -150,7 +150,7 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
                       time_factor: float | None = 1.0, time: float | None = None, steps: int = 1,
                       laplacian: str | None = None, solver: str = "lu", operators: str | None = None,
                       path: str | None = None, progress=None, also_exact: bool = False,
-                      heat_underflow: str = "log-domain") -> GeodesicResult:
+                      heat_underflow: str = "log-domain", load_log=None) -> GeodesicResult:
     """Geodesic distance from ``sources`` by ``method`` (see :data:`METHODS`).
 
     Parameters
@@ -182,6 +182,10 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
         Named in error messages.
     progress : callable, optional
         ``progress(fraction_done)``.
+    load_log : geoproc.mesh.mesh.LoadLog, optional
+        How the mesh was loaded: a face that repeats a vertex is then said to
+        come from merging coincident positions where it does
+        (:func:`geoproc.mesh.validate.require_edge_manifold`).
     also_exact : bool
         Also check, before solving, that the mesh suits ``exact`` (the command
         line's ``--reference exact``, named so in the error), so that the exact
@@ -227,9 +231,9 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
     t = None if method == "exact" else diffusion_time(h, time_factor, time)
     lap = None if method == "exact" else (laplacian or DEFAULT_LAPLACIAN[method])
     ops = operators or DEFAULT_OPERATORS.get(method)
-    require_method_mesh(V, F, method, lap, ops, path, area=area)
+    require_method_mesh(V, F, method, lap, ops, path, area=area, load_log=load_log)
     if also_exact and method != "exact":
-        require_method_mesh(V, F, "exact", path=path, who="--reference exact", area=area)
+        require_method_mesh(V, F, "exact", path=path, who="--reference exact", area=area, load_log=load_log)
 
     V2, F2, keep, s2 = source_submesh(V, F, src)
     stats: dict = {"unreachable_vertices": int(n - len(keep))}
@@ -268,21 +272,22 @@ def geodesic_distance(V: np.ndarray, F: np.ndarray, sources, method: str = "heat
 
 def require_method_mesh(V: np.ndarray, F: np.ndarray, method: str, lap: str | None = None,
                         ops: str | None = None, path: str | None = None, who: str | None = None,
-                        area: np.ndarray | None = None) -> None:
+                        area: np.ndarray | None = None, load_log=None) -> None:
     """InputError when the triangles (V (n, 3), F (m, 3)) do not suit ``method``
     run with Laplacian ``lap`` and operators ``ops``: not manifold where it needs
     a manifold, zero-area or too thin faces where it works on the input's own
     triangles, needles (:func:`_refuse_needles`). ``who`` names what needs it in
     the message (default ``method '<method>'``; ``--reference exact`` when the
-    exact reference is checked before the chosen method runs)."""
+    exact reference is checked before the chosen method runs); ``load_log``
+    as for :func:`geodesic_distance`."""
     label = who or f"method '{method}'"
     if method in NEEDS_MANIFOLD:
         from geoproc.mesh import Mesh
         from geoproc.mesh.mesh import LoadLog
 
-        require_manifold(Mesh(V, F, log=LoadLog(path=path or "")), f"; {label} needs a manifold mesh")
+        require_manifold(Mesh(V, F, log=load_log or LoadLog(path=path or "")), f"; {label} needs a manifold mesh")
     if method in NEEDS_EDGE_MANIFOLD:
-        require_edge_manifold(F, path, f"; {label} needs an edge-manifold mesh")
+        require_edge_manifold(F, path, f"; {label} needs an edge-manifold mesh", load_log)
     # every method starts from the input's own triangles: the cotan ones use them, the
     # intrinsic Delaunay flips start from their edge lengths (faces whose lengths give zero
     # area, with a cross product that does not, kept libigl's flips allocating until killed)

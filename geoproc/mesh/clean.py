@@ -126,7 +126,8 @@ def clean_mesh(mesh: Mesh) -> Mesh:
 
     Per-vertex fields follow the kept vertex (the first of each merged group).
     A point cloud (no faces) is left as it is: nothing references its points.
-    The counts are recorded in ``mesh.log``.
+    The counts are recorded in ``mesh.log``, with the faces that merging made
+    repeat a vertex (``collapsed_faces``; kept, as every face is).
 
     Parameters
     ----------
@@ -141,8 +142,14 @@ def clean_mesh(mesh: Mesh) -> Mesh:
     log.cleaned = True
     if mesh.is_point_cloud:
         return Mesh(mesh.V, mesh.F, dict(mesh.vertex_fields), dict(mesh.face_fields), log)
+    from geoproc.mesh.topology import repeated_corner_faces
+
     V, F, keep1 = merge_coincident_vertices(mesh.V, mesh.F)
     log.merged_vertices = len(mesh.V) - len(V)
+    if log.merged_vertices:
+        collapsed = np.flatnonzero(repeated_corner_faces(F) & ~repeated_corner_faces(mesh.F))
+        log.collapsed_faces = len(collapsed)
+        log.first_collapsed_face = int(collapsed[0]) if len(collapsed) else -1
     V, F, keep2 = remove_unreferenced_vertices(V, F)
     log.removed_unreferenced = len(keep1) - len(keep2)
     keep = keep1[keep2]

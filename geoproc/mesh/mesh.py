@@ -25,6 +25,12 @@ class LoadLog:
         Vertices removed by merging coincident positions.
     removed_unreferenced : int
         Vertices removed because no face used them.
+    collapsed_faces : int
+        Faces stored with three distinct vertices that repeat one once
+        coincident positions are merged (two corners at one position: an edge
+        of length zero), and ``first_collapsed_face`` the first of them (-1
+        when none): a method that needs a manifold refuses them, and its
+        message says the merge made them.
     cleaned : bool
         False when the mesh was kept as stored (``--no-clean``).
     sha256 : str
@@ -47,6 +53,8 @@ class LoadLog:
     triangulated_polygons: int = 0
     merged_vertices: int = 0
     removed_unreferenced: int = 0
+    collapsed_faces: int = 0
+    first_collapsed_face: int = -1
     cleaned: bool = True
     sha256: str = ""
     unread_properties: list[str] = field(default_factory=list)

@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from geoproc.errors import InputError, frame_error
-from geoproc.mesh.mesh import Mesh
+from geoproc.mesh.mesh import LoadLog, Mesh
 
 
 def mesh_arrays(V, F, path: str | None = None, allow_point_cloud: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -99,10 +99,13 @@ def require_triangle_frames(V: np.ndarray, F: np.ndarray, path: str | None,
             raise frame_error(path, t, "degenerate mesh: every face has zero area", frame_files)
 
 
-def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> None:
+def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "", log: LoadLog | None = None) -> None:
     """Refuse a face that repeats a vertex (its edges would count twice) or an
     edge shared by more than two faces, naming the first; ``why`` ends the
-    message (``"; denoising needs ..."``)."""
+    message (``"; denoising needs ..."``). ``log``, the mesh's load log: the
+    message then says which of those faces the merge of coincident positions
+    made (:attr:`LoadLog.collapsed_faces`), which the file stores with three
+    distinct vertices."""
     from geoproc.mesh.topology import duplicate_faces, nonmanifold_edges, repeated_corner_faces
 
     F = np.asarray(F).reshape(-1, 3)
@@ -110,8 +113,14 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> Non
     if len(rep):
         k = int(rep[0])
         one = len(rep) == 1
+        merged = ""
+        if log is not None and log.collapsed_faces:
+            c = log.collapsed_faces
+            which = ("it" if one else "all of them" if c == len(rep)
+                     else f"{c} of them (first: face {log.first_collapsed_face})")
+            merged = f"; merging coincident positions on loading made {which} (--no-clean keeps the stored vertices)"
         raise InputError(path, f"{len(rep)} face{'' if one else 's'} repeat{'s' if one else ''} a vertex "
-                               f"(first: face {k}, vertices {' '.join(str(int(i)) for i in F[k])}){why}")
+                               f"(first: face {k}, vertices {' '.join(str(int(i)) for i in F[k])}){merged}{why}")
     bad_e = nonmanifold_edges(F)
     if len(bad_e):
         a, b = (int(x) for x in bad_e[0])
@@ -129,7 +138,7 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "") -> Non
 def require_manifold(mesh: Mesh, why: str = "") -> None:
     """Refuse a mesh with a repeated-vertex face or a non-manifold edge or
     vertex, naming the first one."""
-    require_edge_manifold(mesh.F, mesh.log.path or None, why)
+    require_edge_manifold(mesh.F, mesh.log.path or None, why, mesh.log)
     require_vertex_manifold(mesh, why)
 
 

@@ -811,3 +811,39 @@ def test_reference_field_names_the_property_read_from_a_reference_mesh(cli, fixt
     assert not (tmp_path / "x.ply").exists()
     p = cli("geodesic", torus, "-s", "0", "--reference", golden, "--reference-field", "", "-o", tmp_path / "x.ply")
     assert p.returncode == 2 and "--reference-field '': give the name of a vertex property" in p.stderr
+
+
+@pytest.mark.parametrize("method", ["heat", "exact"])
+def test_faces_collapsed_by_merging_are_named_with_the_way_out(cli, tmp_path, method):
+    import trimesh
+
+    ico = trimesh.creation.icosphere(2)
+    V = ico.vertices.copy()
+    V[ico.faces[0, 1]] = V[ico.faces[0, 0]]
+    path, out = tmp_path / "collapse.ply", tmp_path / "o.ply"
+    save_mesh(path, Mesh(V, ico.faces))
+    p = cli("geodesic", path, "-s", "5", "-m", method, "-o", out)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and not out.exists()
+    need = "a manifold" if method == "exact" else "an edge-manifold"
+    assert p.stderr.startswith(f"error: {path}: 2 faces repeat a vertex (first: face 0, vertices ")
+    assert (f"; merging coincident positions on loading made all of them (--no-clean keeps the stored vertices); "
+            f"method '{method}' needs {need} mesh") in p.stderr
+
+
+def test_vertices_the_reference_does_not_reach_are_counted(cli, tmp_path, make_fixtures):
+    # a reference from one source on two disjoint spheres leaves the second at +inf; a run
+    # from a source on each reaches it: those vertices are not compared, and are counted
+    V, F = make_fixtures.icosphere(2)
+    two = Mesh(np.concatenate([V, V + [3.0, 0, 0]]), np.concatenate([F, F + len(V)]))
+    src, golden, rep = tmp_path / "two.ply", tmp_path / "golden.ply", tmp_path / "r.json"
+    save_mesh(src, two)
+    assert cli("geodesic", src, "-s", "0", "-m", "exact", "-o", golden, "-q").returncode == 0
+    p = cli("geodesic", src, "-s", "0", "-s", str(len(V)), "--reference", golden, "-o", tmp_path / "h.ply",
+            "--report", rep, "--check", "reference_nonfinite_vertices==0")
+    assert p.returncode == 1
+    m = _report(rep)["metrics"]
+    assert (m["compared_vertices"], m["nonfinite_vertices"], m["reference_nonfinite_vertices"]) == (len(V), 0, len(V))
+    assert f"{len(V)} vertices with a finite distance have none in the reference" in p.stderr
+    p = cli("geodesic", src, "-s", "0", "--reference", golden, "-o", tmp_path / "h.ply", "--report", rep)
+    assert p.returncode == 0 and _report(rep)["metrics"]["reference_nonfinite_vertices"] == 0
+    assert "none in the reference" not in p.stderr

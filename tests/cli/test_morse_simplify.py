@@ -591,3 +591,21 @@ def test_a_relative_persistence_past_the_range_is_noted(cli, fixture_dir, tmp_pa
     p = cli("morse-simplify", fixture_dir / "icosphere.ply", "-f", "z", "-p", "1", "--relative", "-o",
             tmp_path / "o.ply")
     assert p.returncode == 0 and "whole range" not in p.stderr
+
+
+def test_faces_collapsed_by_merging_are_named_with_the_way_out(cli, tmp_path):
+    import trimesh
+
+    ico = trimesh.creation.icosphere(2)
+    V = ico.vertices.copy()
+    V[ico.faces[0, 1]] = V[ico.faces[0, 0]]  # two vertices at one position: a valid mesh as stored
+    path, out = tmp_path / "collapse.ply", tmp_path / "o.ply"
+    save_mesh(path, Mesh(V, ico.faces))
+    p = cli("morse-simplify", path, "-f", "z", "-p", "0.1", "-o", out)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and not out.exists()
+    assert p.stderr.startswith(f"error: {path}: 2 faces repeat a vertex (first: face 0, vertices ")
+    assert ("; merging coincident positions on loading made all of them (--no-clean keeps the stored vertices); "
+            "morse-simplify needs a manifold mesh") in p.stderr
+    p = cli("morse-simplify", path, "-f", "z", "-p", "0.1", "-o", out, "--no-clean", "-q")
+    assert p.returncode == 0, p.stderr
+    assert len(load_mesh(out, clean=False).V) == len(V)

@@ -59,3 +59,33 @@ def test_a_face_repeating_a_vertex_anywhere_is_refused(face):
 
     with pytest.raises(InputError, match=r"1 face repeats a vertex \(first: face 1, vertices "):
         require_edge_manifold(np.array([[0, 1, 2], face]), "m.obj")
+
+
+def test_faces_that_merging_collapses_are_counted_and_named_in_the_refusal():
+    import trimesh
+
+    from geoproc.mesh.clean import clean_mesh
+    from geoproc.mesh.validate import require_edge_manifold
+
+    ico = trimesh.creation.icosphere(1)
+    Vs, Fs = ico.vertices.copy(), ico.faces.copy()
+    a, b = Fs[3, 0], Fs[3, 1]
+    Vs[b] = Vs[a]  # an edge of length zero: its two faces collapse once its ends merge
+    Fs = np.vstack([Fs, [[a, a, b]]])  # and one face the file itself stores with a repeated vertex
+    m = clean_mesh(Mesh(Vs, Fs))
+    both = np.flatnonzero(((Fs == a) | (Fs == b)).sum(axis=1) >= 2)[:-1]
+    assert m.log.merged_vertices == 1 and m.log.collapsed_faces == 2
+    k = int(both[0])
+    assert len(both) == 2 and m.log.first_collapsed_face == k
+    with pytest.raises(InputError, match=rf"^m.ply: 3 faces repeat a vertex \(first: face {k}, vertices .*\); merging "
+                                         rf"coincident positions on loading made 2 of them \(first: face {k}\) "
+                                         r"\(--no-clean keeps the stored vertices\); x$"):
+        require_edge_manifold(m.F, "m.ply", "; x", m.log)
+    alone = clean_mesh(Mesh(Vs, Fs[:-1]))
+    with pytest.raises(InputError, match=rf"2 faces repeat a vertex \(first: face {k}, vertices .*\); merging "
+                                         r"coincident positions on loading made all of them \(--no-clean"):
+        require_edge_manifold(alone.F, "m.ply", "", alone.log)
+    stored = clean_mesh(Mesh(ico.vertices, np.vstack([ico.faces, [[a, a, b]]])))  # nothing merged
+    assert stored.log.collapsed_faces == 0 and stored.log.first_collapsed_face == -1
+    with pytest.raises(InputError, match=r"1 face repeats a vertex \(first: face 80, vertices \d+ \d+ \d+\)$"):
+        require_edge_manifold(stored.F, "m.ply", "", stored.log)
