@@ -48,6 +48,16 @@ FLUX_NOTE = 0.1
 HARMONIC_NOTE, since Neumann data given for a smooth curve meets the normals of the
 polyline that stands for it only to the polyline's angles (a few hundredths)."""
 
+FLUX_CHANGE_LIMIT = 1e300
+"""Neumann data whose largest magnitude times the domain's bounding-box diagonal
+exceeds this are refused before the walks: the solution changes by about that
+much, far beyond the EXR's float32 range, and the walks' sums overflow on the way
+(data that would fit a double but not the EXR are refused when written)."""
+
+ROUNDING_SPREAD = 1e-12
+"""A solution whose values spread by less than this fraction of their magnitude is
+constant to the rounding of the walks' doubles: no note on the EXR's float32 steps."""
+
 EPSILON_NOTE = 0.01
 """An --epsilon above this fraction of the domain's bounding-box diagonal gets a note: on
 a 2 mm square at the default 1e-3 every walk stopped where it started."""
@@ -218,6 +228,16 @@ def wos_solve(
                              f"range of the EXR output ({EXR_MAX:.3g}); rescale the boundary data")
         lo, hi = dom.bbox
         diag = float(np.linalg.norm(hi - lo))
+        # a flux that large makes the solution's change over the domain (about flux x size) overflow
+        # the walks' doubles long before it could fit the EXR: npass had overflowed on 1e160 and
+        # blamed data past 1e307, cv-green had warned from its fit
+        from geoproc.wos.problem import neumann_data_bound
+
+        big = neumann_data_bound(dom, h)
+        if big * diag > FLUX_CHANGE_LIMIT:
+            raise UsageError(f"{domain}: --neumann reaches {big:.3g} on the Neumann boundary, over a domain "
+                             f"{diag:.3g} across: the solution would be far beyond the float32 range of the "
+                             f"EXR output ({EXR_MAX:.3g}); rescale the boundary data")
         if epsilon > EPSILON_NOTE * diag:
             run.note(f"--epsilon {epsilon:g} is {epsilon / diag:.2g} of the domain's bounding-box diagonal "
                      f"({diag:.3g}): walks stop that far from the boundary and score the closest boundary "
@@ -253,6 +273,10 @@ def wos_solve(
             run.note(f"{res.metrics['fit_points']} fit points used, not {wanted}"
                      f"{'' if fit_points is not None else f' ({FIT_POINTS_PER_KERNEL} x the kernels used)'}: "
                      "every grid point farther than 2 x epsilon from the boundary (raise --grid for more)")
+        if fitted and ridge == 0 and used and res.metrics.get("fit_points", 0) <= used:
+            run.note(f"--ridge 0 with {res.metrics.get('fit_points', 0)} fit points for {used} kernels: the fit is "
+                     "the minimum-norm one through the fit walks' noise, whose large coefficients the control "
+                     "variate adds back (a ridge > 0, or more fit points, keeps them small)")
         if exact:
             _note_declared_checks(run, res.metrics, neumann is not None)
         gs = res.grid
@@ -272,7 +296,10 @@ def wos_solve(
             fin = res.U[np.isfinite(res.U)]
             lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (0.0, 0.0)
             steps = float32_steps(lo, hi)
-            if 0 < steps < 1000:
+            # a spread within the doubles' rounding of the values is no variation (constant data with a
+            # control variate varied by 1e-14 around 1, and the note had advised subtracting a constant)
+            rounding = hi - lo <= ROUNDING_SPREAD * max(abs(lo), abs(hi))
+            if 0 < steps < 1000 and not rounding:
                 levels = "less than one step" if steps < 1 else f"only {steps:.0f} steps"
                 fix = ("multiply the boundary data by a constant" if max(abs(lo), abs(hi)) < np.finfo(np.float32).tiny
                        else "subtract a constant from the boundary data (a value it takes on the domain)")

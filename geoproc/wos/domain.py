@@ -421,7 +421,7 @@ def _require_extent_in_range(L: np.ndarray, k: int, source: str) -> None:
     if big > MAX_COORDINATE:
         raise InputError(source, f"loop {k} has coordinates as large as {big:.3g}; they must stay within "
                          f"+-{MAX_COORDINATE:.0e} (rescale the domain)")
-    span = float(np.linalg.norm(L.max(axis=0) - L.min(axis=0)))
+    span = float(np.hypot(*(L.max(axis=0) - L.min(axis=0))))  # a norm's squares underflow below 1e-154
     if 0.0 < span < MIN_EXTENT:
         raise InputError(source, f"loop {k} spans only {span:.3g}, below {MIN_EXTENT:.0e} (rescale the domain)")
 

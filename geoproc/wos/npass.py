@@ -63,7 +63,7 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
     # spread of the fitted control variate over the interior, so that scaling the
     # boundary data scales the result (with lr absolute, data of size 1e-3 had ended
     # ten times worse than plain walks, relative to its size)
-    spread = float(np.std((K - mu) @ sigma))
+    spread = _spread((K - mu) @ sigma)
     unit = spread if spread > 0 else (abs(float(s[-1])) or 1.0)
     step = lr * unit
     m1 = np.zeros_like(s)
@@ -83,11 +83,12 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
         if dPhi is not None and len(dPhi):
             Dn = dPhi / scale
             grad[:-1] += 2.0 * Dn.T @ (Dn @ s[:-1] - flux) / len(Dn)
+        grad /= unit  # in the data's units, whose squares overflow past 1e154 (Adam's step is the same)
         m1 = beta1 * m1 + (1 - beta1) * grad
         m2 = beta2 * m2 + (1 - beta2) * grad**2
         mh = m1 / (1 - beta1 ** (it + 1))
         vh = m2 / (1 - beta2 ** (it + 1))
-        s = s - step * mh / (np.sqrt(vh) + tiny * unit)
+        s = s - step * mh / (np.sqrt(vh) + tiny)
         if it >= steps // 2:
             mean_s += (s - mean_s) / (it - steps // 2 + 1)
         walks_total += batch * walks
@@ -98,3 +99,10 @@ def adam_refine(problem, kernels: KernelSet, sigma: np.ndarray, b: float, scale:
         s = mean_s
     sigma = s[:-1] / scale
     return sigma, float(s[-1] - sigma @ mu), walks_total, steps_total
+
+
+def _spread(c: np.ndarray) -> float:
+    """Standard deviation of ``c`` (k,) without squaring values past 1e154
+    (``np.std`` overflows there): of ``c`` over its largest magnitude, times it."""
+    top = float(np.abs(c).max(initial=0.0))
+    return top * float(np.std(c / top)) if 0.0 < top < np.inf else float(np.std(c))

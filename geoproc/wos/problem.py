@@ -84,6 +84,22 @@ def dirichlet_data_bound(domain: Domain, boundary: Expression | None, samples: i
     return float(v.max()) if v.size else 0.0
 
 
+def neumann_data_bound(domain: Domain, flux: Expression | None, samples: int = 9) -> float:
+    """The largest magnitude of the Neumann data: ``flux`` at ``samples`` evenly
+    spaced points of every Neumann segment, with that segment's outward normal
+    (as :func:`require_finite_boundary_data` reads it); 0 without Neumann
+    segments or data. Non-finite samples are left out (that function refuses them)."""
+    mask = domain.neumann
+    if flux is None or not mask.any():
+        return 0.0
+    P = segment_samples(domain, mask, samples)
+    N = np.repeat(domain.outward_normals[mask], samples, axis=0)
+    with np.errstate(all="ignore"):
+        v = np.abs(evaluate(flux, P[:, 0], P[:, 1], N[:, 0], N[:, 1]))
+    v = v[np.isfinite(v)]
+    return float(v.max()) if v.size else 0.0
+
+
 def require_dirichlet_in_every_part(domain: Domain) -> None:
     """InputError naming a connected part of the domain whose whole boundary is
     Neumann: u is not unique there, and its walks would never stop (they ran to

@@ -99,6 +99,11 @@ def test_a_solution_float32_cannot_resolve_is_noted(cli, inputs, tmp_path):
     assert np.ptp(read_exr(str(tmp_path / "u.exr"))[np.isfinite(read_exr(str(tmp_path / "u.exr")))]) == 0
     p = cli(*args, "--boundary", "x")
     assert p.returncode == 0 and "float32" not in p.stderr
+    # constant data: a control variate leaves rounding (1e-14 around 1 on the disk), no variation
+    for method in ("cv-green", "cv-angle", "npass"):
+        p = cli("wos-solve", inputs / "disk.json", "--boundary", "1", "-m", method, "--grid", "64", "--walks", "16",
+                "-o", tmp_path / "u.exr")
+        assert p.returncode == 0 and "float32" not in p.stderr, (method, p.stderr)
 
 
 def test_mask_domain(cli, inputs, tmp_path):
@@ -271,13 +276,18 @@ def test_output_to_standard_output_is_refused_in_words(cli, inputs, tmp_path):
     # (--boundary past float32's range is refused before the walks, naming the domain)
     ("big_values.json", ["--boundary", "1.7e308 + 0*x"], ("big_values.json: --boundary reaches 1.7e+308",
                                                           "beyond the float32 range of the EXR")),
-    ("rect.json", ["--boundary", "y", "--neumann", "1.7e308"], ("rect.json: the walk estimates at",
-                                                                "(data from --boundary and --neumann)")),
+    # (a flux that large is refused before the walks too, naming it: the walks' sums had overflowed)
+    ("rect.json", ["--boundary", "y", "--neumann", "1.7e308"], ("rect.json: --neumann reaches 1.7e+308",
+                                                                "far beyond the float32 range")),
+    # (a flux finite at the checked points, 1e200 at most, and beyond the doubles within 0.03 of x = 0.1)
+    ("rect.json", ["--boundary", "y", "--neumann", "1/(x-0.1)**200", "--grid", "16", "--walks", "16"],
+     ("rect.json: the walk estimates at", "(data from --boundary and --neumann)")),
 ])
 def test_walk_estimates_too_large_to_average_name_the_domain(cli, inputs, tmp_path, domain, extra, message):
     # the error line named no file, then named --boundary where the flux was too large
     out = tmp_path / "u.exr"
-    p = cli("wos-solve", inputs / domain, *extra, "--grid", "4", "--walks", "2", "-o", out)
+    size = [] if "--grid" in extra else ["--grid", "4", "--walks", "2"]
+    p = cli("wos-solve", inputs / domain, *size, *extra, "-o", out)
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 2 and len(lines) == 1 and all(m in lines[0] for m in message), p.stderr
     assert not out.exists()
@@ -565,3 +575,36 @@ def test_a_neumann_flux_from_the_outward_normal(cli, tmp_path):
     p = cli("wos-solve", dom, "--boundary", "x*nx", "--grid", "8", "--walks", "2", "-o", tmp_path / "v.exr")
     assert p.returncode == 2 and p.stderr.count("\n") == 1
     assert "--boundary 'x*nx': nx, the boundary's outward normal, is for a flux (--neumann) only" in p.stderr
+
+
+def test_ridge_zero_with_fewer_fit_points_than_kernels_is_noted(cli, inputs, tmp_path):
+    # the minimum-norm fit goes through the fit walks' noise: on the disk with 80 kernels and the
+    # few fit points of an 8 x 8 grid its coefficients are huge, and the control variate adds them
+    # back (the star at grid 12 had an rmse of 3.7e7 against 0.08 for naive, without a word)
+    rep = tmp_path / "r.json"
+    args = ("wos-solve", inputs / "disk.json", "--boundary", "exp(x)*cos(y)", "--walks", "8", "--grid", "8",
+            "--fit-walks", "8", "-m", "cv-green", "--exact", "-o", tmp_path / "u.exr", "--report", rep)
+    p = cli(*args, "--ridge", "0")
+    m = json.loads(rep.read_text())["metrics"]
+    assert p.returncode == 0 and m["fit_points"] <= m["kernels_used"]
+    assert (f"note: --ridge 0 with {m['fit_points']} fit points for {m['kernels_used']} kernels: the fit is the "
+            "minimum-norm one") in p.stderr
+    p = cli(*args)
+    assert p.returncode == 0 and "--ridge 0" not in p.stderr
+    assert json.loads(rep.read_text())["metrics"]["rmse"] < 0.1 * m["rmse"]  # what the note is about
+
+
+@pytest.mark.parametrize("method", ["naive", "cv-green", "npass"])
+def test_neumann_data_too_large_are_named_for_what_they_are(cli, inputs, tmp_path, method):
+    # npass had squared its gradients past 1e154 and blamed data beyond 1e307 for a flux of
+    # 1e160; cv-green's fit had warned on 1e308: each now says what is too large, in one line
+    out = tmp_path / "u.exr"
+    p = cli("wos-solve", inputs / "rect.json", "--boundary", "y", "--neumann", "1e160", "-m", method,
+            "--grid", "8", "--walks", "8", "-o", out)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and not out.exists()
+    assert "the solution reaches 1." in p.stderr and "e+160, beyond the float32 range of EXR" in p.stderr
+    p = cli("wos-solve", inputs / "rect.json", "--boundary", "y", "--neumann", "1e308", "-m", method,
+            "--grid", "8", "--walks", "8", "-o", out)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and not out.exists()
+    assert ("--neumann reaches 1e+308 on the Neumann boundary, over a domain 2.24 across: the solution would be "
+            "far beyond the float32 range of the EXR output") in p.stderr

@@ -743,3 +743,14 @@ def test_wost_flux_from_the_outward_normal_on_tilted_walls():
     wrong = parse_expression("y*nx - x*ny", "--neumann", normals=True)
     assert declared_flux_gap(g, h, d, 2 * np.sqrt(2), 2.0) < 1e-4
     assert declared_flux_gap(g, wrong, d, 2 * np.sqrt(2), 2.0) > 0.1
+
+
+@pytest.mark.parametrize("size", [1e-100, 1e-160, 1e-200, 1e-300])
+def test_a_loop_too_small_to_resolve_is_refused_however_small(size):
+    # the span had been a norm, whose squares underflow below about 1e-154: smaller loops
+    # passed, and their outward normals divided by zero
+    from geoproc.errors import InputError
+
+    square = [[-1, -1], [1, -1], [1, 1], [-1, 1]]
+    with pytest.raises(InputError, match=r"loop 1 spans only .*, below 1e-15 \(rescale the domain\)"):
+        build_domain([square, [[0, 0], [size, 0], [0, size]]])
