@@ -80,6 +80,15 @@ def format_from_extension(path: str) -> str:
     return ext
 
 
+def _text(raw: bytes) -> str:
+    """File bytes quoted in a message: UTF-8 as written (they had been read as Latin-1,
+    'é' shown as 'Ã©'), a byte that does not decode as its escape (``\\xff``)."""
+    return raw.decode("utf-8", "backslashreplace")
+
+
+_LEADING_COMMENTS = re.compile(rb"(\s*#[^\n]*\n)+")
+
+
 def sniff_format(data: bytes, path: str = "-") -> str:
     """Guess the mesh format of raw bytes (for standard input)."""
     # a binary STL's length is exact; its 80-byte header is free text, which may start with
@@ -92,7 +101,11 @@ def sniff_format(data: bytes, path: str = "-") -> str:
                                "not from standard input")
     if data.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark
         data = data[3:]
-    head = re.sub(rb"^(\s*#[^\n]*\n)+", b"", data[:4096]).lstrip()  # OFF and OBJ allow leading comments
+    # OFF and OBJ allow leading comments, as long as they like (a comment cut at byte 4096 had
+    # been read as the first token, and an OBJ whose first keyword came after 64 KB not found)
+    skipped = _LEADING_COMMENTS.match(data)
+    start = skipped.end() if skipped else 0
+    head = data[start:start + 4096].lstrip()
     if head.startswith(b"ply"):
         return "ply"
     first = head.split(None, 1)[0] if head.strip() else b""
@@ -102,7 +115,7 @@ def sniff_format(data: bytes, path: str = "-") -> str:
         return "off"
     if head[:5].lower() == b"solid" and b"facet" in data[:4096].lower():  # (upper case too, as by name)
         return "stl"
-    if re.search(rb"^[ \t]*(v|vt|vn|vp|f|l|o|g|s|usemtl|mtllib)[ \t]", data[:65536], flags=re.M):
+    if re.search(rb"^[ \t]*(v|vt|vn|vp|f|l|o|g|s|usemtl|mtllib)[ \t]", data[start:start + 65536], flags=re.M):
         return "obj"
     raise InputError(path, "cannot tell the mesh format of the data (not PLY, OFF, STL or OBJ)")
 
@@ -379,7 +392,7 @@ def _require_declared_rows_fit(data: bytes, path: str):
                            data[:max(data.find(b"end_header"), 0)], re.M)
     if long_count:  # plyfile's int() would refuse past 4300 digits, with advice on Python's settings
         raise InputError(path, f"PLY header declares a count of more than {MAX_COUNT_DIGITS} digits for its "
-                               f"'{long_count.group(1).decode('latin-1')}' rows")
+                               f"'{_text(long_count.group(1))}' rows")
     header = parse_ply_header(data)
     if header is None:
         return None
@@ -671,7 +684,7 @@ def _leading_numbers(lines: list, k: int, path: str, problem) -> tuple[np.ndarra
                 raise ValueError
             X[i] = [float(t) for t in tokens[:k]]
         except ValueError:
-            raise InputError(path, problem(i, line.decode("latin-1").strip())) from None
+            raise InputError(path, problem(i, _text(line).strip())) from None
     return X, narrow, width
 
 
@@ -746,7 +759,7 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
         kind = _OFF_KEYWORD.fullmatch(b"OFF")
     if kind is None:  # the keyword is optional: a first line of counts
         if not all(t.isdigit() for t in head) or len(head) not in (2, 3):
-            raise InputError(path, f"unparseable OFF: the first line '{lines[0].decode('latin-1').strip()[:40]}' "
+            raise InputError(path, f"unparseable OFF: the first line '{_text(lines[0]).strip()[:40]}' "
                                    "is neither an OFF keyword nor the vertex and face counts")
         counts, start, homogeneous = head, 1, False
     else:
@@ -758,7 +771,7 @@ def _parse_off(data: bytes, path: str) -> tuple[Mesh, int, list[str]]:
                 rest, start = lines[1].split(), 2
             dim = rest[0] if rest else b"?"
             if dim != b"3":
-                raise InputError(path, f"nOFF of dimension {dim.decode('latin-1')}: only 3-D vertices are read")
+                raise InputError(path, f"nOFF of dimension {_text(dim)}: only 3-D vertices are read")
             rest = rest[1:]
         counts = rest
         if not counts and len(lines) > start:
@@ -827,7 +840,7 @@ def _off_by_lines(lines: list, nv: int, nf: int, path: str, homogeneous: bool,
         try:
             corners = int(tokens[0])
         except ValueError:
-            raise InputError(path, f"OFF face {i}: '{tokens[0].decode('latin-1')}' is not a corner count") from None
+            raise InputError(path, f"OFF face {i}: '{_text(tokens[0])}' is not a corner count") from None
         if len(tokens) - 1 < corners:
             raise InputError(path, f"OFF face {i} declares {corners} corners but lists {len(tokens) - 1}")
         if corners < 3:

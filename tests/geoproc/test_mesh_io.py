@@ -288,6 +288,29 @@ def test_a_zip_archive_on_standard_input_is_named_as_an_animation():
         sniff_format(b"PK\x03\x04garbage\nv 1 2 3\nf 1 2 3\n")
 
 
+@pytest.mark.parametrize("fmt,lines", [("off", 80), ("obj", 80), ("obj", 1000)])
+def test_sniffing_reads_past_leading_comments_of_any_length(sphere, fmt, lines):
+    # 5.6 KB of comments before OFF had cut one at byte 4096 and read it as the first token, and an
+    # OBJ's first keyword after 64 KB was not found: "cannot tell the mesh format", read fine by name
+    pad = b"".join(b"# comment line %05d with some padding text to make it longer........\n" % i
+                   for i in range(lines))
+    data = pad + mesh_to_bytes(sphere, fmt)
+    assert sniff_format(data) == fmt
+    assert len(read_mesh_bytes(data, fmt, "-").F) == len(sphere.F)
+
+
+@pytest.mark.parametrize("name,data,quoted", [
+    ("m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 \u00d7\nf 1 2 3\n".encode(), "'v 1 1 \u00d7'"),
+    ("m.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 \xe9\n3 0 1 2\n", "'0 1 \\xe9'"),
+])
+def test_file_text_in_messages_is_quoted_as_written(tmp_path, name, data, quoted):
+    # UTF-8 had been decoded as Latin-1 ('\u00d7' shown as '\u00c3\u0097'); a byte that is no UTF-8 is escaped
+    (tmp_path / name).write_bytes(data)
+    with pytest.raises(InputError) as err:
+        load_mesh(tmp_path / name)
+    assert quoted in str(err.value)
+
+
 @pytest.mark.parametrize("fmt", ["ply", "obj", "off", "stl"])
 def test_sniffing_standard_input(sphere, fmt):
     data = mesh_to_bytes(sphere, fmt)
