@@ -513,8 +513,12 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
     if k < 4:
         raise UsageError(f"--k {k}: must be at least 4")
     cloud = run.load_mesh(input, clean=not no_clean, mesh_output=output)
-    # (a k beyond the points is refused by the method, naming the count)
-    require_memory(OUTLIER_BYTES * len(cloud.V) * min(k, len(cloud.V)), f"--k {k} on {len(cloud.V)} points")
+    n = len(cloud.V)
+    if k > n:  # before the memory it would need: that had been the error, beyond the machine's memory
+        raise InputError(cloud.log.path or input, f"has {n} point{'s' if n != 1 else ''}, fewer than the "
+                                                  f"neighbourhood size k={k}")
+    # (a k beyond the distinct points is refused by the method, naming their count)
+    require_memory(OUTLIER_BYTES * n * k, f"--k {k} on {n} points")
     if "outlier" not in cloud.vertex_fields:
         _refuse_scored_checks(run, cloud.log.path or input)
     from geoproc.denoise.outliers import detection_scores, rpca_outliers

@@ -19,7 +19,73 @@ its normal (:func:`face_normals_and_areas`): its cross product is then at most
 about 1e-16 of it turns the normal by up to 1e-6 radians there."""
 
 
-def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+STORED_COLLINEAR = 4.0
+"""A face whose height over its longest edge is at most this many times the
+rounding of the stored coordinates (:func:`stored_rounding`) is collinear as
+stored: rounding each of three collinear points by up to d moves the middle one
+off the others' line by at most 2 sqrt(3) d."""
+
+DECIMAL_GRID_LIMIT = 1e-3
+"""A grid of stored coordinates coarser than this fraction of the mean edge
+length is not rounding (integer coordinates of a synthetic mesh are exact)."""
+
+
+def stored_rounding(V: np.ndarray, F: np.ndarray) -> float:
+    """How far rounding to the precision they are stored in may have moved the
+    vertices the faces use: half the step of the decimal grid they lie on (a
+    coordinate written with six decimals: 5e-7), or half a float32 spacing at
+    their largest magnitude when every one is a float32 number; 0 for doubles
+    on no such grid, and for a grid coarser than :data:`DECIMAL_GRID_LIMIT` of
+    the mean edge length. In V's length unit.
+
+    An edge's midpoint stored that way as a face's third corner (a T-junction
+    filler) lies off its segment by that rounding: a sine of 1e-6 where one of
+    full double precision has 1e-16, so :data:`DEGENERATE_SINE` alone misses it.
+    """
+    X = V[np.unique(F)] if len(F) else V[:0]
+    if not X.size:
+        return 0.0
+    top = float(np.abs(X).max())
+    if top == 0.0:
+        return 0.0
+    a, b = face_corner_edges(V, F)
+    limit = DECIMAL_GRID_LIMIT * float(np.concatenate([row_norms(a), row_norms(b)]).mean())
+    sample = X.reshape(-1)[:: max(1, X.size // 997)]
+    for k in range(16):  # the coarsest decimal grid (as written with k decimals)
+        scale = 10.0**k
+        if top * scale > 1e12:  # beyond, doubles no longer tell a grid point from its neighbours
+            break
+        if all(np.abs(Y * scale - np.rint(Y * scale)).max() <= 1e-6 for Y in (sample, X)):
+            # on a grid coarser than the limit the data are exact (integers are float32 numbers too)
+            return 0.5 / scale if 0.5 / scale <= limit else 0.0
+    if np.array_equal(X.astype(np.float32).astype(np.float64), X):
+        half = 0.5 * float(np.spacing(np.float32(top)))
+        return half if half <= limit else 0.0
+    return 0.0
+
+
+def _collinear(a: np.ndarray, b: np.ndarray, rounding: float) -> np.ndarray:
+    """(m,) bool: faces with corner edges a, b (m, 3) whose corners lie on a line:
+    a sine at the first corner below :data:`DEGENERATE_SINE`, or a height within
+    :data:`STORED_COLLINEAR` x ``rounding`` (zero area included)."""
+    la, lb = row_norms(a), row_norms(b)
+    length = row_norms(cross_rows(a, b))
+    flat = length <= DEGENERATE_SINE * la * lb
+    if rounding > 0:
+        longest = np.maximum(np.maximum(la, lb), row_norms(b - a))
+        flat |= length <= STORED_COLLINEAR * rounding * longest
+    return flat
+
+
+def collinear_faces(V: np.ndarray, F: np.ndarray, rounding: float = 0.0) -> np.ndarray:
+    """(m,) bool: the faces whose corners lie on a line, the degenerate faces of
+    :func:`face_normals_and_areas` (zero area, a sine below
+    :data:`DEGENERATE_SINE`, or with ``rounding`` a line as stored): they have no
+    normal of their own."""
+    return _collinear(*face_corner_edges(V, F), rounding)
+
+
+def face_normals_and_areas(V: np.ndarray, F: np.ndarray, rounding: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Unit face normals and face areas, never NaN.
 
     A degenerate face gets the area-weighted mean normal of the non-degenerate
@@ -28,7 +94,8 @@ def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
     rounding error), so it carries no weight to speak of. Degenerate: zero area, or a sine
     of the angle at its first corner below :data:`DEGENERATE_SINE` (a midpoint
     of an edge stored as a third corner gives an area of rounding error, whose
-    cross product points anywhere).
+    cross product points anywhere), or, with ``rounding`` (:func:`stored_rounding`),
+    corners on a line as stored (:data:`STORED_COLLINEAR`).
 
     Returns
     -------
@@ -41,7 +108,7 @@ def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
     cross = cross_rows(a, b)
     length = row_norms(cross)
     A = 0.5 * length
-    good = length > DEGENERATE_SINE * row_norms(a) * row_norms(b)
+    good = ~_collinear(a, b, rounding) if rounding > 0 else length > DEGENERATE_SINE * row_norms(a) * row_norms(b)
     N = np.zeros_like(cross)
     N[good] = cross[good] / length[good, None]
     if not good.all():
@@ -55,9 +122,11 @@ def face_normals_and_areas(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
     return N, A
 
 
-def collinear_middles(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def collinear_middles(V: np.ndarray, F: np.ndarray,
+                      rounding: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The middle corners of the degenerate faces whose three corners lie on a
-    line (:data:`DEGENERATE_SINE`), such as T-junction fillers: an edge's
+    line (:data:`DEGENERATE_SINE`; with ``rounding``, also on a line as stored,
+    :data:`STORED_COLLINEAR`), such as T-junction fillers: an edge's
     midpoint stored as a face's third corner.
 
     Returns
@@ -69,7 +138,7 @@ def collinear_middles(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndar
         Where ``mid`` lies on the segment, ``V[mid] = V[a] + t (V[b] - V[a])``.
     """
     e1, e2 = face_corner_edges(V, F)
-    bad = np.flatnonzero(row_norms(cross_rows(e1, e2)) <= DEGENERATE_SINE * row_norms(e1) * row_norms(e2))
+    bad = np.flatnonzero(_collinear(e1, e2, rounding))
     if not len(bad):
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty, empty, np.zeros(0)
@@ -98,6 +167,16 @@ def keep_on_segments(X: np.ndarray, middles, fixed: np.ndarray | None = None) ->
         if fixed is None or not fixed[i]:
             X[i] = X[j] + s * (X[k] - X[j])
     return X
+
+
+def on_segments_as_stored(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """``V`` with the middle corner of every face collinear as stored
+    (:func:`stored_rounding`) put on the segment between the other two, where
+    the file's rounding had moved it off; ``V`` itself when the coordinates are
+    full doubles. Six-decimal OBJ or float32 PLY midpoints had read as real
+    slivers (sine 1e-6), which the fit opened into fins."""
+    rounding = stored_rounding(V, F)
+    return keep_on_segments(V, collinear_middles(V, F, rounding)) if rounding > 0 else V
 
 
 def face_aspect(V: np.ndarray, F: np.ndarray, N: np.ndarray | None = None) -> np.ndarray:

@@ -5,8 +5,16 @@ from __future__ import annotations
 import igl
 import numpy as np
 
-from geoproc.denoise.face_geometry import face_normals_and_areas
+from geoproc.denoise.face_geometry import face_normals_and_areas, stored_rounding
 from geoproc.mesh.topology import mean_edge_length, referenced_vertices
+
+
+def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m, 3) unit face normals for the metrics (:func:`face_normals_and_areas`),
+    faces whose corners lie on a line as stored (a T-junction filler of a
+    six-decimal OBJ) taking their neighbours' normal as exact ones do: a
+    rounding-error normal 90 degrees off had been counted as the largest angle."""
+    return face_normals_and_areas(V, F, stored_rounding(V, F))[0]
 
 
 def normal_angles_deg(N: np.ndarray, N_ref: np.ndarray) -> np.ndarray:
@@ -17,13 +25,12 @@ def normal_angles_deg(N: np.ndarray, N_ref: np.ndarray) -> np.ndarray:
 
 def mean_normal_angle_deg(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> float:
     """Mean angle in degrees between the face normals of V and of V_ref (same faces F): theta."""
-    return float(normal_angles_deg(face_normals_and_areas(V, F)[0], face_normals_and_areas(V_ref, F)[0]).mean())
+    return float(normal_angles_deg(face_normals(V, F), face_normals(V_ref, F)).mean())
 
 
 def flipped_faces(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> np.ndarray:
     """Indices of faces whose normal is more than 90 degrees from the reference."""
-    N, _ = face_normals_and_areas(V, F)
-    N_ref, _ = face_normals_and_areas(V_ref, F)
+    N, N_ref = face_normals(V, F), face_normals(V_ref, F)
     return np.flatnonzero(np.einsum("ij,ij->i", N, N_ref) < 0.0)
 
 
@@ -82,9 +89,7 @@ def denoise_errors(V: np.ndarray, F: np.ndarray, V_ref: np.ndarray) -> dict:
     The bounding box and the vertex distances count only the vertices some
     face uses (a vertex no face uses is not on the surface).
     """
-    N, _ = face_normals_and_areas(V, F)
-    N_ref, _ = face_normals_and_areas(V_ref, F)
-    ang = normal_angles_deg(N, N_ref)
+    ang = normal_angles_deg(face_normals(V, F), face_normals(V_ref, F))
     used = referenced_vertices(F, len(V))
     on = V_ref[used]
     diag = float(np.linalg.norm(on.max(axis=0) - on.min(axis=0)))

@@ -527,6 +527,20 @@ def test_a_k_beyond_the_points_is_named_as_such_whatever_the_memory(dfx, tmp_pat
         cli_main.main()
     err = capsys.readouterr().err
     assert stop.value.code == 2 and "fewer than the neighbourhood size" in err and "out of memory" not in err
+    # nor when the points alone, each with all the others as neighbours, would not fit the memory
+    # (k 25,000 on 20,000 points had read "out of memory ... needs about 55.9 GiB")
+    from geoproc_cli import common
+
+    P, _ = dfx.cloud_with_outliers(3000, 0.1, 0.05)
+    save_mesh(src, Mesh(P, np.zeros((0, 3), int)))
+    monkeypatch.setattr(common, "available_memory", lambda: 2**30)  # 1 GiB: 3000 x 3000 neighbours need more
+    monkeypatch.setattr("sys.argv", ["geoproc", "denoise", str(src), "--outliers", "--k", "5000", "-o",
+                                     str(tmp_path / "o.ply")])
+    with pytest.raises(SystemExit) as stop:
+        cli_main.main()
+    err = capsys.readouterr().err
+    assert stop.value.code == 2
+    assert err.strip() == f"error: {src}: has 3000 points, fewer than the neighbourhood size k=5000"
 
 
 def test_feature_angle_sets_the_dihedral_threshold(cli, cube_pair, tmp_path):

@@ -244,6 +244,67 @@ def test_t_junction_fillers_stay_flat(make_fixtures, method):
     assert err["flipped_faces"] == 0 and err["max_normal_angle_deg"] < 30
 
 
+def _cube_with_fillers(make_fixtures, count=10):
+    """The noisy cube fixture (perturbed along its normals) with ``count`` edges split at
+    their midpoints and a filler (a, b, m) beside each: noisy and clean positions, faces."""
+    from geoproc.denoise.face_geometry import vertex_normals
+    from geoproc.mesh.topology import mean_edge_length
+
+    V, F = make_fixtures.cube(16)
+    enb = face_edge_neighbors(F)
+    rng = np.random.default_rng(3)
+    used, split = set(), []
+    for f in rng.permutation(len(F)):
+        g = int(enb[f, 0])
+        if g >= 0 and f not in used and g not in used:
+            used |= {int(f), g}
+            split.append(int(f))
+        if len(split) == count:
+            break
+    Vn = V + 0.3 * mean_edge_length(V, F) * rng.standard_normal(len(V))[:, None] * vertex_normals(V, F)
+    Fs, mids = [F.copy()], []
+    for k, f in enumerate(split):
+        a, b, c = F[f]
+        m = len(V) + k
+        Fs[0][f] = [a, m, c]
+        Fs.append(np.array([[m, b, c], [a, b, m]]))
+        mids.append((a, b))
+    mid_of = lambda X: np.array([(X[a] + X[b]) / 2 for a, b in mids])  # noqa: E731
+    return np.vstack([Vn, mid_of(Vn)]), np.vstack([V, mid_of(V)]), np.concatenate(Fs), mids, len(V)
+
+
+@pytest.mark.parametrize("stored", ["six decimals", "float32"])
+def test_fillers_rounded_by_their_file_stay_flat(make_fixtures, stored):
+    # six-decimal OBJ or float32 PLY midpoints lie off their segments by the rounding (a sine of
+    # 1e-6, not 1e-16): read as real slivers, the fit opened them into fins (theta 3.32 -> 9.29
+    # degrees on a noisy cube with 10 fillers, middle corners 0.275 edge lengths off)
+    from geoproc.denoise.face_geometry import stored_rounding
+
+    Vn, Vc, F, mids, n = _cube_with_fillers(make_fixtures)
+    exact = denoise_mesh(Vn, F)
+    base = denoise_errors(exact.V, F, Vc)["mean_normal_angle_deg"]
+    cut = (lambda X: np.round(X, 6)) if stored == "six decimals" else (lambda X: X.astype(np.float32).astype(float))
+    Rn, Rc = cut(Vn), cut(Vc)
+    assert stored_rounding(Rn, F) == pytest.approx(5e-7 if stored == "six decimals" else 0.5 * np.spacing(
+        np.float32(np.abs(Rn).max())), rel=1e-12)
+    X = denoise_mesh(Rn, F).V
+    for k, (a, b) in enumerate(mids):
+        u, w = X[n + k] - X[a], X[b] - X[a]
+        assert np.linalg.norm(np.cross(u, w)) <= 1e-9 * np.dot(w, w)  # on its segment
+    err = denoise_errors(X, F, Rc)
+    assert abs(err["mean_normal_angle_deg"] - base) < 0.5 and err["flipped_faces"] == 0
+    # the rounded clean mesh's fillers take their neighbours' normal in the metrics, as exact ones
+    assert denoise_errors(Rc, F, Vc)["max_normal_angle_deg"] < 1e-3
+
+
+def test_integer_coordinates_are_no_rounding(make_fixtures):
+    from geoproc.denoise.face_geometry import stored_rounding
+
+    V, F = make_fixtures.grid()
+    assert stored_rounding(np.round(V * 20), F) == 0.0  # a grid as coarse as the edges: exact data
+    assert stored_rounding(V + np.pi * 1e-3, F) == 0.0  # doubles on no grid
+
+
 def test_pinned_boundary_does_not_move(make_fixtures):
     V, F = make_fixtures.grid()
     rng = np.random.default_rng(1)
