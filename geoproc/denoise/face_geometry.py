@@ -58,7 +58,7 @@ def stored_rounding(V: np.ndarray, F: np.ndarray) -> float:
         if all(np.abs(Y * scale - np.rint(Y * scale)).max() <= 1e-6 for Y in (sample, X)):
             # on a grid coarser than the limit the data are exact (integers are float32 numbers too)
             return 0.5 / scale if 0.5 / scale <= limit else 0.0
-    if np.array_equal(X.astype(np.float32).astype(np.float64), X):
+    if top <= float(np.finfo(np.float32).max) and np.array_equal(X.astype(np.float32).astype(np.float64), X):
         half = 0.5 * float(np.spacing(np.float32(top)))
         return half if half <= limit else 0.0
     return 0.0

@@ -303,6 +303,8 @@ def test_integer_coordinates_are_no_rounding(make_fixtures):
     V, F = make_fixtures.grid()
     assert stored_rounding(np.round(V * 20), F) == 0.0  # a grid as coarse as the edges: exact data
     assert stored_rounding(V + np.pi * 1e-3, F) == 0.0  # doubles on no grid
+    with np.errstate(all="raise"):  # beyond float32's range: no float32 grid (the cast had warned)
+        assert stored_rounding((V + np.pi * 1e-3) * 1e40, F) == 0.0
 
 
 def test_pinned_boundary_does_not_move(make_fixtures):
