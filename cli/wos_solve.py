@@ -54,10 +54,6 @@ exceeds this are refused before the walks: the solution changes by about that
 much, far beyond the EXR's float32 range, and the walks' sums overflow on the way
 (data that would fit a double but not the EXR are refused when written)."""
 
-ROUNDING_SPREAD = 1e-12
-"""A solution whose values spread by less than this fraction of their magnitude is
-constant to the rounding of the walks' doubles: no note on the EXR's float32 steps."""
-
 EPSILON_NOTE = 0.01
 """An --epsilon above this fraction of the domain's bounding-box diagonal gets a note: on
 a 2 mm square at the default 1e-3 every walk stopped where it started."""
@@ -296,10 +292,13 @@ def wos_solve(
             fin = res.U[np.isfinite(res.U)]
             lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (0.0, 0.0)
             steps = float32_steps(lo, hi)
-            # a spread within the doubles' rounding of the values is no variation (constant data with a
-            # control variate varied by 1e-14 around 1, and the note had advised subtracting a constant)
-            rounding = hi - lo <= ROUNDING_SPREAD * max(abs(lo), abs(hi))
-            if 0 < steps < 1000 and not rounding:
+            # constant Dirichlet data and no flux: the solution is that constant, and any spread is the
+            # walks' rounding (1e-14 around 1 with a control variate; the note had advised subtracting
+            # a constant)
+            from geoproc.wos.expression import is_constant, is_zero
+
+            constant = g is not None and is_constant(g) and (h is None or is_zero(h))
+            if 0 < steps < 1000 and not constant:
                 levels = "less than one step" if steps < 1 else f"only {steps:.0f} steps"
                 fix = ("multiply the boundary data by a constant" if max(abs(lo), abs(hi)) < np.finfo(np.float32).tiny
                        else "subtract a constant from the boundary data (a value it takes on the domain)")

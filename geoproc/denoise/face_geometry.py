@@ -169,14 +169,15 @@ def keep_on_segments(X: np.ndarray, middles, fixed: np.ndarray | None = None) ->
     return X
 
 
-def on_segments_as_stored(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+def on_segments_as_stored(V: np.ndarray, F: np.ndarray, fixed: np.ndarray | None = None) -> np.ndarray:
     """``V`` with the middle corner of every face collinear as stored
     (:func:`stored_rounding`) put on the segment between the other two, where
     the file's rounding had moved it off; ``V`` itself when the coordinates are
     full doubles. Six-decimal OBJ or float32 PLY midpoints had read as real
-    slivers (sine 1e-6), which the fit opened into fins."""
+    slivers (sine 1e-6), which the fit opened into fins. Vertices that are
+    ``fixed`` ((n,) bool; pinned boundary vertices) stay."""
     rounding = stored_rounding(V, F)
-    return keep_on_segments(V, collinear_middles(V, F, rounding)) if rounding > 0 else V
+    return keep_on_segments(V, collinear_middles(V, F, rounding), fixed) if rounding > 0 else V
 
 
 def face_aspect(V: np.ndarray, F: np.ndarray, N: np.ndarray | None = None) -> np.ndarray:

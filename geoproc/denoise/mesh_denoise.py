@@ -468,7 +468,12 @@ def denoise_mesh(
     if p.features not in FEATURE_METHODS:
         raise ValueError(f"unknown feature method {p.features!r}")
     V, F = mesh_arrays(V, F)
-    V = on_segments_as_stored(V, F)  # T-junction fillers rounded off their segments by the file
+    # T-junction fillers rounded off their segments by the file (pinned boundary vertices stay)
+    pinned = None
+    if p.pin_boundary:
+        pinned = np.zeros(len(V), dtype=bool)
+        pinned[boundary_vertices(F)] = True
+    V = on_segments_as_stored(V, F, pinned)
     repeated = repeated_corner_faces(F)
     if repeated.any():  # no area and no normal: left out of the filter and the fit
         return _without_repeated_corner_faces(V, F, repeated, method, params, progress, initial_normals)

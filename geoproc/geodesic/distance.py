@@ -285,9 +285,11 @@ def require_method_mesh(V: np.ndarray, F: np.ndarray, method: str, lap: str | No
         from geoproc.mesh import Mesh
         from geoproc.mesh.mesh import LoadLog
 
-        require_manifold(Mesh(V, F, log=load_log or LoadLog(path=path or "")), f"; {label} needs a manifold mesh")
+        # (no method takes the zero-area faces those would be with --no-clean: not offered)
+        require_manifold(Mesh(V, F, log=load_log or LoadLog(path=path or "")), f"; {label} needs a manifold mesh",
+                         keeps_flat_faces=False)
     if method in NEEDS_EDGE_MANIFOLD:
-        require_edge_manifold(F, path, f"; {label} needs an edge-manifold mesh", load_log)
+        require_edge_manifold(F, path, f"; {label} needs an edge-manifold mesh", load_log, keeps_flat_faces=False)
     # every method starts from the input's own triangles: the cotan ones use them, the
     # intrinsic Delaunay flips start from their edge lengths (faces whose lengths give zero
     # area, with a cross product that does not, kept libigl's flips allocating until killed)

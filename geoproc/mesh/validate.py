@@ -99,13 +99,16 @@ def require_triangle_frames(V: np.ndarray, F: np.ndarray, path: str | None,
             raise frame_error(path, t, "degenerate mesh: every face has zero area", frame_files)
 
 
-def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "", log: LoadLog | None = None) -> None:
+def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "", log: LoadLog | None = None,
+                          keeps_flat_faces: bool = True) -> None:
     """Refuse a face that repeats a vertex (its edges would count twice) or an
     edge shared by more than two faces, naming the first; ``why`` ends the
     message (``"; denoising needs ..."``). ``log``, the mesh's load log: the
     message then says which of those faces the merge of coincident positions
     made (:attr:`LoadLog.collapsed_faces`), which the file stores with three
-    distinct vertices."""
+    distinct vertices, and, where the caller ``keeps_flat_faces`` (takes
+    faces of zero area, as those are once stored apart), that ``--no-clean``
+    keeps them apart."""
     from geoproc.mesh.topology import duplicate_faces, nonmanifold_edges, repeated_corner_faces
 
     F = np.asarray(F).reshape(-1, 3)
@@ -118,7 +121,8 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "", log: L
             c = log.collapsed_faces
             which = ("it" if one else "all of them" if c == len(rep)
                      else f"{c} of them (first: face {log.first_collapsed_face})")
-            merged = f"; merging coincident positions on loading made {which} (--no-clean keeps the stored vertices)"
+            out = "--no-clean keeps the stored vertices" if keeps_flat_faces else "an edge of length zero"
+            merged = f"; merging coincident positions on loading made {which} ({out})"
         raise InputError(path, f"{len(rep)} face{'' if one else 's'} repeat{'s' if one else ''} a vertex "
                                f"(first: face {k}, vertices {' '.join(str(int(i)) for i in F[k])}){merged}{why}")
     bad_e = nonmanifold_edges(F)
@@ -135,10 +139,10 @@ def require_edge_manifold(F: np.ndarray, path: str | None, why: str = "", log: L
                                f"(first: edge {a}-{b}){twice}{why}")
 
 
-def require_manifold(mesh: Mesh, why: str = "") -> None:
+def require_manifold(mesh: Mesh, why: str = "", keeps_flat_faces: bool = True) -> None:
     """Refuse a mesh with a repeated-vertex face or a non-manifold edge or
-    vertex, naming the first one."""
-    require_edge_manifold(mesh.F, mesh.log.path or None, why, mesh.log)
+    vertex, naming the first one (``keeps_flat_faces`` as for :func:`require_edge_manifold`)."""
+    require_edge_manifold(mesh.F, mesh.log.path or None, why, mesh.log, keeps_flat_faces)
     require_vertex_manifold(mesh, why)
 
 

@@ -826,8 +826,11 @@ def test_faces_collapsed_by_merging_are_named_with_the_way_out(cli, tmp_path, me
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and not out.exists()
     need = "a manifold" if method == "exact" else "an edge-manifold"
     assert p.stderr.startswith(f"error: {path}: 2 faces repeat a vertex (first: face 0, vertices ")
-    assert (f"; merging coincident positions on loading made all of them (--no-clean keeps the stored vertices); "
+    # (not --no-clean: every method refuses the zero-area faces those then are)
+    assert (f"; merging coincident positions on loading made all of them (an edge of length zero); "
             f"method '{method}' needs {need} mesh") in p.stderr
+    p = cli("geodesic", path, "-s", "5", "-m", method, "-o", out, "--no-clean")
+    assert p.returncode == 2 and "2 faces have zero area" in p.stderr
 
 
 def test_vertices_the_reference_does_not_reach_are_counted(cli, tmp_path, make_fixtures):

@@ -317,6 +317,18 @@ def test_pinned_boundary_does_not_move(make_fixtures):
     assert np.array_equal(res.V[b], Vn[b])
     interior = np.setdiff1d(np.arange(len(V)), b)
     assert np.abs(res.V[interior, 2]).std() < 0.5 * np.abs(Vn[interior, 2]).std()
+    # a flat face on a boundary edge, its third corner the edge's midpoint rounded by a
+    # six-decimal file: that corner is a pinned boundary vertex and stays where the file has it
+    # (it had been put on its segment, 5e-7 away, before the work)
+    enb = face_edge_neighbors(F)
+    f, c = next((f, c) for f in range(len(F)) for c in range(3) if enb[f, c] < 0)
+    a, b2 = F[f, c], F[f, (c + 1) % 3]
+    m = len(V)
+    F2 = np.vstack([F, [[b2, a, m]]])
+    Vr = np.round(np.vstack([Vn * np.sqrt(2), (Vn[a] + Vn[b2]) * np.sqrt(2) / 2]), 6)
+    res = denoise_mesh(Vr, F2, params=DenoiseParams(outer_iterations=2, normal_iterations=3, pin_boundary=True))
+    b = np.unique(boundary_edges(F2))
+    assert m in b and np.array_equal(res.V[b], Vr[b])
 
 
 # ---- pieces against analytic answers ----------------------------------------------------------
