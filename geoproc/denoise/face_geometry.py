@@ -33,10 +33,12 @@ length is not rounding (integer coordinates of a synthetic mesh are exact)."""
 def stored_rounding(V: np.ndarray, F: np.ndarray) -> float:
     """How far rounding to the precision they are stored in may have moved the
     vertices the faces use: half the step of the decimal grid they lie on (a
-    coordinate written with six decimals: 5e-7), or half a float32 spacing at
-    their largest magnitude when every one is a float32 number; 0 for doubles
-    on no such grid, and for a grid coarser than :data:`DECIMAL_GRID_LIMIT` of
-    the mean edge length. In V's length unit.
+    coordinate written with six decimals: 5e-7), or of the last of the
+    significant digits they are written with at their largest magnitude
+    (``%g``'s six: 5e-6 for coordinates up to 10), or half a float32 spacing
+    at their largest magnitude when every one is a float32 number; 0 for
+    doubles on no such grid, and for a grid coarser than
+    :data:`DECIMAL_GRID_LIMIT` of the mean edge length. In V's length unit.
 
     An edge's midpoint stored that way as a face's third corner (a T-junction
     filler) lies off its segment by that rounding: a sine of 1e-6 where one of
@@ -51,17 +53,40 @@ def stored_rounding(V: np.ndarray, F: np.ndarray) -> float:
     a, b = face_corner_edges(V, F)
     limit = DECIMAL_GRID_LIMIT * float(np.concatenate([row_norms(a), row_norms(b)]).mean())
     sample = X.reshape(-1)[:: max(1, X.size // 997)]
-    for k in range(16):  # the coarsest decimal grid (as written with k decimals)
+    halves = []
+    for k in range(16):  # the coarsest decimal grid (as written with k decimals, '%.6f')
         scale = 10.0**k
         if top * scale > 1e12:  # beyond, doubles no longer tell a grid point from its neighbours
             break
         if all(np.abs(Y * scale - np.rint(Y * scale)).max() <= 1e-6 for Y in (sample, X)):
-            # on a grid coarser than the limit the data are exact (integers are float32 numbers too)
-            return 0.5 / scale if 0.5 / scale <= limit else 0.0
+            if 0.5 / scale > limit:  # on a grid that coarse the data are exact (integers are float32 numbers too)
+                return 0.0
+            halves.append(0.5 / scale)
+            break
+    digits = _significant_digits(sample)  # as written with that many significant digits ('%g': 6)
+    if digits and _significant_digits(X.reshape(-1), digits) == digits:
+        # the rounding of the largest values (the decimal grid that fits is that of the smallest)
+        halves.append(0.5 * 10.0 ** (np.floor(np.log10(top)) - digits + 1))
+    if halves:
+        return max(halves) if max(halves) <= limit else 0.0
     if top <= float(np.finfo(np.float32).max) and np.array_equal(X.astype(np.float32).astype(np.float64), X):
         half = 0.5 * float(np.spacing(np.float32(top)))
         return half if half <= limit else 0.0
     return 0.0
+
+
+def _significant_digits(x: np.ndarray, start: int = 1) -> int:
+    """The fewest significant decimal digits (``start`` to 12) that every value of
+    ``x`` is written with, 0 when none is enough (full doubles)."""
+    x = x[x != 0]
+    if not x.size:
+        return 0
+    e = np.floor(np.log10(np.abs(x)))
+    for d in range(start, 13):
+        s = x * 10.0 ** (d - 1 - e)
+        if np.abs(s - np.rint(s)).max() <= 1e-6:
+            return d
+    return 0
 
 
 def _collinear(a: np.ndarray, b: np.ndarray, rounding: float) -> np.ndarray:
