@@ -667,10 +667,28 @@ def _drop_frames(hidden: list[tuple[str, str]]) -> None:
 
 def _require_finite_options(params: dict) -> None:
     """Refuse nan or inf in a numeric option (every float parameter is the
-    option of the same name, ``sigma_r`` for ``--sigma-r``)."""
+    option of the same name, ``sigma_r`` for ``--sigma-r``), naming it as typed
+    (``1e400``, which reads as inf, had been named ``inf``)."""
     for key, value in params.items():
         if isinstance(value, float) and not math.isfinite(value):
-            raise UsageError(f"--{key.replace('_', '-')} {value}: must be a finite number")
+            name = f"--{key.replace('_', '-')}"
+            typed = _typed_value(name)
+            shown = f"{escaped(typed)} (which reads as {value})" if typed and typed.lower() not in (
+                str(value), f"+{value}", "infinity", "+infinity", "-infinity") else str(value)
+            raise UsageError(f"{name} {shown}: must be a finite number")
+
+
+def _typed_value(name: str) -> str | None:
+    """The text given on the command line after the long option ``name``
+    (its last occurrence, as ``--name VALUE`` or ``--name=VALUE``); None when
+    it was not given so (a short option's text is not told)."""
+    args, found = sys.argv[1:], None
+    for i, arg in enumerate(args):
+        if arg == name and i + 1 < len(args):
+            found = args[i + 1]
+        elif arg.startswith(name + "="):
+            found = arg[len(name) + 1:]
+    return found
 
 
 def choices_metavar(names: Sequence[str]) -> str:

@@ -387,6 +387,9 @@ BAD = [
     (["-s", "441"], "grid.ply", "source vertex 441 is out of range"),
     (["-s", "0", "--time", "0"], "grid.ply", "--time must be a positive finite number"),
     (["-s", "0", "--time", "nan"], "grid.ply", "--time nan: must be a finite number"),
+    # named as typed: 1e400 had been named inf
+    (["-s", "0", "--time=1e400"], "grid.ply", "--time 1e400 (which reads as inf): must be a finite number"),
+    (["-s", "0", "--time-factor", "-1E999"], "grid.ply", "--time-factor -1E999 (which reads as -inf): must be a"),
     (["-s", "0", "--time-factor", "-2"], "grid.ply", "--time-factor must be a positive"),
     (["-s", "0", "-m", "varadhan", "--steps", "0"], "grid.ply", "'-n': Input should be greater than or equal to 1"),
     (["-s", "0", "-m", "log-ode", "-n", "100001"], "grid.ply", "'-n': Input should be less than or equal to 100000"),
