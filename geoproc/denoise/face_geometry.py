@@ -82,10 +82,11 @@ def _significant_digits(x: np.ndarray, start: int = 1) -> int:
     if not x.size:
         return 0
     e = np.floor(np.log10(np.abs(x)))
-    for d in range(start, 13):
-        s = x * 10.0 ** (d - 1 - e)
-        if np.abs(s - np.rint(s)).max() <= 1e-6:
-            return d
+    with np.errstate(over="ignore", invalid="ignore"):  # subnormals: 10**(d - 1 - e) overflows, no grid
+        for d in range(start, 13):
+            s = x * 10.0 ** (d - 1 - e)
+            if np.abs(s - np.rint(s)).max() <= 1e-6:
+                return d
     return 0
 
 
