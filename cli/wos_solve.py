@@ -295,9 +295,10 @@ def wos_solve(
             # constant Dirichlet data and no flux: the solution is that constant, and any spread is the
             # walks' rounding (1e-14 around 1 with a control variate; the note had advised subtracting
             # a constant)
-            from geoproc.wos.expression import is_constant, is_zero
+            from geoproc.wos.expression import is_zero
+            from geoproc.wos.problem import constant_dirichlet_data
 
-            constant = g is not None and is_constant(g) and (h is None or is_zero(h))
+            constant = (h is None or is_zero(h)) and constant_dirichlet_data(dom, g)
             if 0 < steps < 1000 and not constant:
                 levels = "less than one step" if steps < 1 else f"only {steps:.0f} steps"
                 fix = ("multiply the boundary data by a constant" if max(abs(lo), abs(hi)) < np.finfo(np.float32).tiny

@@ -32,62 +32,87 @@ length is not rounding (integer coordinates of a synthetic mesh are exact)."""
 
 def stored_rounding(V: np.ndarray, F: np.ndarray) -> float:
     """How far rounding to the precision they are stored in may have moved the
-    vertices the faces use: half the step of the decimal grid they lie on (a
-    coordinate written with six decimals: 5e-7), or of the last of the
-    significant digits they are written with at their largest magnitude
-    (``%g``'s six: 5e-6 for coordinates up to 10), or half a float32 spacing
-    at their largest magnitude when every one is a float32 number; 0 for
-    doubles on no such grid, and for a grid coarser than
-    :data:`DECIMAL_GRID_LIMIT` of the mean edge length. In V's length unit.
+    vertices the faces use, in V's length unit:
+
+    - written with a fixed count of decimals (``%.6f``): half the step of that
+      decimal grid (5e-7), when values of the largest decade use all of them;
+    - written with a fixed count of significant digits (``%g``'s six, as the
+      shared data's OBJ and OFF files are): half the last digit's step at the
+      largest magnitude among the values that use them all (5e-6 for
+      coordinates from 1 to 10; a value that happens to be round, such as a
+      largest coordinate of exactly 1, does not count);
+    - every coordinate a float32 number: half a float32 spacing at the largest
+      magnitude;
+    - 0 for doubles on no such grid, and for a grid coarser than
+      :data:`DECIMAL_GRID_LIMIT` of the mean edge length (exact data, such as
+      integer coordinates).
 
     An edge's midpoint stored that way as a face's third corner (a T-junction
     filler) lies off its segment by that rounding: a sine of 1e-6 where one of
     full double precision has 1e-16, so :data:`DEGENERATE_SINE` alone misses it.
     """
-    X = V[np.unique(F)] if len(F) else V[:0]
-    if not X.size:
-        return 0.0
-    top = float(np.abs(X).max())
+    used = np.zeros(len(V), dtype=bool)
+    used[np.asarray(F, dtype=np.int64).reshape(-1)] = True
+    x = V[used].reshape(-1)
+    top = float(np.abs(x).max(initial=0.0))
     if top == 0.0:
         return 0.0
     a, b = face_corner_edges(V, F)
     limit = DECIMAL_GRID_LIMIT * float(np.concatenate([row_norms(a), row_norms(b)]).mean())
-    sample = X.reshape(-1)[:: max(1, X.size // 997)]
-    halves = []
-    for k in range(16):  # the coarsest decimal grid (as written with k decimals, '%.6f')
-        scale = 10.0**k
-        if top * scale > 1e12:  # beyond, doubles no longer tell a grid point from its neighbours
-            break
-        if all(np.abs(Y * scale - np.rint(Y * scale)).max() <= 1e-6 for Y in (sample, X)):
-            if 0.5 / scale > limit:  # on a grid that coarse the data are exact (integers are float32 numbers too)
-                return 0.0
-            halves.append(0.5 / scale)
-            break
-    digits = _significant_digits(sample)  # as written with that many significant digits ('%g': 6)
-    if digits and _significant_digits(X.reshape(-1), digits) == digits:
-        # the rounding of the largest values (the decimal grid that fits is that of the smallest)
-        halves.append(0.5 * 10.0 ** (np.floor(np.log10(top)) - digits + 1))
-    if halves:
-        return max(halves) if max(halves) <= limit else 0.0
-    if top <= float(np.finfo(np.float32).max) and np.array_equal(X.astype(np.float32).astype(np.float64), X):
+    k = _decimals(x, top)
+    if k is not None:
+        if 0.5 * 10.0**-k > limit:  # on a grid that coarse the data are exact (integers are float32 numbers too)
+            return 0.0
+        big = x[np.abs(x) >= 0.1 * top]
+        if k == 0 or _decimals(big, top, k - 1) is None:  # the largest decade uses all k decimals: '%.kf'
+            return 0.5 * 10.0**-k
+    half = _significant_rounding(x)  # (finer decimals needed only by small values: '%g')
+    if half is None and top <= float(np.finfo(np.float32).max) and np.array_equal(
+            x.astype(np.float32).astype(np.float64), x):
         half = 0.5 * float(np.spacing(np.float32(top)))
-        return half if half <= limit else 0.0
-    return 0.0
+    return half if half is not None and half <= limit else 0.0
 
 
-def _significant_digits(x: np.ndarray, start: int = 1) -> int:
-    """The fewest significant decimal digits (``start`` to 12) that every value of
-    ``x`` is written with, 0 when none is enough (full doubles)."""
+def _on_grid(x: np.ndarray, scale) -> bool:
+    """Whether every ``x * scale`` is an integer (to 1e-6 of one: the rounding of
+    a decimal written as the nearest double)."""
+    return bool(_on_grid_each(x, scale).all())
+
+
+def _on_grid_each(x: np.ndarray, scale) -> np.ndarray:
+    """(k,) bool: which ``x * scale`` are integers (as :func:`_on_grid`)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # subnormals scaled past the double range: no grid
+        s = x * scale
+        return np.abs(s - np.rint(s)) <= 1e-6
+
+
+def _decimals(x: np.ndarray, top: float, most: int = 15) -> int | None:
+    """The fewest decimals (0 to ``most``) that every value of ``x`` is written
+    with, None when none is enough; past 1e12 at ``top`` doubles no longer tell
+    a grid point from its neighbours."""
+    sample = x[:: max(1, x.size // 997)]  # most data fail on a sample already
+    for k in range(most + 1):
+        if top * 10.0**k > 1e12:
+            return None
+        if _on_grid(sample, 10.0**k) and _on_grid(x, 10.0**k):
+            return k
+    return None
+
+
+def _significant_rounding(x: np.ndarray) -> float | None:
+    """Half the last digit's step, at the largest magnitude among the values that
+    use every digit, when all of ``x`` is written with the same count (1 to 12)
+    of significant digits; None otherwise."""
     x = x[x != 0]
     if not x.size:
-        return 0
+        return None
     e = np.floor(np.log10(np.abs(x)))
-    with np.errstate(over="ignore", invalid="ignore"):  # subnormals: 10**(d - 1 - e) overflows, no grid
-        for d in range(start, 13):
-            s = x * 10.0 ** (d - 1 - e)
-            if np.abs(s - np.rint(s)).max() <= 1e-6:
-                return d
-    return 0
+    sample = slice(None, None, max(1, x.size // 997))
+    for d in range(1, 13):
+        if _on_grid(x[sample], 10.0 ** (d - 1 - e[sample])) and _on_grid(x, 10.0 ** (d - 1 - e)):
+            full = ~_on_grid_each(x, 10.0 ** (d - 2 - e)) if d > 1 else np.ones(x.size, dtype=bool)
+            return 0.5 * 10.0 ** float((e[full] if full.any() else e).max() - d + 1)
+    return None
 
 
 def _collinear(a: np.ndarray, b: np.ndarray, rounding: float) -> np.ndarray:

@@ -184,11 +184,6 @@ def translated(expr: Expression, dx: float, dy: float) -> Expression:
     return Expression(expr.text, np.array(code, dtype=np.int64), np.array(consts, dtype=np.float64))
 
 
-def is_constant(expr: Expression) -> bool:
-    """Whether ``expr`` reads none of x, y, nx, ny: one value everywhere."""
-    return not np.isin(expr.code, (OP_X, OP_Y, OP_NX, OP_NY)).any()
-
-
 def is_zero(expr: Expression) -> bool:
     """Whether ``expr`` is the constant 0 (no x, y, nx or ny in it, and it
     evaluates to +0 or -0): ``--neumann 0`` is then the zero flux the option's

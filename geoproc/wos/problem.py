@@ -84,6 +84,25 @@ def dirichlet_data_bound(domain: Domain, boundary: Expression | None, samples: i
     return float(v.max()) if v.size else 0.0
 
 
+def constant_dirichlet_data(domain: Domain, boundary: Expression | None, samples: int = 9) -> bool:
+    """Whether the Dirichlet data take one value: ``boundary`` at ``samples``
+    evenly spaced points of every Dirichlet segment (``0*x + 1`` as well as
+    ``1``), or the domain's per-vertex values on those segments when there is
+    no expression."""
+    mask = ~domain.neumann
+    if not mask.any():
+        return False
+    if boundary is not None:
+        P = segment_samples(domain, mask, samples)
+        with np.errstate(all="ignore"):
+            v = evaluate(boundary, P[:, 0], P[:, 1])
+    elif domain.values is not None:
+        v = np.asarray(domain.values[mask], dtype=np.float64).ravel()
+    else:
+        return False
+    return bool(v.size and np.isfinite(v).all() and (v == v[0]).all())
+
+
 def neumann_data_bound(domain: Domain, flux: Expression | None, samples: int = 9) -> float:
     """The largest magnitude of the Neumann data: ``flux`` at ``samples`` evenly
     spaced points of every Neumann segment, with that segment's outward normal

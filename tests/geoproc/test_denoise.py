@@ -807,3 +807,28 @@ def test_a_small_creased_mesh_gets_the_creased_schedule_whatever_the_draw(make_f
         assert res.info["guidance_mix"] < 0.01  # no organic blend
         theta.append(denoise_errors(res.V, F, V)["mean_normal_angle_deg"])
     assert max(theta) < 7.5 and np.mean(theta) < 4.0, theta  # measured 7.10 and 3.68 (before: 15.97, 6.47)
+
+
+def test_stored_rounding_reads_the_precision_a_file_was_written_with():
+    from geoproc.denoise.face_geometry import stored_rounding
+
+    rng = np.random.default_rng(0)
+    V = rng.standard_normal((3000, 3))
+    F = np.arange(3000).reshape(-1, 3)
+    g = np.vectorize(lambda v: float(f"{v:g}"))
+    assert stored_rounding(np.round(V, 6), F) == pytest.approx(5e-7)
+    assert stored_rounding(g(V), F) == pytest.approx(0.5 * 10.0 ** (np.floor(np.log10(np.abs(V).max())) - 5))
+    # a largest coordinate that happens to be round (a mesh scaled to [-1, 1]) had read as 6 significant
+    # digits at 1, 5e-6, above the limit on a thin strip: the fillers' fins came back
+    W = np.round(V / np.abs(V).max(), 6)
+    assert np.abs(W).max() == 1.0 and stored_rounding(W, F) == pytest.approx(5e-7)
+    W[0, 0] = 1e6  # and one far, round vertex (5.0 had come out)
+    assert stored_rounding(W, F) == pytest.approx(5e-7)
+    # the same whatever the numbering (a sample of the values had decided between two counts of digits)
+    G = np.round(rng.integers(-80, 80, (3600, 3)) * 0.125, 3)
+    G[[1, 2], 0] = g(np.array([0.123456789, 1.23456789]))
+    F2 = np.arange(3600).reshape(-1, 3)
+    first = stored_rounding(G, F2)
+    G[[1, 3001]] = G[[3001, 1]]
+    assert stored_rounding(G, F2) == first == pytest.approx(5e-6)
+    assert stored_rounding(V, F) == 0.0  # full doubles
