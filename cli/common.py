@@ -683,6 +683,8 @@ def _typed_value(name: str) -> str | None:
     (its last occurrence, as ``--name VALUE`` or ``--name=VALUE``); None when
     it was not given so (a short option's text is not told)."""
     args, found = sys.argv[1:], None
+    if "--" in args:  # what follows is positional
+        args = args[:args.index("--")]
     for i, arg in enumerate(args):
         if arg == name and i + 1 < len(args):
             found = args[i + 1]

@@ -35,7 +35,7 @@ def stored_rounding(V: np.ndarray, F: np.ndarray) -> float:
     vertices the faces use, in V's length unit:
 
     - written with a fixed count of decimals (``%.6f``): half the step of that
-      decimal grid (5e-7), when values of the largest decade use all of them;
+      decimal grid (5e-7), when values in the largest value's decade use all of them;
     - written with a fixed count of significant digits (``%g``'s six, as the
       shared data's OBJ and OFF files are): half the last digit's step at the
       largest magnitude among the values that use them all (5e-6 for
@@ -63,8 +63,8 @@ def stored_rounding(V: np.ndarray, F: np.ndarray) -> float:
     if k is not None:
         if 0.5 * 10.0**-k > limit:  # on a grid that coarse the data are exact (integers are float32 numbers too)
             return 0.0
-        big = x[np.abs(x) >= 0.1 * top]
-        if k == 0 or _decimals(big, top, k - 1) is None:  # the largest decade uses all k decimals: '%.kf'
+        big = x[np.abs(x) >= 10.0 ** np.floor(np.log10(top))]  # the decade of the largest value
+        if k == 0 or _decimals(big, top, k - 1) is None:  # it uses all k decimals: '%.kf'
             return 0.5 * 10.0**-k
     half = _significant_rounding(x)  # (finer decimals needed only by small values: '%g')
     if half is None and top <= float(np.finfo(np.float32).max) and np.array_equal(
@@ -108,10 +108,11 @@ def _significant_rounding(x: np.ndarray) -> float | None:
         return None
     e = np.floor(np.log10(np.abs(x)))
     sample = slice(None, None, max(1, x.size // 997))
-    for d in range(1, 13):
-        if _on_grid(x[sample], 10.0 ** (d - 1 - e[sample])) and _on_grid(x, 10.0 ** (d - 1 - e)):
-            full = ~_on_grid_each(x, 10.0 ** (d - 2 - e)) if d > 1 else np.ones(x.size, dtype=bool)
-            return 0.5 * 10.0 ** float((e[full] if full.any() else e).max() - d + 1)
+    with np.errstate(over="ignore", invalid="ignore"):  # subnormals: 10**(d - 1 - e) overflows, no grid
+        for d in range(1, 13):
+            if _on_grid(x[sample], 10.0 ** (d - 1 - e[sample])) and _on_grid(x, 10.0 ** (d - 1 - e)):
+                full = ~_on_grid_each(x, 10.0 ** (d - 2 - e)) if d > 1 else np.ones(x.size, dtype=bool)
+                return 0.5 * 10.0 ** float((e[full] if full.any() else e).max() - d + 1)
     return None
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from geoproc.errors import InputError, UsageError
 from geoproc.wos.closest import build_segment_grid, closest_points
 from geoproc.wos.domain import Domain
-from geoproc.wos.expression import Expression, evaluate, is_zero
+from geoproc.wos.expression import OP_NX, OP_NY, OP_X, OP_Y, Expression, evaluate, is_zero
 from geoproc.wos.kernels import KernelSet
 from geoproc.wos.rng import stream_state
 from geoproc.wos.walk import wos_dirichlet, wos_dirichlet_serial
@@ -84,19 +84,17 @@ def dirichlet_data_bound(domain: Domain, boundary: Expression | None, samples: i
     return float(v.max()) if v.size else 0.0
 
 
-def constant_dirichlet_data(domain: Domain, boundary: Expression | None, samples: int = 9) -> bool:
-    """Whether the Dirichlet data take one value: ``boundary`` at ``samples``
-    evenly spaced points of every Dirichlet segment (``0*x + 1`` as well as
-    ``1``), or the domain's per-vertex values on those segments when there is
-    no expression."""
+def constant_dirichlet_data(domain: Domain, boundary: Expression | None) -> bool:
+    """Whether the Dirichlet data take one value: ``boundary`` reads neither x
+    nor y (sampled points could all fall where ``1e6 + sin(8*pi*x)`` is 1e6),
+    or, with no expression, the domain's per-vertex values on the Dirichlet
+    segments are all equal."""
     mask = ~domain.neumann
     if not mask.any():
         return False
     if boundary is not None:
-        P = segment_samples(domain, mask, samples)
-        with np.errstate(all="ignore"):
-            v = evaluate(boundary, P[:, 0], P[:, 1])
-    elif domain.values is not None:
+        return not np.isin(boundary.code, (OP_X, OP_Y, OP_NX, OP_NY)).any()
+    if domain.values is not None:
         v = np.asarray(domain.values[mask], dtype=np.float64).ravel()
     else:
         return False

@@ -1176,3 +1176,15 @@ def test_an_output_folder_is_the_one_the_file_system_resolves(cli, fixture_dir, 
         p = cli("perturb", src, "--seed", "1", *args, option, f"{tmp_path}/lnk/../sub/{name}")
         assert p.returncode == 2 and f"output folder '{tmp_path}/lnk/../sub' does not exist" in p.stderr, p.stderr
     assert not (tmp_path / "y.ply").exists() and not (tmp_path / "sub" / "sub").exists()
+
+
+def test_an_option_is_named_as_typed_only_before_a_double_dash(monkeypatch):
+    # a file named like an option after '--' had been taken for the option's text
+    from geoproc_cli.common import _typed_value
+
+    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", "-c", "1e400", "--", "--time-factor=7.off"])
+    assert _typed_value("--time-factor") is None
+    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", "--time-factor=1e400", "m.ply"])
+    assert _typed_value("--time-factor") == "1e400"
+    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", "m.ply", "--time-factor", "-1E999"])
+    assert _typed_value("--time-factor") == "-1E999"

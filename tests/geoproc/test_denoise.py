@@ -832,3 +832,13 @@ def test_stored_rounding_reads_the_precision_a_file_was_written_with():
     G[[1, 3001]] = G[[3001, 1]]
     assert stored_rounding(G, F2) == first == pytest.approx(5e-6)
     assert stored_rounding(V, F) == 0.0  # full doubles
+    # '%g' values whose largest decade straddles a power of ten: those from 30 to 100 carry a decimal
+    # more than those from 100 to 300, and had passed for '%.4f' (5e-5 for 5e-4)
+    S = (V / np.abs(V).max()) * 300
+    assert np.abs(S).max() == pytest.approx(300) and stored_rounding(g(S), F) == pytest.approx(5e-4)
+    assert stored_rounding(g(S + 800), F) == pytest.approx(5e-3)
+    with np.errstate(over="raise", invalid="raise", divide="raise"):  # a subnormal: no grid, no warning
+        W = V.copy()
+        W[0, 0] = 1e-310
+        assert stored_rounding(W, F) == 0.0
+        assert stored_rounding(np.round(W, 6), F) == pytest.approx(5e-7)
