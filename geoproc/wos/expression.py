@@ -184,13 +184,15 @@ def translated(expr: Expression, dx: float, dy: float) -> Expression:
     return Expression(expr.text, np.array(code, dtype=np.int64), np.array(consts, dtype=np.float64))
 
 
+def is_constant(expr: Expression) -> bool:
+    """Whether ``expr`` reads none of x, y, nx and ny: one value everywhere."""
+    return not np.isin(expr.code, (OP_X, OP_Y, OP_NX, OP_NY)).any()
+
+
 def is_zero(expr: Expression) -> bool:
-    """Whether ``expr`` is the constant 0 (no x, y, nx or ny in it, and it
-    evaluates to +0 or -0): ``--neumann 0`` is then the zero flux the option's
-    absence means."""
-    if np.isin(expr.code, (OP_X, OP_Y, OP_NX, OP_NY)).any():
-        return False
-    return bool(evaluate(expr, np.zeros(1), np.zeros(1))[0] == 0.0)
+    """Whether ``expr`` is the constant 0 (:func:`is_constant`, and it evaluates
+    to +0 or -0): ``--neumann 0`` is then the zero flux the option's absence means."""
+    return is_constant(expr) and bool(evaluate(expr, np.zeros(1), np.zeros(1))[0] == 0.0)
 
 
 def uses_normal(expr: Expression) -> bool:

@@ -13,7 +13,7 @@ import numpy as np
 from geoproc.errors import InputError, UsageError
 from geoproc.wos.closest import build_segment_grid, closest_points
 from geoproc.wos.domain import Domain
-from geoproc.wos.expression import OP_NX, OP_NY, OP_X, OP_Y, Expression, evaluate, is_zero
+from geoproc.wos.expression import Expression, evaluate, is_constant, is_zero
 from geoproc.wos.kernels import KernelSet
 from geoproc.wos.rng import stream_state
 from geoproc.wos.walk import wos_dirichlet, wos_dirichlet_serial
@@ -46,9 +46,8 @@ def require_finite_boundary_data(domain: Domain, boundary: Expression | None,
     for expr, mask, option in ((boundary, ~domain.neumann, "--boundary"), (flux, domain.neumann, "--neumann")):
         if expr is None or not mask.any():
             continue
-        P = segment_samples(domain, mask, samples)
-        N = np.repeat(domain.outward_normals[mask], samples, axis=0)  # each sample's segment's (read by a flux)
-        bad = ~np.isfinite(evaluate(expr, P[:, 0], P[:, 1], N[:, 0], N[:, 1]))
+        P, v = segment_values(domain, expr, mask, samples)
+        bad = ~np.isfinite(v)
         if bad.any():
             x, y = P[np.flatnonzero(bad)[0]] + domain.offset  # where the input has it
             raise UsageError(f"{option} is not finite on the boundary of {domain.source} "
@@ -63,6 +62,16 @@ def segment_samples(domain: Domain, mask: np.ndarray, samples: int) -> np.ndarra
     return (A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]).reshape(-1, 2)
 
 
+def segment_values(domain: Domain, expr: Expression, mask: np.ndarray,
+                   samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`segment_samples` of the segments ``mask`` selects, (k, 2), and
+    ``expr`` there, (k,), each sample with its segment's outward normal (which
+    a flux may read)."""
+    P = segment_samples(domain, mask, samples)
+    N = np.repeat(domain.outward_normals[mask], samples, axis=0)
+    return P, evaluate(expr, P[:, 0], P[:, 1], N[:, 0], N[:, 1])
+
+
 def dirichlet_data_bound(domain: Domain, boundary: Expression | None, samples: int = 9) -> float:
     """The largest magnitude of the Dirichlet data: ``boundary`` at ``samples``
     evenly spaced points of every Dirichlet segment (as
@@ -73,9 +82,8 @@ def dirichlet_data_bound(domain: Domain, boundary: Expression | None, samples: i
     if not mask.any():
         return 0.0
     if boundary is not None:
-        P = segment_samples(domain, mask, samples)
         with np.errstate(all="ignore"):
-            v = np.abs(evaluate(boundary, P[:, 0], P[:, 1]))
+            v = np.abs(segment_values(domain, boundary, mask, samples)[1])
     elif domain.values is not None:
         v = np.abs(domain.values[mask]).ravel()
     else:
@@ -93,11 +101,10 @@ def constant_dirichlet_data(domain: Domain, boundary: Expression | None) -> bool
     if not mask.any():
         return False
     if boundary is not None:
-        return not np.isin(boundary.code, (OP_X, OP_Y, OP_NX, OP_NY)).any()
-    if domain.values is not None:
-        v = np.asarray(domain.values[mask], dtype=np.float64).ravel()
-    else:
+        return is_constant(boundary)
+    if domain.values is None:
         return False
+    v = np.asarray(domain.values[mask], dtype=np.float64).ravel()
     return bool(v.size and np.isfinite(v).all() and (v == v[0]).all())
 
 
@@ -109,10 +116,8 @@ def neumann_data_bound(domain: Domain, flux: Expression | None, samples: int = 9
     mask = domain.neumann
     if flux is None or not mask.any():
         return 0.0
-    P = segment_samples(domain, mask, samples)
-    N = np.repeat(domain.outward_normals[mask], samples, axis=0)
     with np.errstate(all="ignore"):
-        v = np.abs(evaluate(flux, P[:, 0], P[:, 1], N[:, 0], N[:, 1]))
+        v = np.abs(segment_values(domain, flux, mask, samples)[1])
     v = v[np.isfinite(v)]
     return float(v.max()) if v.size else 0.0
 
