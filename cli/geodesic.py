@@ -179,6 +179,7 @@ def geodesic(
     solve (the part repeated for each new source set).
     """
     m_name = method.value
+    read_field = field_name if reference_field is None else reference_field  # a reference mesh's property
     params = {
         "mesh": mesh, "output": output, "sources": list(source or []), "sources_file": sources_file,
         "sources_from_file": None,
@@ -191,8 +192,7 @@ def geodesic(
         "heat_underflow": heat_underflow.value if m_name == "heat" else None,
         "reference": reference,
         # the property read from a reference mesh (None for exact or a .npy; set once a '-' is read)
-        "reference_field": (field_name if reference_field is None else reference_field)
-        if reference not in (None, "exact")
+        "reference_field": read_field if reference not in (None, "exact")
         and not str(reference).lower().endswith(".npy") else None,
         "field_name": field_name, "render": render, "render_view": render_view.value if render else None,
         "clean": not no_clean,
@@ -245,9 +245,7 @@ def geodesic(
         stored = None  # --reference FILE, read and checked before the work
         if reference not in (None, "exact"):
             with run.timer("reference"):
-                stored = _reference_file(run, reference, m, field_name if reference_field is None
-                                         else reference_field, no_clean,
-                                         reference_field is not None)
+                stored = _reference_file(run, reference, m, read_field, no_clean, reference_field is not None)
         # the solvers (scipy, libigl, the compiled kernels) load once the inputs are read
         from geoproc.geodesic.compare import compare_to_reference
         from geoproc.geodesic.distance import geodesic_distance
