@@ -10,7 +10,7 @@ import typer
 
 import geoproc
 from geoproc_cli import denoise, geodesic, info, morse_simplify, perturb, wos_solve
-from geoproc_cli.common import EXIT_BAD_INPUT, flag, say
+from geoproc_cli.common import EXIT_BAD_INPUT, OPTION_FORMS, flag, say
 from geoproc_cli.entry import interruption_line, unreported_interruption
 
 app = typer.Typer(
@@ -58,6 +58,8 @@ def _refusing_repeats(make_parser):
     a usage error too."""
     def make(ctx):
         parser = make_parser(ctx)
+        OPTION_FORMS.clear()
+        OPTION_FORMS.update({p.name: tuple(p.opts) for p in ctx.command.params})
         parse = parser.parse_args
 
         def parse_args(args):

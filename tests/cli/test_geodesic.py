@@ -390,6 +390,9 @@ BAD = [
     # named as typed: 1e400 had been named inf
     (["-s", "0", "--time=1e400"], "grid.ply", "--time 1e400 (which reads as inf): must be a finite number"),
     (["-s", "0", "--time-factor", "-1E999"], "grid.ply", "--time-factor -1E999 (which reads as -inf): must be a"),
+    # a short form is named as typed too (it had been '--time-factor inf')
+    (["-s", "0", "-c", "1e400"], "grid.ply", "error: -c 1e400 (which reads as inf): must be a finite number"),
+    (["-s", "0", "-t-1e999"], "grid.ply", "error: -t -1e999 (which reads as -inf): must be a finite number"),
     (["-s", "0", "--time-factor", "-2"], "grid.ply", "--time-factor must be a positive"),
     (["-s", "0", "-m", "varadhan", "--steps", "0"], "grid.ply", "'-n': Input should be greater than or equal to 1"),
     (["-s", "0", "-m", "log-ode", "-n", "100001"], "grid.ply", "'-n': Input should be less than or equal to 100000"),
