@@ -68,7 +68,7 @@ def eval_program(code, consts, x, y, nx, ny):
             elif op == OP_MUL:
                 r = a * b
             elif op == OP_DIV:
-                r = a / b if b != 0.0 else (np.nan if a == 0.0 else np.inf * np.sign(a) * np.sign(b))
+                r = a / b if b != 0.0 else _over_zero(a, b)
             elif op == OP_POW:
                 r = _pow(a, b)
             else:
@@ -101,9 +101,30 @@ def eval_program(code, consts, x, y, nx, ny):
 
 
 @numba.njit(cache=True, nogil=True)
+def _over_zero(a, b):
+    """``a / b`` for ``b`` = ±0 as IEEE division gives it (and numpy): ±inf by
+    the signs of ``a`` and the zero, nan for 0 / 0 and nan / 0 (numba raises
+    ZeroDivisionError for ``a / 0.0``; this had given nan for every ``a``)."""
+    if a == 0.0 or a != a:
+        return np.nan
+    return math.copysign(np.inf, a) * math.copysign(1.0, b)
+
+
+@numba.njit(cache=True, nogil=True)
 def _pow(a, b):
+    """``a ** b`` as C's ``pow`` (and numpy) give it where numba's would raise
+    or differ: nan for a finite negative base and a non-integer power, ±inf
+    for a zero base and a negative power (-inf for -0 and an odd integer
+    power), inf or 0 for -inf and a non-integer power and for an infinite
+    power."""
+    odd = b == math.floor(b) and not math.isinf(b) and b - 2.0 * math.floor(b / 2.0) != 0.0
+    if math.isinf(b) and a == a:
+        m = abs(a)
+        return 1.0 if m == 1.0 else (np.inf if (m > 1.0) == (b > 0.0) else 0.0)
+    if a == -np.inf and b == b and b != math.floor(b):
+        return np.inf if b > 0.0 else 0.0
     if a < 0.0 and b != math.floor(b):
         return np.nan
     if a == 0.0 and b < 0.0:
-        return np.inf
+        return math.copysign(np.inf, a) if odd else np.inf
     return a**b

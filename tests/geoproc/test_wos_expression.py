@@ -44,6 +44,20 @@ def test_exponentials_overflow_where_the_floats_do():
         np.testing.assert_allclose(evaluate(e, x, 0 * x), want, rtol=1e-13)
 
 
+@pytest.mark.parametrize("text", ["x / y", "x ** y", "atan2(x, y)", "log(x) + sqrt(y)", "exp(x) * sin(y)",
+                                  "tan(x) - cosh(y) + abs(x) * sinh(y)"])
+def test_numba_matches_numpy_on_zeros_infinities_and_nan(text):
+    # the compiled evaluator gave nan for 1/0 (numpy: inf), inf for (-0)**-1 (-inf), nan for (-2)**inf (inf)
+    vals = np.array([0.0, -0.0, 1.0, -1.0, 2.5, -2.5, 0.5, 3.0, -3.0, 1e-320, 2.0**60, 2.0**53 + 2,
+                     np.inf, -np.inf, np.nan])
+    a, b = (g.ravel() for g in np.meshgrid(vals, vals, indexing="ij"))
+    e = parse_expression(text)
+    want = evaluate(e, a, b)
+    got = np.array([eval_program(e.code, e.consts, p, q, 0.0, 0.0) for p, q in zip(a, b, strict=True)])
+    np.testing.assert_allclose(got, want, rtol=1e-15, atol=0)
+    assert np.array_equal(np.signbit(got[got == 0]), np.signbit(want[got == 0]))
+
+
 def test_unknown_names_are_named():
     with pytest.raises(UsageError, match=r"unknown names 'foo', 'z'"):
         parse_expression("foo(x) + z")
