@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
+from geoproc.animation import is_animation_path
 from geoproc.report import json_safe
 from geoproc_cli.common import (
     LOAD_METRICS,
@@ -34,7 +35,7 @@ METRICS = LOAD_METRICS + (
 )
 """Every metric ``info`` reports (the scalar entries of :func:`geoproc.mesh.mesh_info`; ``frames``
 and ``worst_frame`` for an animation, whose other entries are its first frame's but for the
-degenerate faces and duplicate vertices, the most of any frame)."""
+degenerate faces and duplicate vertices, each the most of any frame)."""
 
 
 def info(
@@ -61,12 +62,12 @@ def info(
     --check, e.g. --check 'genus==0'.
     """
     params = {"mesh": mesh, "json": as_json, "clean": not no_clean}
+    if mesh != "-" and is_animation_path(mesh):
+        params["clean"] = None  # frames are read as stored (as perturb and denoise report it)
     with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=["-"], inputs=[mesh], metrics=METRICS) as run:  # the summary goes to stdout
-        from geoproc.animation import is_animation_path
-
         frames = None
-        if mesh != "-" and is_animation_path(mesh):
+        if params["clean"] is None:
             if no_clean:
                 refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")
             from geoproc.mesh.mesh import LoadLog, Mesh

@@ -98,7 +98,10 @@ def load_animation(path: str | os.PathLike) -> Animation:
     F = np.asarray(data.pop("faces"))
     if V.ndim != 3 or V.shape[2] != 3 or V.shape[0] < 1 or V.shape[1] < 1:
         raise InputError(name, f"'vertices' has shape {V.shape}; expected (frames, n, 3)")
-    if F.ndim == 3 and len(F):
+    if F.ndim == 3 and len(F):  # faces per frame (k, m, 3): one per frame, all the same
+        if len(F) != len(V):
+            raise InputError(name, f"'faces' has shape {F.shape}: {len(F)} frames of faces for {len(V)} of "
+                             "vertices; expected (m, 3), or (frames, m, 3) with every frame's the same")
         if (F != F[:1]).any():
             bad = int(np.flatnonzero((F != F[:1]).reshape(len(F), -1).any(axis=1))[0])
             raise InputError(name, f"frame {bad} has a different connectivity from frame 0")

@@ -120,15 +120,17 @@ def mesh_info(mesh: Mesh) -> dict:
 def worst_frame_counts(frames: np.ndarray, F: np.ndarray) -> dict:
     """An animation's geometry counts over every frame, where its first
     frame's :func:`mesh_info` would miss them (a face collapsed in frame 3
-    alone had read 0): ``degenerate_faces`` and ``duplicate_vertices``, the
-    most of any frame of ``frames`` (T, n, 3) with triangles F (m, 3), and
-    that frame (``worst_frame``); ``{"worst_frame": -1}`` when every frame
-    has none, ``{}`` without faces."""
-    if not len(F):
-        return {}
-    counts = [(len(degenerate_faces(V, F, diagonal=used_bbox_diagonal(V, F))), repeated_positions(V))
-              for V in frames]
-    worst = max(range(len(counts)), key=lambda t: counts[t])
-    if counts[worst] == (0, 0):
-        return {"worst_frame": -1}
-    return {"degenerate_faces": counts[worst][0], "duplicate_vertices": counts[worst][1], "worst_frame": worst}
+    alone had read 0): ``degenerate_faces`` and ``duplicate_vertices``, each
+    the most of any frame of ``frames`` (T, n, 3) with triangles F (m, 3;
+    none for a moving point cloud, whose degenerate faces are 0), and
+    ``worst_frame``: the first frame with the most degenerate faces, or where
+    no frame has any, the first with the most duplicate vertices; -1 when no
+    frame has either. (Both counts had been read from one frame, the worst by
+    degenerate faces first, so more duplicates in another frame were missed.)"""
+    degenerate = np.array([len(degenerate_faces(V, F, diagonal=used_bbox_diagonal(V, F))) if len(F) else 0
+                           for V in frames], dtype=np.int64)
+    duplicates = np.array([repeated_positions(V) for V in frames], dtype=np.int64)
+    by = degenerate if degenerate.max(initial=0) > 0 else duplicates
+    worst = int(np.argmax(by)) if by.max(initial=0) > 0 else -1
+    return {"degenerate_faces": int(degenerate.max(initial=0)), "duplicate_vertices": int(duplicates.max(initial=0)),
+            "worst_frame": worst}

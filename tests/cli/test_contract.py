@@ -1154,6 +1154,16 @@ def test_info_summarizes_an_animation(cli, fixture_dir, tmp_path):
     assert p.returncode == 1 and f"check failed: {tmp_path / 'b.npz'}: degenerate_faces==0" in p.stderr, p.stderr
     s = json.loads(p.stdout)  # the collapsed edge's two faces, one vertex on another, frame 2
     assert (s["degenerate_faces"], s["duplicate_vertices"], s["worst_frame"]) == (2, 1, 2)
+    # each count is the most of any frame: three vertices on others in frame 3 (1 had been read, frame 2's)
+    frames[3][torus.F[10:13, 0]] = frames[3][torus.F[20:23, 0]]
+    np.savez(tmp_path / "c.npz", vertices=frames, faces=torus.F)
+    s = json.loads(cli("info", tmp_path / "c.npz", "--json", "-q", "--report", rep).stdout)
+    assert (s["degenerate_faces"], s["duplicate_vertices"], s["worst_frame"]) == (2, 3, 2)
+    assert json.loads(rep.read_text())["params"]["clean"] is None  # frames are read as stored (had been true)
+    # a moving point cloud: its duplicate points counted over the frames too (frame 0's had been read)
+    np.savez(tmp_path / "d.npz", vertices=frames, faces=np.zeros((0, 3), int))
+    s = json.loads(cli("info", tmp_path / "d.npz", "--json", "-q").stdout)
+    assert (s["degenerate_faces"], s["duplicate_vertices"], s["worst_frame"]) == (0, 3, 3)
     p = cli("info", tmp_path / "a.npz", "--no-clean")
     assert p.returncode == 2 and "--no-clean: not used for an animation" in p.stderr
     p = cli("info", fixture_dir / "torus.ply", "--report", rep)

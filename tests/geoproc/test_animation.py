@@ -221,3 +221,12 @@ def test_foreign_and_stale_frame_files(tmp_path):
     assert foreign_frame_files(str(tmp_path)) == ["a.OBJ", "frame_0000.obj"]
     assert foreign_frame_files(str(tmp_path / "missing")) == []
     assert stale_frame_files(str(tmp_path), ["frame_0000.ply"]) == ["frame_0001.ply", "frame_12.ply"]
+
+
+def test_faces_per_frame_must_be_one_per_frame(wave, tmp_path):
+    V, F = wave
+    # (frames, m, 3) faces, the same for every frame, read as F
+    assert np.array_equal(load_animation(_npz(tmp_path / "a.npz", vertices=V, faces=np.stack([F] * len(V)))).F, F)
+    # one copy fewer than the frames had passed without a word
+    with pytest.raises(InputError, match=re.escape(f"{len(V) - 1} frames of faces for {len(V)} of vertices")):
+        load_animation(_npz(tmp_path / "b.npz", vertices=V, faces=np.stack([F] * (len(V) - 1))))
