@@ -55,7 +55,7 @@ def morse_simplify(
         "--field", "-f",
         help="The vertex function: a per-vertex PLY property (e.g. 'distance' from geoproc geodesic), "
         "x, y or z, a .npy file with one value per vertex, mean-curvature (1/length) or gaussian-curvature "
-        "(1/length^2; both libigl).",
+        "(1/length^2; both libigl; a vertex property of that name is read instead).",
         metavar="SPEC", show_default=False)],
     persistence: Annotated[float, typer.Option(
         "--persistence", "-p",
@@ -170,21 +170,25 @@ def morse_simplify(
         from geoproc.morse.barycentric import barycentric_simplify, mesh_cell, subdivision_values
         from geoproc.morse.critical_table import critical_cells_table
         from geoproc.morse.diagram_plot import persistence_diagram_png
-        from geoproc.morse.fields import CURVATURES, field_name, vertex_field
+        from geoproc.morse.fields import CURVATURES, computes_curvature, field_name, vertex_field
         from geoproc.morse.summary import simplification_summary
         from geoproc.morse.window_repair import TIE_ROUNDING
 
         npy = read_input_bytes(npy_path, "field file (.npy)") if npy_path else None
         n_vertices = m.n_vertices  # the input's as loaded, for the report
         split, source = _split_fans(run, m, mesh) if split_nonmanifold else (m, None)
+        computed = computes_curvature(m, field)
+        if field in CURVATURES and not computed:
+            run.note(f"--field {field}: read from the input's vertex property of that name (libigl's curvature "
+                     "is not computed)")
         with run.timer("field"):  # curvatures of the split surface; the other fields are the input's values
-            f = vertex_field(split, field) if field in CURVATURES else vertex_field(m, field, npy)
-            if source is not None and field not in CURVATURES:
+            f = vertex_field(split, field) if computed else vertex_field(m, field, npy)
+            if source is not None and not computed:
                 f = f[source]
+        name = field_name(field, stored=field in m.vertex_fields)
         m = split
         if npy is not None:
             run.add_input(field, npy)
-        name = field_name(field)
         written = (name, f"{name}_original") + (("cell_dim",) if barycentric else ())
         if split_nonmanifold and name == "input_vertex":
             raise UsageError("--field input_vertex with --split-nonmanifold: the output's 'input_vertex' property "
@@ -208,7 +212,7 @@ def morse_simplify(
         if relative and span == 0.0 and persistence > 0:
             run.note(f"{m.log.path or mesh}: the field is constant on the surface, so --relative makes P 0 "
                      "and nothing is simplified (give P in the field's unit without --relative)")
-        if field == "mean-curvature" and not orientation_status(m.F)[0]:
+        if field == "mean-curvature" and computed and not orientation_status(m.F)[0]:
             run.note(f"{m.log.path or mesh}: the surface is not orientable, so the mean curvature's sign "
                      "flips across a seam of it (its magnitude does not)")
         if not np.isfinite(threshold):

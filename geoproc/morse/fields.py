@@ -86,16 +86,28 @@ def gaussian_curvature(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return K
 
 
-def field_name(spec: str) -> str:
+def computes_curvature(mesh: Mesh, spec: str) -> bool:
+    """Whether ``spec`` names a curvature :func:`vertex_field` computes: one of
+    :data:`CURVATURES` that is not a vertex property of ``mesh`` (a property
+    stored under that name is the field; it had been shadowed by the
+    computed curvature without a word)."""
+    return spec in CURVATURES and spec not in mesh.vertex_fields
+
+
+def field_name(spec: str, stored: bool = False) -> str:
     """The vertex property name the field is written under in the output PLY.
 
-    A property keeps its name; ``x``/``y``/``z`` become ``x_value`` etc. (``x``,
-    ``y``, ``z`` are the coordinates); curvatures become ``mean_curvature`` /
-    ``gaussian_curvature``; a ``.npy`` file gives its stem (``x.npy``,
-    ``y.npy``, ``z.npy`` also become ``x_value`` etc.).
+    A property keeps its name (``stored``: ``spec`` is the mesh's vertex
+    property, even one named as a curvature); ``x``/``y``/``z`` become
+    ``x_value`` etc. (``x``, ``y``, ``z`` are the coordinates); computed
+    curvatures become ``mean_curvature`` / ``gaussian_curvature``; a ``.npy``
+    file gives its stem (``x.npy``, ``y.npy``, ``z.npy`` also become
+    ``x_value`` etc.).
     """
     if spec in COORDINATES:
         return f"{spec}_value"
+    if stored and not spec.lower().endswith(".npy"):
+        return spec
     if spec in CURVATURES:
         return spec.replace("-", "_")
     if spec.lower().endswith(".npy"):
@@ -116,7 +128,9 @@ def vertex_field(mesh: Mesh, spec: str, data: bytes | None = None) -> np.ndarray
     spec : str
         A per-vertex property of the mesh (e.g. ``distance`` from
         ``geoproc geodesic``), ``x``, ``y`` or ``z``, a ``.npy`` file holding one
-        value per vertex, or ``mean-curvature`` / ``gaussian-curvature``.
+        value per vertex, or ``mean-curvature`` / ``gaussian-curvature``
+        (libigl's, unless the mesh stores a vertex property of that name,
+        which is read instead; a ``.npy`` name is always read as the file).
     data : bytes, optional
         The ``.npy`` file's content when the caller has read it (else it is read here).
 
@@ -131,9 +145,9 @@ def vertex_field(mesh: Mesh, spec: str, data: bytes | None = None) -> np.ndarray
     """
     if spec in COORDINATES:
         values = mesh.V[:, COORDINATES[spec]]
-    elif spec == "mean-curvature":
+    elif spec == "mean-curvature" and computes_curvature(mesh, spec):
         values = mean_curvature(mesh.V, mesh.F)
-    elif spec == "gaussian-curvature":
+    elif spec == "gaussian-curvature" and computes_curvature(mesh, spec):
         values = gaussian_curvature(mesh.V, mesh.F)
     elif spec.lower().endswith(".npy"):
         if data is None:

@@ -157,6 +157,22 @@ def test_npy_field_and_curvature(cli, fixture_dir, tmp_path):
     assert m["minima_after"] - m["saddles_after"] + m["maxima_after"] == 0
 
 
+def test_a_stored_property_named_as_a_curvature_is_read(cli, fixture_dir, tmp_path):
+    # a property 'mean-curvature' (another tool's) had been shadowed by libigl's curvature, without a word
+    mesh = load_mesh(fixture_dir / "icosphere.ply")
+    save_mesh(tmp_path / "c.ply", Mesh(mesh.V, mesh.F, {"mean-curvature": mesh.V[:, 1].copy()}))
+    p = cli("morse-simplify", tmp_path / "c.ply", "-f", "mean-curvature", "-p", "0", "-o", tmp_path / "o.ply")
+    assert p.returncode == 0 and "--field mean-curvature: read from the input's vertex property" in p.stderr
+    out = load_mesh(tmp_path / "o.ply").vertex_fields
+    assert sorted(out) == ["mean-curvature", "mean-curvature_original"]
+    np.testing.assert_array_equal(out["mean-curvature_original"], mesh.V[:, 1])
+    # without the property: libigl's, under its own name, no note
+    p = cli("morse-simplify", fixture_dir / "icosphere.ply", "-f", "mean-curvature", "-p", "0",
+            "-o", tmp_path / "k.ply")
+    assert p.returncode == 0 and "note" not in p.stderr, p.stderr
+    assert load_mesh(tmp_path / "k.ply").vertex_fields["mean_curvature_original"].mean() > 0.5
+
+
 def test_pairs_of_exactly_the_threshold_count_as_kept(cli, fixture_dir, tmp_path):
     # an integer field: pairs of persistence exactly P stay, and the counts add up
     pytest.importorskip("gudhi")
