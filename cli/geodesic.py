@@ -156,7 +156,8 @@ def geodesic(
         "Reports pearson_r, rmse, mae, "
         "mean/max_relative_error.", metavar="exact|FILE", show_default=False)] = None,
     field_name: Annotated[str, typer.Option("--field-name", help="Name of the output vertex property: an identifier "
-                                          "(letters, digits, _) other than x, y, z.")]
+                                          "(letters, digits, _) other than x, y, z (the positions), nx, ny, nz "
+                                          "(the normals) and outlier (outlier flags).")]
     = "distance",
     reference_field: Annotated[str | None, typer.Option(
         "--reference-field", help="With --reference MESH: the vertex property holding the reference "
@@ -203,6 +204,11 @@ def geodesic(
                      needs=_metric_needs(m_name, solver.value, reference)) as run:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", field_name) or field_name in ("x", "y", "z"):
             raise UsageError(f"--field-name '{field_name}' must be an identifier other than x, y, z")
+        if field_name in ("nx", "ny", "nz", "outlier"):  # had been written, then lost or misread downstream
+            what = "vertex normals, which the commands that move vertices recompute" if field_name != "outlier" \
+                else "outlier flags, which denoise --outliers scores against"
+            raise UsageError(f"--field-name '{field_name}': a PLY property of that name holds {what}; "
+                             "choose another name")
         require_ply_output(output, "the distance is a vertex property")
         if render is not None:
             require_extension(render, ".png", "--render", stdout_ok=True)
