@@ -289,6 +289,23 @@ class Run:
             self.note(f"replacing the input's {kind} propert" + ("y " if len(clobbered) == 1 else "ies ")
                       + ", ".join(f"'{k}'" for k in clobbered))
 
+    def outlier_flags(self, values, shape: tuple, path: str, frame_files: list[str] | None = None,
+                      rewritten: bool = False) -> np.ndarray:
+        """An ``outlier`` property read as flags (``geoproc.perturb.outlier_flags``:
+        bool, of ``shape``), with a note when it holds values other than 0 and 1
+        (interpolated by ``morse-simplify --barycentric``, say), which are read
+        as flags where above 0.5 (``rewritten``: and the output writes them as 0
+        and 1). ``denoise --outliers`` had scored against such values without a
+        word, where ``perturb`` noted them."""
+        from geoproc.perturb import outlier_flags
+
+        flags = outlier_flags(values, shape, path, frame_files)
+        other = int(np.count_nonzero((values != 0) & (values != 1)))
+        if other:
+            self.note(f"{path}: the 'outlier' property has {other} values other than 0 and 1: read as outlier "
+                      "flags where above 0.5" + (", and written as 0 and 1" if rewritten else ""))
+        return flags
+
     def refresh_normals(self, V, F, fields: dict) -> None:
         """Recompute the stored vertex normals (``nx``, ``ny``, ``nz``) among the
         per-vertex ``fields`` for the positions ``V`` the command moved the

@@ -529,7 +529,7 @@ def _outliers(run, input, output, k, threshold, keep_all, refined, no_clean) -> 
     run.metrics.update({"points": len(cloud.V), "detected_outliers": int(res.outlier.sum()),
                         "threshold": res.threshold})
     if "outlier" in cloud.vertex_fields:
-        truth = outlier_flags(cloud.vertex_fields["outlier"], (len(cloud.V),), path or input)
+        truth = run.outlier_flags(cloud.vertex_fields["outlier"], (len(cloud.V),), path or input)
         run.metrics["true_outliers"] = int(truth.sum())
         run.metrics.update(detection_scores(res.outlier, truth))
     P = res.refined if refined else cloud.V
@@ -594,7 +594,7 @@ def _animation_outliers(run, input, output, threshold, refined) -> None:
                         "detected_outliers": int(res.outlier.sum()), "threshold": res.threshold,
                         "motion_basis": res.rank, "rpca_iterations": res.rpca_iterations})
     if "outlier" in anim.fields:
-        truth = outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path, anim.frame_files)
+        truth = run.outlier_flags(anim.fields["outlier"], anim.V.shape[:2], anim.path, anim.frame_files)
         run.metrics["true_outliers"] = int(truth.sum())
         run.metrics.update(detection_scores(res.outlier, truth))
     fields = dict(anim.fields)

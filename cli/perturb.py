@@ -10,7 +10,7 @@ import typer
 from geoproc.animation import Animation, is_animation_path
 from geoproc.errors import InputError, UsageError, frame_error
 from geoproc.mesh.validate import require_triangle_frames, require_triangle_mesh
-from geoproc.perturb import DIRECTIONS, NoiseSpec, noise_scale, outlier_flags, perturb_positions
+from geoproc.perturb import DIRECTIONS, NoiseSpec, noise_scale, perturb_positions
 from geoproc_cli.common import (
     LOAD_METRICS,
     CheckOpt,
@@ -182,11 +182,7 @@ def _merged_flags(run, new: np.ndarray, fields: dict, shape: tuple, path: str, a
     note. Returns the (bool) flags, of ``shape``."""
     flags = new > 0.5
     if "outlier" in fields:
-        flags |= outlier_flags(fields["outlier"], shape, path, frame_files)
-        other = int(np.count_nonzero((fields["outlier"] != 0) & (fields["outlier"] != 1)))
-        if other:
-            run.note(f"{path}: the 'outlier' property has {other} values other than 0 and 1: read as outlier "
-                     "flags where above 0.5" + (", and written as 0 and 1" if added else ""))
+        flags |= run.outlier_flags(fields["outlier"], shape, path, frame_files, rewritten=added)
     if added:
         fields["outlier"] = flags.astype(np.float64)
     return flags
