@@ -788,18 +788,21 @@ def require_mesh_output(output: str, allow_npz: bool = False) -> None:
         write_format(output)
 
 
-def require_ply_output(output: str, what: str, also: tuple[str, ...] = ()) -> None:
+def require_ply_output(output: str, what: str) -> None:
     """UsageError unless the mesh output ``output`` is ``-`` or a ``.ply``
-    file (or ends in one of ``also``, e.g. ``("npz",)``): ``what`` says what
-    only PLY keeps (``"the distance is a vertex property"``). A name without
-    a mesh extension gets the writer's own message (no extension, or one it
-    cannot write), not this one."""
+    file: ``what`` says what only PLY keeps (``"the distance is a vertex
+    property"``). A ``.npz`` name is told it holds animations (the writer's
+    own message had offered OBJ, OFF and STL, which this refuses); a name
+    without a mesh extension gets the writer's own message (no extension, or
+    one it cannot write), not this one."""
     from geoproc.fileio import file_extension
     from geoproc.mesh.write import write_format
 
     ext = file_extension(output)
-    if output == "-" or ext == "ply" or ext in also:
+    if output == "-" or ext == "ply":
         return
+    if ext == "npz":
+        raise UsageError(f"{output}: .npz holds animations, and {what}, which only PLY keeps; use a .ply output")
     if write_format(output) == "ply":  # (raises for a name without a mesh format) a device: binary PLY
         return
     raise UsageError(f"{output}: {what}, which only PLY keeps; use a .ply output")

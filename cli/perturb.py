@@ -113,7 +113,7 @@ def perturb(
         if outliers == 0:
             refuse_options(ctx, ("outlier_range",), "only with --outliers FRACTION > 0")
         elif not animation:  # (an animation's output is checked below)
-            require_ply_output(output, "the outliers are flagged in a vertex property", also=("npz",))
+            require_ply_output(output, "the outliers are flagged in a vertex property")
         if not outlier_range > 0:  # reached only with --outliers > 0 (refused above otherwise)
             raise UsageError(f"--outlier-range {outlier_range}: must be > 0 (0 would move no outlier)")
         spec = NoiseSpec(sigma=noise, direction=direction, impulsive=impulsive, outliers=outliers,

@@ -582,3 +582,11 @@ def test_frame_folder_clashes_and_missing_targets_are_named_before_the_work(cli,
     (tmp_path / "dl").symlink_to(tmp_path / "gone" / "x")  # a dangling link: its target's folder is missing
     p = cli("perturb", src, "--seed", "1", "-o", str(tmp_path / "dl") + "/")
     assert p.returncode == 2 and f"output folder '{tmp_path / 'gone'}' does not exist" in p.stderr, p.stderr
+
+
+def test_a_npz_output_for_one_mesh_with_outliers_is_told_to_use_ply(cli, fixture_dir, tmp_path):
+    # the writer's message had offered .obj, .off and .stl, which the outlier flags then refused
+    p = cli("perturb", fixture_dir / "icosphere.ply", "--outliers", "0.1", "--seed", "1", "-o", tmp_path / "m.npz")
+    assert p.returncode == 2 and "m.npz: .npz holds animations, and the outliers are flagged in a vertex " \
+        "property, which only PLY keeps; use a .ply output" in " ".join(p.stderr.split()), p.stderr
+    assert not (tmp_path / "m.npz").exists()
