@@ -426,6 +426,8 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
         raise InputError(path, f"has {T} frames; RPCA on the animation matrix needs at least 3")
     if n < 2:
         raise InputError(path, f"has {n} points per frame; at least 2 are needed")
+    if (V == V[:, :1]).all():  # (a single cloud so is refused for its one distinct point)
+        raise InputError(path, "has every frame's points at one place: no point spacing to score outliers in")
     # the unit and the origin from every frame alike: taken from the first frame, they
     # made the flags depend on the order of the frames (274 of 160,000 changed when the
     # frames were rolled by 7)

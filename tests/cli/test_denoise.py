@@ -744,6 +744,11 @@ def test_animation_outliers_bad_usage(cli, dfx, tmp_path):
     np.savez(tmp_path / "flat.npz", vertices=V, faces=np.zeros((0, 3), np.int64), outlier=flag.max(axis=0))
     p = cli("denoise", tmp_path / "flat.npz", "--outliers", "-o", tmp_path / "o.npz")
     assert _one_line_error(p) and f"'outlier' has shape ({V.shape[1]},); expected (frames, n)" in p.stderr
+    # every point of every frame at one place: refused as one cloud so is (had scored all 0 without a word)
+    np.savez(tmp_path / "same.npz", vertices=np.ones((10, 50, 3)), faces=np.zeros((0, 3), np.int64))
+    p = cli("denoise", tmp_path / "same.npz", "--outliers", "-o", tmp_path / "o.npz")
+    assert _one_line_error(p) and "has every frame's points at one place" in p.stderr
+    assert not (tmp_path / "o.npz").exists()
 
 
 def test_feature_options(cli, cube_pair, tmp_path):
