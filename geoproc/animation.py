@@ -255,8 +255,10 @@ def animation_to_bytes(anim: Animation) -> bytes:
 FRAME_FILE = re.compile(r"frame_[0-9]+\.ply\Z")
 """Names of the files a frame-folder output holds (``frame_0000.ply``, ...)."""
 
-PROPERTY_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-"""Field names a frame's PLY vertex property can take (other than x, y, z)."""
+PROPERTY_NAME = re.compile(r"[!-~]+\Z")
+"""Field names a frame's PLY vertex property can take (other than x, y, z): a
+PLY header's word, printable ASCII without spaces (``my-field``, ``1st``; only
+identifiers had been taken, where a mesh's PLY keeps any such word)."""
 
 
 def names_folder(path: str) -> bool:
@@ -273,7 +275,8 @@ def frame_file_names(n_frames: int) -> list[str]:
 
 def unwritable_frame_fields(anim: Animation) -> list[str]:
     """Names of ``anim``'s fields that no PLY vertex property can take (a
-    ``.npz`` member may be named anything): not an identifier, or x, y, z."""
+    ``.npz`` member may be named anything): not a word of printable ASCII,
+    or x, y, z."""
     return [k for k in anim.fields if not PROPERTY_NAME.match(k) or k in ("x", "y", "z")]
 
 
