@@ -686,43 +686,22 @@ def _require_finite_options(params: dict) -> None:
     """Refuse nan or inf in a numeric option (every float parameter is the
     option of the same name, ``sigma_r`` for ``--sigma-r``), naming it as typed
     (``1e400``, which reads as inf, had been named ``inf``), under the form
-    typed (``-c 1e400`` is named ``-c``)."""
+    typed (``-c 1e400`` is named ``-c``; see :data:`TYPED_OPTIONS`)."""
     for key, value in params.items():
         if isinstance(value, float) and not math.isfinite(value):
-            name = f"--{key.replace('_', '-')}"
-            found = _typed_value([name, *_short_forms(key)])
-            shown_name, typed = found if found else (name, None)
+            name, typed = TYPED_OPTIONS.get(key, (f"--{key.replace('_', '-')}", None))
             shown = f"{escaped(typed)} (which reads as {value})" if typed and typed.lower() not in (
                 str(value), f"+{value}", "infinity", "+infinity", "-infinity") else str(value)
-            raise UsageError(f"{shown_name} {shown}: must be a finite number")
+            raise UsageError(f"{name} {shown}: must be a finite number")
 
 
-OPTION_FORMS: dict[str, tuple[str, ...]] = {}
-"""Each parameter of the running command and its option forms (``time_factor``:
-``("--time-factor", "-c")``), kept by the parser (:func:`cli.main.command`)."""
-
-
-def _short_forms(key: str) -> list[str]:
-    """The one-dash forms (``-c``) of the running command's parameter ``key``."""
-    return [o for o in OPTION_FORMS.get(key, ()) if not o.startswith("--")]
-
-
-def _typed_value(names: Sequence[str]) -> tuple[str, str] | None:
-    """The option form and the text given on the command line after the last
-    occurrence of any of ``names`` (``--name VALUE``, ``--name=VALUE``, ``-n
-    VALUE`` or ``-nVALUE``), before a ``--``; None when none was given."""
-    args, found = sys.argv[1:], None
-    if "--" in args:  # what follows is positional
-        args = args[:args.index("--")]
-    for i, arg in enumerate(args):
-        for name in names:
-            if arg == name and i + 1 < len(args):
-                found = (name, args[i + 1])
-            elif name.startswith("--") and arg.startswith(name + "="):
-                found = (name, arg[len(name) + 1:])
-            elif not name.startswith("--") and arg.startswith(name) and len(arg) > len(name):
-                found = (name, arg[len(name):])
-    return found
+TYPED_OPTIONS: dict[str, tuple[str, str]] = {}
+"""For each single-value option of the running command given on the command
+line, the form used (``--time-factor``, or ``-c`` when the long form was not
+typed) and the text the parser read as its value, kept by the parser
+(:func:`cli.main.command`): the text a scan of the arguments had found
+missed option clusters (``-qc1e400``) and took another option's value
+(``-o -c5.ply``) or a file after ``--`` for it."""
 
 
 def choices_metavar(names: Sequence[str]) -> str:

@@ -10,7 +10,7 @@ import typer
 
 import geoproc
 from geoproc_cli import denoise, geodesic, info, morse_simplify, perturb, wos_solve
-from geoproc_cli.common import EXIT_BAD_INPUT, OPTION_FORMS, flag, say
+from geoproc_cli.common import EXIT_BAD_INPUT, TYPED_OPTIONS, flag, say
 from geoproc_cli.entry import interruption_line, unreported_interruption
 
 app = typer.Typer(
@@ -58,12 +58,12 @@ def _refusing_repeats(make_parser):
     a usage error too."""
     def make(ctx):
         parser = make_parser(ctx)
-        OPTION_FORMS.clear()
-        OPTION_FORMS.update({p.name: tuple(p.opts) for p in ctx.command.params})
         parse = parser.parse_args
 
         def parse_args(args):
+            given = list(args)  # (the parser consumes the list)
             opts, rest, order = parse(args=args)
+            _keep_typed(order, opts, given)
             seen = set()
             for param in order:
                 single = (getattr(param, "param_type_name", "") == "option"
@@ -80,6 +80,22 @@ def _refusing_repeats(make_parser):
         return parser
 
     return make
+
+
+def _keep_typed(order, opts: dict, args: list[str]) -> None:
+    """Keep each single-value option's form and raw text in
+    :data:`cli.common.TYPED_OPTIONS` (the long form when it was typed before
+    any ``--``, else the short one), for messages that name a value as typed."""
+    before = args[:args.index("--")] if "--" in args else args
+    TYPED_OPTIONS.clear()
+    for param in order:
+        raw = opts.get(param.name)
+        if getattr(param, "param_type_name", "") != "option" or not isinstance(raw, str):
+            continue
+        long = max(param.opts, key=len)
+        typed_long = any(a == long or a.startswith(long + "=") for a in before)
+        short = [o for o in param.opts if not o.startswith("--")]
+        TYPED_OPTIONS[param.name] = (long if typed_long or not short else short[0], raw)
 
 
 def command():

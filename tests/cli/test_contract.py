@@ -1188,13 +1188,22 @@ def test_an_output_folder_is_the_one_the_file_system_resolves(cli, fixture_dir, 
     assert not (tmp_path / "y.ply").exists() and not (tmp_path / "sub" / "sub").exists()
 
 
-def test_an_option_is_named_as_typed_only_before_a_double_dash(monkeypatch):
+@pytest.mark.parametrize("args, named", [
     # a file named like an option after '--' had been taken for the option's text
-    from geoproc_cli.common import _typed_value
+    (["-s", "0", "-c", "1e400", "-o", "x.ply", "--", "--time-factor=7.ply"], "-c 1e400 (which reads as inf)"),
+    (["-s", "0", "--time-factor=1e400", "-o", "x.ply", "grid.ply"], "--time-factor 1e400 (which reads as inf)"),
+    (["grid.ply", "-s", "0", "-o", "x.ply", "--time-factor", "-1E999"], "--time-factor -1E999 (which reads as -inf)"),
+    # an option cluster, and another option's value that starts like the option (had been
+    # '--time-factor inf' and '-c 5.ply (which reads as inf)')
+    (["grid.ply", "-s", "0", "-qc1e400", "-o", "x.ply"], "-c 1e400 (which reads as inf)"),
+    (["grid.ply", "-s", "0", "-c", "1e400", "-o", "-c5.ply"], "-c 1e400 (which reads as inf)"),
+])
+def test_an_option_is_named_as_typed(fixture_dir, tmp_path, args, named):
+    import shutil
 
-    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", "-c", "1e400", "--", "--time-factor=7.off"])
-    assert _typed_value("--time-factor") is None
-    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", "--time-factor=1e400", "m.ply"])
-    assert _typed_value("--time-factor") == "1e400"
-    monkeypatch.setattr("sys.argv", ["geoproc", "geodesic", "m.ply", "--time-factor", "-1E999"])
-    assert _typed_value("--time-factor") == "-1E999"
+    from tests.conftest import run_cli
+
+    shutil.copy(fixture_dir / "grid.ply", tmp_path / "grid.ply")
+    shutil.copy(fixture_dir / "grid.ply", tmp_path / "--time-factor=7.ply")
+    p = run_cli("geodesic", *args, cwd=tmp_path)
+    assert p.returncode == 2 and p.stderr == f"error: {named}: must be a finite number\n", p.stderr
