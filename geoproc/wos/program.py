@@ -116,14 +116,15 @@ def _pow(a, b):
     or differ: nan for a finite negative base and a non-integer power, ±inf
     for a zero base and a negative power (-inf for -0 and an odd integer
     power), inf or 0 for -inf and a non-integer power and for an infinite
-    power."""
-    odd = b == math.floor(b) and not math.isinf(b) and b - 2.0 * math.floor(b / 2.0) != 0.0
+    power. (np.floor: numba's math.floor returns an int64, which wrapped past
+    2**63 and made (-1)**1e19 nan.)"""
+    odd = b == np.floor(b) and not math.isinf(b) and b - 2.0 * np.floor(b / 2.0) != 0.0
     if math.isinf(b) and a == a:
         m = abs(a)
         return 1.0 if m == 1.0 else (np.inf if (m > 1.0) == (b > 0.0) else 0.0)
-    if a == -np.inf and b == b and b != math.floor(b):
+    if a == -np.inf and b == b and b != np.floor(b):
         return np.inf if b > 0.0 else 0.0
-    if a < 0.0 and b != math.floor(b):
+    if a < 0.0 and b != np.floor(b):
         return np.nan
     if a == 0.0 and b < 0.0:
         return math.copysign(np.inf, a) if odd else np.inf

@@ -48,8 +48,8 @@ def test_exponentials_overflow_where_the_floats_do():
                                   "tan(x) - cosh(y) + abs(x) * sinh(y)"])
 def test_numba_matches_numpy_on_zeros_infinities_and_nan(text):
     # the compiled evaluator gave nan for 1/0 (numpy: inf), inf for (-0)**-1 (-inf), nan for (-2)**inf (inf)
-    vals = np.array([0.0, -0.0, 1.0, -1.0, 2.5, -2.5, 0.5, 3.0, -3.0, 1e-320, 2.0**60, 2.0**53 + 2,
-                     np.inf, -np.inf, np.nan])
+    vals = np.array([0.0, -0.0, 1.0, -1.0, 2.5, -2.5, 0.5, -0.5, 3.0, -3.0, 1e-320, 2.0**60, 2.0**53 + 2,
+                     2.0**63, -2.0**63, 1e19, -1e19, 1e300, np.inf, -np.inf, np.nan])
     a, b = (g.ravel() for g in np.meshgrid(vals, vals, indexing="ij"))
     e = parse_expression(text)
     want = evaluate(e, a, b)
