@@ -368,22 +368,25 @@ def _right_singular_pairs(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.sqrt(np.maximum(w[order], 0.0)), W[:, order]
 
 
-def frames_spacing(V: np.ndarray) -> float:
+def frames_spacing(V: np.ndarray) -> float | None:
     """The point spacing of a moving cloud V (T, n, 3): the median over its
     frames of each frame's :func:`~geoproc.mesh.spacing.point_spacing`,
-    leaving out frames whose points are all at one place (1 when every frame
-    is so). Small frames are queried on one thread: a thread pool per frame
-    made 20,000 frames of 4 points take 33 s instead of about 2."""
+    leaving out frames where most points share their position with their 15
+    nearest neighbours (all at one place, or a few places); None when every frame is
+    so, or with fewer than 2 points (no length to score in: a spacing of 1
+    length unit had been taken, which made the flags depend on the units).
+    Small frames are queried on one thread: a thread pool per frame made
+    20,000 frames of 4 points take 33 s instead of about 2."""
     T, n, _ = V.shape
     if n < 2:  # no neighbour to measure
-        return 1.0
+        return None
     workers = -1 if n >= 20000 else 1
     spacings = []
     for Vt in V:
         dist = cKDTree(Vt).query(Vt, k=min(n, 16), workers=workers)[0]
         if float(np.median(dist[:, -1])) > 0:  # (all at one place: point_spacing's 1 is no length)
             spacings.append(point_spacing(dist))
-    return float(np.median(spacings)) if spacings else 1.0
+    return float(np.median(spacings)) if spacings else None
 
 
 def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: float | None = None,
@@ -426,12 +429,14 @@ def rpca_animation_outliers(V: np.ndarray, threshold: float | None = None, lam: 
         raise InputError(path, f"has {T} frames; RPCA on the animation matrix needs at least 3")
     if n < 2:
         raise InputError(path, f"has {n} points per frame; at least 2 are needed")
-    if (V == V[:, :1]).all():  # (a single cloud so is refused for its one distinct point)
-        raise InputError(path, "has every frame's points at one place: no point spacing to score outliers in")
     # the unit and the origin from every frame alike: taken from the first frame, they
     # made the flags depend on the order of the frames (274 of 160,000 changed when the
     # frames were rolled by 7)
     spacing = frames_spacing(V)
+    if spacing is None:  # (a single cloud so is refused for its few distinct points)
+        raise InputError(path, f"has no frame with a point spacing: in every frame most points share their "
+                         f"position with their {min(n, 16) - 1} nearest neighbours (too few distinct positions "
+                         "to score outliers in)")
     origin = V.mean(axis=(0, 1))  # centred first: far from 0 the positions' own digits would be lost
     X = (V - origin).transpose(1, 0, 2) / spacing  # (n, T, 3)
     # in the principal axes of all the positions, which turn with the animation: RPCA's

@@ -747,7 +747,7 @@ def test_animation_outliers_bad_usage(cli, dfx, tmp_path):
     # every point of every frame at one place: refused as one cloud so is (had scored all 0 without a word)
     np.savez(tmp_path / "same.npz", vertices=np.ones((10, 50, 3)), faces=np.zeros((0, 3), np.int64))
     p = cli("denoise", tmp_path / "same.npz", "--outliers", "-o", tmp_path / "o.npz")
-    assert _one_line_error(p) and "has every frame's points at one place" in p.stderr
+    assert _one_line_error(p) and "has no frame with a point spacing: in every frame most points share" in p.stderr
     assert not (tmp_path / "o.npz").exists()
 
 

@@ -312,8 +312,13 @@ def test_frames_spacing_leaves_out_frames_at_one_place():
     V = np.stack([P * 0.01] * 11 + [np.zeros_like(P)] * 13)
     one_frame = outliers_mod.point_spacing(cKDTree(V[0]).query(V[0], k=16)[0])
     assert frames_spacing(V) == pytest.approx(one_frame, rel=1e-12) and one_frame < 0.01
-    assert frames_spacing(np.zeros((3, 5, 3))) == 1.0
-    assert frames_spacing(np.random.default_rng(0).random((3, 1, 3))) == 1.0  # one point: no neighbour
+    # no frame with a spacing: none (a spacing of 1 length unit had made the flags depend on the units)
+    assert frames_spacing(np.zeros((3, 5, 3))) is None
+    assert frames_spacing(np.random.default_rng(0).random((3, 1, 3))) is None  # one point: no neighbour
+    few = np.zeros((5, 30, 3))
+    few[:, :, 0] = np.arange(5)[:, None]
+    few[2, 7] = (5, 1, 0)  # one point off in one frame
+    assert frames_spacing(few) is None and frames_spacing(few * 1000) is None
 
 
 def test_animation_outliers_do_not_depend_on_where_the_cloud_is(dfx):
