@@ -545,7 +545,7 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
 
 def _unwritable_field_line(folder: str, name: str) -> str:
     return (f"{folder}: field '{name}' cannot be a PLY vertex property of a frame (printable ASCII without "
-            "spaces, other than x, y, z); write a .npz")
+            "spaces, other than x, y, z and end_header); write a .npz")
 
 
 def _frame_files_of(path: str) -> list[str]:

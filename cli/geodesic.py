@@ -157,7 +157,7 @@ def geodesic(
         "mean/max_relative_error.", metavar="exact|FILE", show_default=False)] = None,
     field_name: Annotated[str, typer.Option("--field-name", help="Name of the output vertex property: an identifier "
                                           "(letters, digits, _) other than x, y, z (the positions), nx, ny, nz "
-                                          "(the normals) and outlier (outlier flags).")]
+                                          "(the normals), outlier (outlier flags) and end_header.")]
     = "distance",
     reference_field: Annotated[str | None, typer.Option(
         "--reference-field", help="With --reference MESH: the vertex property holding the reference "
@@ -209,6 +209,9 @@ def geodesic(
                 else "outlier flags, which denoise --outliers scores against"
             raise UsageError(f"--field-name '{field_name}': a PLY property of that name holds {what}; "
                              "choose another name")
+        if field_name == "end_header":
+            raise UsageError("--field-name 'end_header': PLY readers such as trimesh's take a property of that "
+                             "name for the header's end; choose another name")
         require_ply_output(output, "the distance is a vertex property")
         if render is not None:
             require_extension(render, ".png", "--render", stdout_ok=True)

@@ -276,8 +276,9 @@ def frame_file_names(n_frames: int) -> list[str]:
 def unwritable_frame_fields(anim: Animation) -> list[str]:
     """Names of ``anim``'s fields that no PLY vertex property can take (a
     ``.npz`` member may be named anything): not a word of printable ASCII,
-    or x, y, z."""
-    return [k for k in anim.fields if not PROPERTY_NAME.match(k) or k in ("x", "y", "z")]
+    or x, y, z, or end_header (which trimesh's reader takes for the header's
+    end)."""
+    return [k for k in anim.fields if not PROPERTY_NAME.match(k) or k in ("x", "y", "z", "end_header")]
 
 
 def animation_to_frames(anim: Animation) -> list[tuple[str, bytes]]:

@@ -122,15 +122,16 @@ def worst_frame_counts(frames: np.ndarray, F: np.ndarray) -> dict:
     frame's :func:`mesh_info` would miss them (a face collapsed in frame 3
     alone had read 0): ``degenerate_faces`` and ``duplicate_vertices``, each
     the most of any frame of ``frames`` (T, n, 3) with triangles F (m, 3;
-    none for a moving point cloud, whose degenerate faces are 0), and
-    ``worst_frame``: the first frame with the most degenerate faces, or where
-    no frame has any, the first with the most duplicate vertices; -1 when no
-    frame has either. (Both counts had been read from one frame, the worst by
-    degenerate faces first, so more duplicates in another frame were missed.)"""
+    none for a moving point cloud, which has no ``degenerate_faces`` entry:
+    its first frame's null stands), and ``worst_frame``: the first frame with
+    the most degenerate faces, or where no frame has any, the first with the
+    most duplicate vertices; -1 when no frame has either. (Both counts had
+    been read from one frame, the worst by degenerate faces first, so more
+    duplicates in another frame were missed.)"""
     degenerate = np.array([len(degenerate_faces(V, F, diagonal=used_bbox_diagonal(V, F))) if len(F) else 0
                            for V in frames], dtype=np.int64)
     duplicates = np.array([repeated_positions(V) for V in frames], dtype=np.int64)
     by = degenerate if degenerate.max(initial=0) > 0 else duplicates
     worst = int(np.argmax(by)) if by.max(initial=0) > 0 else -1
-    return {"degenerate_faces": int(degenerate.max(initial=0)), "duplicate_vertices": int(duplicates.max(initial=0)),
-            "worst_frame": worst}
+    counts = {"duplicate_vertices": int(duplicates.max(initial=0)), "worst_frame": worst}
+    return {"degenerate_faces": int(degenerate.max(initial=0)), **counts} if len(F) else counts

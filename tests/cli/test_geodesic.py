@@ -393,6 +393,7 @@ BAD = [
     # names the other commands read as normals or outlier flags (a distance written as nx had been lost)
     (["-s", "0", "--field-name", "nx"], "grid.ply", "--field-name 'nx': a PLY property of that name holds vertex"),
     (["-s", "0", "--field-name", "outlier"], "grid.ply", "holds outlier flags, which denoise --outliers scores"),
+    (["-s", "0", "--field-name", "end_header"], "grid.ply", "take a property of that name for the header's end"),
     # a short form is named as typed too (it had been '--time-factor inf')
     (["-s", "0", "-c", "1e400"], "grid.ply", "error: -c 1e400 (which reads as inf): must be a finite number"),
     (["-s", "0", "-t-1e999"], "grid.ply", "error: -t -1e999 (which reads as -inf): must be a finite number"),
