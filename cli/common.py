@@ -306,6 +306,21 @@ class Run:
                       "flags where above 0.5" + (", and written as 0 and 1" if rewritten else ""))
         return flags
 
+    def note_kept_seams(self, mesh: Mesh, name: str) -> None:
+        """Under --no-clean, a note when vertices the faces use share a position:
+        each copy moves on its own, so the surface can open along those seams
+        (denoise and perturb, which had opened them without a word)."""
+        from geoproc.mesh.clean import repeated_positions
+        from geoproc.mesh.topology import referenced_vertices
+
+        copies = repeated_positions(mesh.V[referenced_vertices(mesh.F, len(mesh.V))])
+        if copies:
+            one = copies == 1
+            self.note(f"{name}: {copies} {'vertex' if one else 'vertices'} the faces use "
+                      f"repeat{'s' if one else ''} the position of another, and --no-clean keeps them apart: each "
+                      "moves on its own, so the surface can open along those seams (without --no-clean they are "
+                      "merged)")
+
     def refresh_normals(self, V, F, fields: dict) -> None:
         """Recompute the stored vertex normals (``nx``, ``ny``, ``nz``) among the
         per-vertex ``fields`` for the positions ``V`` the command moved the

@@ -388,7 +388,7 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
     if mesh.is_point_cloud:
         raise InputError(path, "is a point cloud (no faces); use --outliers for point clouds")
     if no_clean:
-        _note_kept_seams(run, mesh, path or input)
+        run.note_kept_seams(mesh, path or input)
     require_triangle_mesh(mesh)  # the edge check is denoise_mesh's own, its error named below
     # the filters (scipy, the compiled kernels) load once the input is read
     from geoproc.denoise.mesh_denoise import denoise_mesh
@@ -485,21 +485,6 @@ def _options_to_filter(dp) -> str:
     --rounds and --normal-iterations, those not given or given as 0."""
     return " and ".join(opt for opt, value in (("--rounds", dp.outer_iterations),
                                                ("--normal-iterations", dp.normal_iterations)) if not value)
-
-
-def _note_kept_seams(run, mesh, name: str) -> None:
-    """Under --no-clean, a note when vertices the faces use share a position: each
-    copy moves on its own, so the surface can open along those seams."""
-    from geoproc.mesh.clean import repeated_positions
-    from geoproc.mesh.topology import referenced_vertices
-
-    copies = repeated_positions(mesh.V[referenced_vertices(mesh.F, len(mesh.V))])
-    if copies:
-        one = copies == 1
-        run.note(f"{name}: {copies} {'vertex' if one else 'vertices'} the faces use "
-                 f"repeat{'s' if one else ''} the position of another, and --no-clean keeps them apart: each "
-                 "moves on its own, so the surface can open along those seams (without --no-clean they are "
-                 "merged)")
 
 
 def _refuse_scored_checks(run, name: str) -> None:

@@ -152,6 +152,8 @@ def perturb(
         mesh = run.load_mesh(input, clean=not no_clean, mesh_output=output)
         if not mesh.is_point_cloud:
             require_triangle_mesh(mesh)  # normals, and the edge-length unit, need a face of some area
+            if no_clean and (noise > 0 or outliers > 0):
+                run.note_kept_seams(mesh, mesh.log.path or input)
         _note_fractions_of_none(run, len(mesh.V), impulsive, outliers)
         with run.timer("compute"):
             scale = noise_scale(mesh.V, mesh.F)

@@ -590,3 +590,20 @@ def test_a_npz_output_for_one_mesh_with_outliers_is_told_to_use_ply(cli, fixture
     assert p.returncode == 2 and "m.npz: .npz holds animations, and the outliers are flagged in a vertex " \
         "property, which only PLY keeps; use a .ply output" in " ".join(p.stderr.split()), p.stderr
     assert not (tmp_path / "m.npz").exists()
+
+
+def test_kept_seams_are_noted_under_no_clean(cli, fixture_dir, tmp_path):
+    # a vertex stored twice (a seam) moves apart under --no-clean: denoise noted it, perturb had not
+    m = load_mesh(fixture_dir / "cube.ply")
+    V = np.vstack([m.V, m.V[:1]])
+    F = m.F.copy()
+    rows = np.flatnonzero((F == 0).any(axis=1))[:2]  # two of vertex 0's faces use its copy
+    F[rows] = np.where(F[rows] == 0, len(m.V), F[rows])
+    src = tmp_path / "seam.obj"
+    save_mesh(src, Mesh(V, F))
+    note = f"note: {src}: 1 vertex the faces use repeats the position of another, and --no-clean keeps them apart"
+    for args in (("perturb", src, "--noise", "0.2", "--seed", "1"), ("denoise", src)):
+        p = cli(*args, "--no-clean", "-o", tmp_path / "o.ply")
+        assert p.returncode == 0 and note in " ".join(p.stderr.split()), p.stderr
+        p = cli(*args, "-o", tmp_path / "o.ply")
+        assert p.returncode == 0 and "--no-clean keeps them apart" not in p.stderr, p.stderr
