@@ -468,18 +468,20 @@ def denoise_mesh(
     if p.features not in FEATURE_METHODS:
         raise ValueError(f"unknown feature method {p.features!r}")
     V, F = mesh_arrays(V, F)
-    # T-junction fillers rounded off their segments by the file (pinned boundary vertices stay)
-    pinned = None
-    if p.pin_boundary:
-        pinned = np.zeros(len(V), dtype=bool)
-        pinned[boundary_vertices(F)] = True
-    V = on_segments_as_stored(V, F, pinned)
     repeated = repeated_corner_faces(F)
     if repeated.any():  # no area and no normal: left out of the filter and the fit
         return _without_repeated_corner_faces(V, F, repeated, method, params, progress, initial_normals)
     groups = scale_groups(V, F)
     if groups.max(initial=0) > 0:  # parts meshed at very different scales: each group on its own
         return _by_scale_group(V, F, groups, method, params, progress, initial_normals)
+    # T-junction fillers rounded off their segments by the file (pinned boundary vertices stay),
+    # judged for each scale group on its own: the whole mesh's rounding, within its limit of the
+    # large part's edges, had flattened faces of a part at 1/1000 scale that alone it leaves
+    pinned = None
+    if p.pin_boundary:
+        pinned = np.zeros(len(V), dtype=bool)
+        pinned[boundary_vertices(F)] = True
+    V = on_segments_as_stored(V, F, pinned)
     if connectivity is None:
         connectivity = face_connectivity(F, len(V))
     elif not connectivity.matches(F, len(V)):

@@ -64,3 +64,18 @@ def test_the_schedule_reported_is_that_of_a_group_that_was_filtered(dfx):
     alone = denoise_mesh(Wn * 1e-3, G)
     assert res.info["outer_iterations"] == alone.info["outer_iterations"] > 0
     assert np.array_equal(res.V[: len(V)], V)
+
+
+def test_a_small_part_stored_in_float32_is_denoised_as_alone(dfx):
+    # the whole mesh's float32 rounding (within its limit of the large part's edges) had
+    # flattened faces of a part at 1/10,000 scale thinner than 4 roundings, which alone (where
+    # that rounding is past the limit of its own edges) it leaves: up to 0.14 edge lengths off
+    Vn, F, Wn, G, V, FF = _two_parts(dfx, 1e-4)
+    V = V.astype(np.float32).astype(np.float64)
+    small = V[len(Vn):].copy()
+    a, b, c = G[0]  # one face of the small part 2 % of an edge from flat (its corner c near edge ab)
+    small[c] = 0.49 * small[a] + 0.49 * small[b] + 0.02 * small[c]
+    small = small.astype(np.float32).astype(np.float64)
+    V[len(Vn):] = small
+    res, alone = denoise_mesh(V, FF), denoise_mesh(small, G)
+    assert np.array_equal(res.V[len(Vn):], alone.V)
