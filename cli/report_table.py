@@ -124,7 +124,8 @@ def summary_table(folder: Path, max_metrics: int = 5, recursive: bool = False) -
 
     t = Table(title=Text(escaped(f"geoproc reports in {folder}")))
     for col in ("report", "command", "input", "metrics", "checks", "total s"):
-        t.add_column(col)
+        # names wrap, never cut: long ones had been cut to the same text ('runs/time_…' three times)
+        t.add_column(col, overflow="fold" if col in ("report", "input") else "ellipsis")
     reports, notes = folder_reports(folder, recursive)
     for path, rep in reports:
         shown = [f"{k}={_shown_value(v)}" for k, v in headline_metrics(rep["metrics"])][:max_metrics]
@@ -287,12 +288,31 @@ def main(argv: list[str]) -> int:
               file=sys.stderr)
         return 2
     if csv_path is not None:
+        clash = _report_at(csv_path, [path for path, _ in reports])
+        if clash is not None:  # a link named .csv to a report had been written through, over the report
+            print(f"report_table: error: --csv {csv_path}: is the report {clash} (through a link); write the CSV "
+                  "elsewhere", file=sys.stderr)
+            return 2
         return _write_csv(csv_path, reports_csv(reports, folder))
     console = Console()
     if not console.is_terminal:
         console = Console(width=160)
     console.print(table)
     return 0
+
+
+def _report_at(csv_path: str, paths: list[Path]) -> Path | None:
+    """The report among ``paths`` that the file ``csv_path`` is (a symbolic or
+    a hard link to it), else None (also for ``-`` and a file not yet made)."""
+    if csv_path == "-" or not os.path.exists(csv_path):
+        return None
+    for path in paths:
+        try:
+            if os.path.samefile(csv_path, path):
+                return path
+        except OSError:
+            continue
+    return None
 
 
 def _has_subfolders(folder: Path) -> bool:

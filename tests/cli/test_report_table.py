@@ -13,6 +13,24 @@ def _write(folder, name, obj):
     (folder / name).write_text(obj if isinstance(obj, str) else json.dumps(obj))
 
 
+def test_long_names_wrap_and_are_never_cut(tmp_path, capsys, monkeypatch):
+    # off a terminal the table is 160 wide: three reports in one long folder had all been shown
+    # as the same 'armadillo_scan_.../geodesic_heat_…'
+    monkeypatch.setenv("COLUMNS", "160")
+    sub = tmp_path / "armadillo_scan_highres_remeshed_v3" / "geodesic_heat_runs_with_long_names"
+    sub.mkdir(parents=True)
+    long_input = "scan_of_the_stanford_bunny_reconstructed_with_poisson_depth_ten_final.ply"
+    for s in ("0.5", "1", "2"):
+        _write(sub, f"time_factor_{s}.json", {"command": "info", "metrics": {"genus": 0},
+                                              "inputs": [{"path": long_input, "sha256": "0"}]})
+    assert main(["report_table", str(tmp_path), "-r"]) == 0
+    rows = [line.split("│") for line in capsys.readouterr().out.splitlines() if line.startswith("│")]
+    names, inputs = "".join(r[1].strip() for r in rows), "".join(r[3].strip() for r in rows)
+    for s in ("0.5", "1", "2"):
+        assert f"armadillo_scan_highres_remeshed_v3/geodesic_heat_runs_with_long_names/time_factor_{s}.json" in names
+    assert inputs == long_input * 3
+
+
 def test_table_lists_reports_and_skips_other_json(tmp_path, capsys):
     _write(tmp_path, "a.json", {"command": "example", "metrics": {"mean_relative_error": 0.0123, "nested": {"x": 1}},
                                 "inputs": [{"path": "/x/torus.ply", "sha256": "0"}], "timings_s": {"total": 1.5}})
@@ -159,6 +177,16 @@ def test_csv_arguments_and_unwritable_files_exit_2_with_one_line(tmp_path, capsy
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "a.json: the name must end in .csv" in err[0]
     assert json.loads((tmp_path / "a.json").read_text())["command"] == "info"
+    # nor through a link named .csv (symbolic or hard) to a report, written through before
+    import os
+
+    os.symlink("a.json", tmp_path / "s.csv")
+    os.link(tmp_path / "a.json", tmp_path / "h.csv")
+    for name in ("s.csv", "h.csv"):
+        assert main(["report_table", str(tmp_path), "--csv", str(tmp_path / name)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"--csv {tmp_path / name}: is the report" in err[0] and "(through a link)" in err[0]
+        assert json.loads((tmp_path / "a.json").read_text())["command"] == "info"
     missing = tmp_path / "no" / "r.csv"
     assert main(["report_table", str(tmp_path), f"--csv={missing}"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
