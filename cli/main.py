@@ -143,7 +143,7 @@ def _separated_number(param, raw) -> str | None:
     descriptor = getattr(param, "type_descriptor", None)
     if getattr(param, "param_type_name", "") != "option" or not _numeric(getattr(descriptor, "annotation", None)):
         return None
-    values = raw if isinstance(raw, (list, tuple)) else [raw]
+    values = raw if isinstance(raw, list | tuple) else [raw]
     return next((v for v in values if isinstance(v, str) and "_" in v and _reads_as_number(v)), None)
 
 

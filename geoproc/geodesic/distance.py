@@ -114,7 +114,7 @@ def diffusion_time(h: float, time_factor: float | None = 1.0, time: float | None
 def check_sources(sources, n: int, F: np.ndarray, path: str | None) -> np.ndarray:
     """Sources as an int array: at least one, each in [0, n) and used by a face."""
     items = np.asarray([] if sources is None else sources, dtype=object).reshape(-1)
-    wrong = [s for s in items if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer))]
+    wrong = [s for s in items if isinstance(s, bool | np.bool_) or not isinstance(s, int | np.integer)]
     if wrong:
         raise UsageError(f"source vertices are integer indices, not {wrong[0]!r}")
     raw = [int(s) for s in items]
