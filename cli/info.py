@@ -62,12 +62,17 @@ def info(
     --check, e.g. --check 'genus==0'.
     """
     params = {"mesh": mesh, "json": as_json, "clean": not no_clean}
-    if mesh != "-" and is_animation_path(mesh):
+    animation = mesh != "-" and is_animation_path(mesh)
+    if animation:
         params["clean"] = None  # frames are read as stored (as perturb and denoise report it)
+    # a check on what only the other kind of input reports is refused before the input is read,
+    # as perturb refuses it (it had been refused after the run, without the reason)
+    needs = ({"a mesh or point cloud (not an animation)": LOAD_METRICS} if animation
+             else {"an animation (.npz or a folder of frames)": ("frames", "worst_frame")})
     with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
-                     outputs=["-"], inputs=[mesh], metrics=METRICS) as run:  # the summary goes to stdout
+                     outputs=["-"], inputs=[mesh], metrics=METRICS, needs=needs) as run:  # the summary goes to stdout
         frames = None
-        if params["clean"] is None:
+        if animation:
             if no_clean:
                 refuse_options(ctx, ("no_clean",), "not used for an animation (frames are read as stored)")
             from geoproc.mesh.mesh import LoadLog, Mesh

@@ -1166,6 +1166,11 @@ def test_info_summarizes_an_animation(cli, fixture_dir, tmp_path):
     assert (s["degenerate_faces"], s["duplicate_vertices"], s["worst_frame"]) == (None, 3, 3)  # null as one cloud's
     p = cli("info", tmp_path / "a.npz", "--no-clean")
     assert p.returncode == 2 and "--no-clean: not used for an animation" in p.stderr
+    # a check on what only the other kind of input reports: refused before the input is read, with why
+    p = cli("info", tmp_path / "a.npz", "--check", "merged_vertices==0")
+    assert p.returncode == 2 and "info reports 'merged_vertices' only with a mesh or point cloud" in p.stderr
+    p = cli("info", fixture_dir / "torus.ply", "--check", "frames==1")
+    assert p.returncode == 2 and "info reports 'frames' only with an animation (.npz or a folder" in p.stderr
     p = cli("info", fixture_dir / "torus.ply", "--report", rep)
     assert p.returncode == 0 and "frames" not in json.loads(rep.read_text())["metrics"]
 
