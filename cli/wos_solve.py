@@ -30,7 +30,7 @@ EXACT_METRICS = ("rmse", "max_abs_error", "bias", "error_points", "declared_lapl
 METRICS = EXACT_METRICS + (
     "segments", "loops", "neumann_segments", "domain_area", "grid_width", "grid_height", "grid_points_inside",
     "pixel_size", "grid_left", "grid_top", "walks", "kernels_used", "fit_points", "fit_walks", "fit_seconds",
-    "fit_steps",
+    "fit_steps", "control_variate_variance_ratio", "control_variate_used",
     "refine_seconds", "refine_steps", "refine_iterations", "residual_seconds", "residual_steps", "total_walks",
     "total_steps", "steps_per_second", "residual_steps_per_second", "mean_steps_per_walk",
     "mean_standard_error", "rms_standard_error",
@@ -58,7 +58,8 @@ EPSILON_NOTE = 0.01
 """An --epsilon above this fraction of the domain's bounding-box diagonal gets a note: on
 a 2 mm square at the default 1e-3 every walk stopped where it started."""
 
-FIT_METRICS = ("kernels_used", "fit_points", "fit_walks", "fit_seconds", "fit_steps")
+FIT_METRICS = ("kernels_used", "fit_points", "fit_walks", "fit_seconds", "fit_steps", "control_variate_variance_ratio",
+               "control_variate_used")
 """Reported only with a control variate (every method but naive)."""
 REFINE_METRICS = ("refine_seconds", "refine_steps", "refine_iterations")
 """Reported only by npass."""
@@ -70,6 +71,8 @@ METRIC_UNITS = {
     "range (0 or a few 1e-6 when it is harmonic; the flux a few hundredths or more where the Neumann segments are "
     "a polyline standing for a curve, 0.19 on a 24-gon; a note above 1e-4, 0.1 for the flux)",
     "pixel_size, grid_left, grid_top, domain_area": "in the domain's length unit (area its square)",
+    "control_variate_variance_ratio": "the walks' variance with the fitted control variate over plain walks', at "
+    "the fit points (above 1: control_variate_used is false and the residual pass ran plain walks)",
 }
 """Units of the metrics whose names do not tell, for ``--help``."""
 
@@ -266,10 +269,18 @@ def wos_solve(
                      f"finer than the coordinates' rounding ({epsilon:g} here), where walks stall at the boundary")
         wanted = fit_points if fit_points is not None else FIT_POINTS_PER_KERNEL * (used or 0)
         if fitted and res.metrics.get("fit_points", wanted) < wanted:
+            where = ("every grid point farther than 2 x epsilon from the boundary" if res.scored.any() else
+                     "every grid point, none being farther than 2 x epsilon from the boundary")
             run.note(f"{res.metrics['fit_points']} fit points used, not {wanted}"
                      f"{'' if fit_points is not None else f' ({FIT_POINTS_PER_KERNEL} x the kernels used)'}: "
-                     "every grid point farther than 2 x epsilon from the boundary (raise --grid for more)")
-        if fitted and ridge == 0 and used and res.metrics.get("fit_points", 0) <= used:
+                     f"{where} (raise --grid for more)")
+        if fitted and not res.metrics["control_variate_used"]:
+            run.note(f"the control variate fitted at {res.metrics['fit_points']} points gave the walks "
+                     f"{res.metrics['control_variate_variance_ratio']:.3g} times the variance of plain walks there: "
+                     "the residual pass ran plain walks (the result is the naive method's; more fit points, "
+                     "from a finer --grid or --fit-points, more --fit-walks or fewer --kernels make a better fit"
+                     + (", and so does a --ridge above 0)" if ridge == 0 else ")"))
+        elif fitted and ridge == 0 and used and res.metrics.get("fit_points", 0) <= used:
             run.note(f"--ridge 0 with {res.metrics.get('fit_points', 0)} fit points for {used} kernels: the fit is "
                      "the minimum-norm one through the fit walks' noise, whose large coefficients the control "
                      "variate adds back (a ridge > 0, or more fit points, keeps them small)")

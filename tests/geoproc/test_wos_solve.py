@@ -252,6 +252,20 @@ def test_control_variates_reduce_rmse_on_disk_re_z3():
     assert rmse["npass"] < 0.2 * rmse["naive"], rmse
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_control_variate_that_adds_variance_is_left_out(seed):
+    # cv-angle's 80 kernels fitted at the 208 fit points of a 16 x 16 grid fit the walks' noise:
+    # rmse 0.14 against 0.075 for plain walks; its variance is checked at the fit points first
+    kw = dict(walks=64, grid=16, exact=True, seed=seed)
+    naive = solve_laplace(DISK, RE_Z3, method="naive", **kw)
+    angle = solve_laplace(DISK, RE_Z3, method="cv-angle", **kw)
+    assert angle.metrics["control_variate_used"] is False and angle.metrics["control_variate_variance_ratio"] > 1
+    assert np.array_equal(angle.U, naive.U, equal_nan=True)  # the residual pass ran plain walks
+    green = solve_laplace(DISK, RE_Z3, method="cv-green", **kw)  # one that helps is kept
+    assert green.metrics["control_variate_used"] is True and green.metrics["control_variate_variance_ratio"] < 0.1
+    assert green.metrics["rmse"] < 0.2 * naive.metrics["rmse"]
+
+
 def test_seeds_a_half_range_apart_give_other_streams():
     # the seed was reduced modulo 2**63, so s and s + 2**63 (both accepted) repeated each other
     seeds = [0, 1 << 63, 5, (1 << 63) + 5, (1 << 64) - 1]
