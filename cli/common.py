@@ -551,6 +551,8 @@ def _require_distinct_outputs(names: list[str], inputs: list[str], report: str |
                 raise UsageError("standard output (-) is also an input; write the result to another file")
             continue
         real, ident = os.path.realpath(name), _file_id(name)
+        if ident is not None and ident == _file_id(os.devnull):
+            continue  # what several outputs write there cannot mix
         if real in seen or (ident is not None and ident in seen):
             raise UsageError(f"{name}: given for two outputs; give each its own file name")
         if real in sources or (ident is not None and ident in sources):
@@ -719,6 +721,17 @@ missed option clusters (``-qc1e400``) and took another option's value
 (``-o -c5.ply``) or a file after ``--`` for it."""
 
 
+def _is_device(name: str) -> bool:
+    """Whether ``name`` is an existing file that is not a regular file or a
+    folder (a device such as /dev/null, a FIFO), which outputs write to
+    directly, whatever its name."""
+    try:
+        mode = os.stat(name).st_mode
+    except OSError:
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
 def choices_metavar(names: Sequence[str]) -> str:
     """How --help shows an option that takes one of ``names``: ``<a|b|c>``, as
     Typer shows the options typed as enumerations."""
@@ -741,6 +754,8 @@ def require_extension(path: str | os.PathLike, ext: str, option: str, stdout_ok:
     if not name:
         raise UsageError(f"{option}: the file name is empty")
     if (stdout_ok and name == "-") or name.lower().endswith(ext):
+        return
+    if _is_device(name):  # written to directly (/dev/null keeps only the report and its gates)
         return
     if name == "-":
         raise UsageError(f"{option} -: this file is not written to standard output; give a file name ending in {ext}")

@@ -1120,7 +1120,7 @@ def test_report_params_hold_the_options_used_and_none_for_those_not(cli, fixture
     assert exact["exact_windows"] is None and exact["barycentric"] is True
 
 
-def test_a_mesh_output_to_a_device_is_binary_ply(cli, fixture_dir, tmp_path):
+def test_outputs_to_a_device_and_a_mesh_there_as_binary_ply(cli, fixture_dir, tmp_path):
     # -o /dev/null (a run kept for its report and gates) had been refused: no extension to choose the format by
     rep = tmp_path / "r.json"
     p = cli("geodesic", fixture_dir / "torus.ply", "-s", "0", "-o", "/dev/null", "--report", rep,
@@ -1132,6 +1132,19 @@ def test_a_mesh_output_to_a_device_is_binary_ply(cli, fixture_dir, tmp_path):
     assert p.returncode == 0 and p.stdout.startswith(b"ply\nformat binary_little_endian"), p.stderr
     p = cli("perturb", fixture_dir / "torus.ply", "--seed", "1", "-o", tmp_path / "noext")
     assert p.returncode == 2 and "no file extension to choose the format by" in p.stderr
+    # outputs whose names must end in .exr, .png or .json may be devices too, several at /dev/null
+    # (they had been refused: '-o /dev/null: must end in .exr', 'given for two outputs')
+    dom = tmp_path / "sq.json"
+    dom.write_text('{"loops": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}')
+    p = cli("wos-solve", dom, "--boundary", "x", "--grid", "8", "--walks", "4", "-o", "/dev/null", "--image",
+            "/dev/null", "--report", rep, "--check", "walks>=4")
+    assert p.returncode == 0 and json.loads(rep.read_text())["command"] == "wos-solve", p.stderr
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", "z", "-p", "0.1", "-o", "/dev/null",
+            "--diagram", "/dev/null", "--critical", "/dev/null", "--report", "/dev/null")
+    assert p.returncode == 0, p.stderr
+    p = cli("morse-simplify", fixture_dir / "torus.ply", "-f", "z", "-p", "0.1", "-o", tmp_path / "m.ply",
+            "--critical", tmp_path / "m.ply")  # any other file given twice is still refused
+    assert p.returncode == 2 and "given for two outputs" in p.stderr
 
 
 def test_info_summarizes_an_animation(cli, fixture_dir, tmp_path):
