@@ -6,6 +6,7 @@ import igl
 import numpy as np
 
 from geoproc.denoise.face_geometry import face_normals_and_areas, stored_rounding
+from geoproc.denoise.scale_groups import scale_groups
 from geoproc.mesh.topology import mean_edge_length, referenced_vertices
 
 
@@ -13,8 +14,20 @@ def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(m, 3) unit face normals for the metrics (:func:`face_normals_and_areas`),
     faces whose corners lie on a line as stored (a T-junction filler of a
     six-decimal OBJ) taking their neighbours' normal as exact ones do: a
-    rounding-error normal 90 degrees off had been counted as the largest angle."""
-    return face_normals_and_areas(V, F, stored_rounding(V, F))[0]
+    rounding-error normal 90 degrees off had been counted as the largest angle.
+    The rounding is judged for each scale group on its own, as the filter
+    judges it (:func:`geoproc.denoise.scale_groups.scale_groups`)."""
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    groups = scale_groups(V, F)
+    if groups.max(initial=0) == 0:
+        return face_normals_and_areas(V, F, stored_rounding(V, F))[0]
+    N = np.empty((len(F), 3))
+    for g in range(int(groups.max()) + 1):
+        fg = np.flatnonzero(groups == g)
+        vg = np.unique(F[fg])
+        Vg, Fg = V[vg], np.searchsorted(vg, F[fg])
+        N[fg] = face_normals_and_areas(Vg, Fg, stored_rounding(Vg, Fg))[0]
+    return N
 
 
 def normal_angles_deg(N: np.ndarray, N_ref: np.ndarray) -> np.ndarray:
