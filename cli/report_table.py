@@ -303,9 +303,14 @@ def main(argv: list[str]) -> int:
 
 def _report_at(csv_path: str, paths: list[Path]) -> Path | None:
     """The report among ``paths`` that the file ``csv_path`` is (a symbolic or
-    a hard link to it), else None (also for ``-`` and a file not yet made)."""
+    a hard link to it), or the ``.json`` file a symbolic link ``csv_path``
+    leads to (a report elsewhere, which writing through the link would
+    replace), else None (also for ``-`` and a file not yet made)."""
     if csv_path == "-" or not os.path.exists(csv_path):
         return None
+    target = os.path.realpath(csv_path)
+    if os.path.islink(csv_path) and target.lower().endswith(".json"):
+        return Path(target)
     for path in paths:
         try:
             if os.path.samefile(csv_path, path):
