@@ -31,7 +31,12 @@ from geoproc.wos.problem import WalkProblem, pass_seed
 METHODS = ("naive", "cv-green", "cv-angle", "npass")
 FIT_POINTS_PER_KERNEL = 8
 """The default number of fit points per kernel used (at most the grid's interior points)."""
-_TAG_FIT, _TAG_RESIDUAL, _TAG_PILOT, _TAG_NPASS = 1, 2, 3, 1000
+_TAG_FIT, _TAG_RESIDUAL, _TAG_PILOT, _TAG_PILOT_PLAIN, _TAG_NPASS = 1, 2, 3, 4, 1000
+
+UNRESOLVED_SPREAD = 1e-9
+"""Walk spreads below this fraction of the data's size count as none in the
+control variate's check (the float32 EXR resolves 6e-8 of a value; constant
+data give plain walks no spread and a control variate one of rounding)."""
 
 PILOT_WALKS = 32
 """Walks per fit point of the pass that checks a fitted control variate
@@ -110,21 +115,33 @@ class WosResult:
     sigma: np.ndarray | None = None
 
 
-def _control_variate_helps(problem, F: np.ndarray, ks, sigma: np.ndarray, var_plain: np.ndarray,
-                           stream_seed) -> tuple[float, int]:
+def _control_variate_helps(problem, F: np.ndarray, ks, sigma: np.ndarray, u_fit: np.ndarray,
+                           var_plain: np.ndarray | None, stream_seed, plain_seed) -> tuple[float, int, int]:
     """The variance of the walks with the fitted control variate over that of
     plain walks, averaged over the fit points F (k, 2): the plain variance
-    ``var_plain`` (k,) from the fit pass, the other from :data:`PILOT_WALKS`
+    ``var_plain`` (k,) from the fit pass (None when it had one walk per point,
+    whose spread is not measured: then :data:`PILOT_WALKS` plain walks per
+    point measure it, on ``plain_seed``), the other from :data:`PILOT_WALKS`
     walks per point with the control variate (a stream of its own, so the
     other passes draw what they drew before). Above 1 the control variate
     makes the estimate worse: fitted from few points (the grid caps them) it
     can fit the walks' noise (cv-angle on the disk at --grid 16 and 64 walks:
-    rmse 0.14 against 0.075 for plain walks). Also returns the pass's steps.
-    0 when both variances are 0 (constant data)."""
-    _, var_cv, steps = problem.estimate_chunked(F, PILOT_WALKS, stream_seed, ks, sigma)
+    rmse 0.14 against 0.075 for plain walks). Spreads below
+    :data:`UNRESOLVED_SPREAD` of the fitted values' size count as 0 (constant
+    data: plain walks have none, the control variate's is rounding), and 0
+    is the ratio when the control variate's is so. Also returns the pass's
+    walks and steps."""
+    walks = steps = 0
+    if var_plain is None:
+        _, var_plain, st = problem.estimate_chunked(F, PILOT_WALKS, plain_seed)
+        walks, steps = walks + len(F) * PILOT_WALKS, steps + int(st.sum())
+    _, var_cv, st = problem.estimate_chunked(F, PILOT_WALKS, stream_seed, ks, sigma)
+    walks, steps = walks + len(F) * PILOT_WALKS, steps + int(st.sum())
+    floor = (UNRESOLVED_SPREAD * float(np.abs(u_fit).max(initial=0.0))) ** 2
     plain, with_cv = float(np.mean(var_plain)), float(np.mean(var_cv))
-    ratio = with_cv / plain if plain > 0 else (0.0 if with_cv == 0 else float("inf"))
-    return ratio, int(steps.sum())
+    if not with_cv > floor:  # (nan included: no measured spread to add)
+        return 0.0, walks, steps
+    return with_cv / max(plain, floor) if max(plain, floor) > 0 else float("inf"), walks, steps
 
 
 def default_ridge(method: str) -> float:
@@ -278,12 +295,15 @@ def solve_laplace(domain: Domain, boundary: Expression | None, *, flux: Expressi
             metrics.update({"refine_seconds": refine_seconds, "refine_steps": ns,
                             "refine_iterations": npass_steps})
         t0 = time.perf_counter()
-        ratio, pilot_steps = _control_variate_helps(problem, F, ks, sigma, var_plain, pass_seed(seed, _TAG_PILOT))
+        ratio, pilot_walks, pilot_steps = _control_variate_helps(
+            problem, F, ks, sigma, u_fit, var_plain if fit_walks > 1 else None, pass_seed(seed, _TAG_PILOT),
+            pass_seed(seed, _TAG_PILOT_PLAIN))
         walk_time += time.perf_counter() - t0
-        total_walks += len(F) * PILOT_WALKS
+        total_walks += pilot_walks
         total_steps += pilot_steps
-        metrics.update({"control_variate_variance_ratio": ratio, "control_variate_used": bool(ratio <= 1.0)})
-        if ratio > 1.0:  # it adds variance: the residual pass runs plain walks
+        used = not ratio > 1.0
+        metrics.update({"control_variate_variance_ratio": ratio, "control_variate_used": used})
+        if not used:  # it adds variance: the residual pass runs plain walks
             ks = sigma = None
     start_frac = 0.0 if method == "naive" else (0.2 if method == "npass" else 0.05)
     t0 = time.perf_counter()

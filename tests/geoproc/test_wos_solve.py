@@ -266,6 +266,20 @@ def test_a_control_variate_that_adds_variance_is_left_out(seed):
     assert green.metrics["rmse"] < 0.2 * naive.metrics["rmse"]
 
 
+def test_the_control_variate_check_with_one_fit_walk_and_constant_data():
+    # one fit walk per point measures no spread: the check had read the plain variance as 0 and
+    # left every such control variate out (cv-green on the disk: rmse 0.156 against 0.051)
+    kw = dict(walks=16, grid=16, exact=True, seed=0)
+    one = solve_laplace(DISK, RE_Z3, method="cv-green", fit_walks=1, **kw)
+    assert one.metrics["control_variate_used"] is True and 0 < one.metrics["control_variate_variance_ratio"] < 0.5
+    assert one.metrics["rmse"] < 0.5 * solve_laplace(DISK, RE_Z3, method="naive", **kw).metrics["rmse"]
+    # constant data: plain walks have no spread, the control variate one of rounding (had read inf,
+    # with a note blaming the fit)
+    for value in ("3", "1e6", "0"):
+        res = solve_laplace(DISK, parse_expression(value), method="cv-angle", walks=16, grid=16)
+        assert res.metrics["control_variate_variance_ratio"] == 0.0 and res.metrics["control_variate_used"] is True
+
+
 def test_seeds_a_half_range_apart_give_other_streams():
     # the seed was reduced modulo 2**63, so s and s + 2**63 (both accepted) repeated each other
     seeds = [0, 1 << 63, 5, (1 << 63) + 5, (1 << 64) - 1]
