@@ -254,7 +254,7 @@ def denoise(
             _outliers(run, input, output, k, threshold, keep_all, refined, no_clean)
         else:
             given = options_given(ctx, "method", "sigma_r", "sigma_s", "guidance_mix", "normal_iterations",
-                                  "vertex_iterations", "fidelity", "crease_repair")
+                                  "vertex_iterations", "fidelity", "crease_repair", "pin_boundary")
             _mesh(run, input, output, reference, method, dp, no_clean, given)
 
 
@@ -418,7 +418,8 @@ def _mesh(run, input, output, reference, method, dp, no_clean, given: list[str])
                  "the largest group; no filter pass ran")
         run.note(f"{path or input}: its parts are meshed at scales more than {SCALE_RATIO:g} times apart; "
                  f"denoised in {res.info['scale_groups']} groups, each with the schedule its own noise gives "
-                 f"(the schedule's metrics are those of {which})")
+                 f"(the schedule's metrics are those of {which}; given back as options, they would apply to "
+                 "every group)")
     _note_unused_filter_options(run, res.info, dp, given)
     if ref_V is not None:
         with run.timer("metrics"):
@@ -449,15 +450,25 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
     bilateral filter)."""
     rounds = info.get("outer_iterations", 1)
     filtered = rounds and info.get("normal_iterations", 1)
+    # with --normal-iterations 0 the crease repair's narrow passes still run in the last round,
+    # with --sigma-s but their own sigma_r and pure guidance (--sigma-s had been called unused)
+    narrow = bool(rounds) and not filtered and info.get("sigma_s") is not None
     counts = (("--rounds", "outer_iterations", dp.outer_iterations),
               ("--normal-iterations", "normal_iterations", dp.normal_iterations))
     zero = [opt for opt, _, value in counts if value == 0]  # the cause, not an unused option
-    filter_options = ("--method", "--sigma-r", "--sigma-s", "--guidance-mix", "--normal-iterations")
+    filter_options = ("--sigma-r", "--guidance-mix", "--normal-iterations") + (() if narrow else ("--method",
+                                                                                                  "--sigma-s"))
     unused = [o for o in given if o in filter_options and not filtered]
-    unused += [o for o in given if o in ("--vertex-iterations", "--fidelity", "--crease-repair") and not rounds]
+    unused += [o for o in given if o in ("--vertex-iterations", "--fidelity", "--crease-repair", "--pin-boundary")
+               and not rounds]
     unused = [o for o in unused if o not in zero]
     if unused:
-        if zero:
+        if zero and narrow:
+            from geoproc.denoise.mesh_denoise import FINE_FINAL_SIGMA_R
+
+            why = (f"no pass of the schedule ran ({' and '.join(opt + ' 0' for opt in zero)}); the last round's "
+                   f"narrow guided passes, which did, use a sigma_r of {FINE_FINAL_SIGMA_R:g} and the guidance alone")
+        elif zero:
             why = f"no filter pass ran ({' and '.join(opt + ' 0' for opt in zero)})"
         else:
             why = (f"the mesh reads as clean (roughness {info.get('noise_roughness', float('nan')):.3g}), so "

@@ -709,16 +709,19 @@ def filter_and_fit(
         if progress is not None:
             progress(done / total)
     # values that did not act are None (left out of a report): the filter's when no pass
-    # ran, the vertex fit's when no round ran (a clean mesh had reported sigma_r 0.1)
-    filtered = outer > 0 and (inner > 0 or fine)
+    # ran, the vertex fit's when no round ran (a clean mesh had reported sigma_r 0.1); the
+    # last round's narrow passes use sigma_s but their own sigma_r and pure guidance, so with
+    # --normal-iterations 0 those two did not act (they had been reported)
+    scheduled = outer > 0 and inner > 0
+    filtered = scheduled or (outer > 0 and fine)
     fitted = outer > 0
     info = {
-        "guidance_mix": mix if filtered else None,
+        "guidance_mix": mix if scheduled else None,
         "outer_iterations": outer,
         "normal_iterations": inner if outer > 0 else None,
         "vertex_iterations": p.vertex_iterations if fitted else None,
-        "fidelity": p.fidelity if fitted else None,
-        "sigma_r": sigma_r if filtered else None,
+        "fidelity": p.fidelity if fitted and p.vertex_iterations > 0 else None,  # (it acts in the sweeps)
+        "sigma_r": sigma_r if scheduled else None,
         "sigma_s": plan.spatial_scale if filtered else None,  # in centroid spacings, the unit of --sigma-s
         "sigma_s_length": sigma_s if filtered else None,
         "unfold_rounds": p.unfold_rounds if fitted else None,

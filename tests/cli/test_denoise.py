@@ -934,9 +934,33 @@ def test_fit_options_unused_are_noted(cli, fixture_dir, tmp_path):
     p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--vertex-iterations", "0",
             "--fidelity", "0.1", "-o", out)
     assert p.returncode == 0 and "note: --fidelity not used: no vertex sweep ran" in p.stderr
+    rep = tmp_path / "r.json"  # and it is null in the report (it had been recorded as if it had acted)
+    p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--vertex-iterations", "0",
+            "--fidelity", "0.1", "-o", out, "--report", rep)
+    assert json.loads(rep.read_text())["metrics"]["fidelity"] is None
+    p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "0", "--pin-boundary", "-o", out)
+    assert "note: --pin-boundary not used" in p.stderr, p.stderr  # (it had gone without a word)
     p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--normal-iterations", "0",
             "--sigma-r", "0.3", "-o", out)
     assert "note: --sigma-r not used: no filter pass ran (--normal-iterations 0)" in p.stderr
+
+
+def test_options_the_narrow_passes_use_with_no_scheduled_pass(cli, fixture_dir, tmp_path):
+    # with --normal-iterations 0 the crease repair's narrow passes still run in the last round:
+    # --sigma-s acts (it had been called unused) and --sigma-r, --guidance-mix do not (they had
+    # been reported as if they had)
+    noisy, rep = tmp_path / "n.ply", tmp_path / "r.json"
+    assert cli("perturb", fixture_dir / "cube.ply", "--noise", "0.3", "--seed", "1", "-o", noisy).returncode == 0
+    base = ("denoise", noisy, "--rounds", "2", "--normal-iterations", "0")
+    p = cli(*base, "--sigma-s", "1.5", "--sigma-r", "0.4", "--guidance-mix", "0.3", "-o", tmp_path / "a.ply",
+            "--report", rep)
+    assert p.returncode == 0 and ("note: --sigma-r, --guidance-mix not used: no pass of the schedule ran "
+                                  "(--normal-iterations 0); the last round's narrow guided passes") \
+        in " ".join(p.stderr.split()), p.stderr
+    m = json.loads(rep.read_text())["metrics"]
+    assert m["sigma_s"] == 1.5 and m["sigma_r"] is None and m["guidance_mix"] is None
+    assert cli(*base, "-o", tmp_path / "b.ply").returncode == 0
+    assert (tmp_path / "a.ply").read_bytes() != (tmp_path / "b.ply").read_bytes()  # --sigma-s acted
 
 
 def test_dynamic_from_standard_input_says_where_animations_are_read(cli, tmp_path):
