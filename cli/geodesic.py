@@ -118,9 +118,11 @@ def geodesic(
                             metavar="FILE", show_default=False)] = None,
     method: Annotated[Method, typer.Option("--method", "-m", help="exact (MMP), heat (Crane et al.), "
                       "varadhan (sqrt(-4T log u)), log-splitting, log-ode, log-heat. varadhan, log-ode and "
-                      "log-splitting approach the geodesic distance only as the time shrinks and the steps grow: "
-                      "at the defaults (c 1, 1 step) their mean error is tens of percent of the largest distance "
-                      "(bunny: 28 %, log-splitting 91 %; heat 1.1 %); see the README's Table 2 protocol.")
+                      "log-splitting tend to the geodesic distance as the time shrinks on a smooth surface, but "
+                      "on a mesh a time below a few h^2 adds discretization error: at the defaults (c 1, 1 step) "
+                      "their mean error is tens of percent of the largest distance (bunny: 28 %, log-splitting "
+                      "91 %; heat 1.1 %), and log-ode on bunny reads 38 % at c 0.1 with 100 steps, 6 % at c 5 "
+                      "with 100; see the README's Table 2 protocol.")
                       ] = Method.heat,
     time_factor: Annotated[float, typer.Option("--time-factor", "-c", help="t = c * h^2 with h the mean "
                            "edge length; c > 0 and at most 1e12.")] = 1.0,
@@ -217,7 +219,8 @@ def geodesic(
             require_extension(render, ".png", "--render", stdout_ok=True)
         else:
             refuse_options(ctx, ("render_view",), "only with --render")
-        _refuse_unused_options(ctx, m_name, operators.value if operators else None)
+        _refuse_unused_options(ctx, m_name, operators.value if operators else None,
+                               laplacian.value if laplacian else None)
         if not source and sources_file is None:
             raise UsageError("give at least one source vertex (--source I or --sources-file FILE)")
         if reference_field is not None and not reference_field:
@@ -284,7 +287,8 @@ def geodesic(
         run.metrics.update(res.stats)
         if res.stats.get("operators") == "intrinsic":  # the heat step used the intrinsic Laplacian too
             run.params["laplacian"] = "intrinsic-delaunay"
-        if laplacian is not None and res.stats.get("operators") == "intrinsic":  # auto chose intrinsic
+        if laplacian is not None and laplacian.value != "intrinsic-delaunay" and \
+                res.stats.get("operators") == "intrinsic":  # auto chose intrinsic
             run.note(f"--laplacian {laplacian.value} not used: --operators auto chose the intrinsic operators "
                      "on this mesh (slivers or strongly non-Delaunay triangles); give --operators extrinsic "
                      "to use it")
@@ -298,6 +302,12 @@ def geodesic(
             else:
                 what += "; their directions may be lost (--heat-underflow log-domain keeps them)"
             run.note(f"{where}: {what}")
+        if m_name == "heat" and res.stats.get("negative_heat_vertices"):  # (it had gone without a word)
+            cotan = run.params.get("laplacian") == "cotan"
+            run.note(f"{where}: {res.stats['negative_heat_vertices']} vertices got negative heat"
+                     + (" (the cotan weights of obtuse triangles are negative)" if cotan else "")
+                     + ": the normalized gradient points the wrong way there"
+                     + ("; the default --laplacian intrinsic-delaunay has no negative weight" if cotan else ""))
         for key in ("zero_heat_vertices", "log_heat_below_double"):
             if res.stats.get(key) and m_name != "heat":
                 what = "heat u underflowed to 0" if key == "zero_heat_vertices" else "exp(log u) < 5e-324"
@@ -421,8 +431,12 @@ def _metric_needs(method: str, solver: str, reference) -> dict[str, tuple[str, .
     return needs
 
 
-def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | None) -> None:
-    """Options the method would ignore are refused (exit 2), not dropped."""
+def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | None,
+                           laplacian: str | None = None) -> None:
+    """Options the method would ignore are refused (exit 2), not dropped.
+    ``--laplacian intrinsic-delaunay`` with ``--operators intrinsic`` says what
+    runs, as a report records it, and passes (a report's params given back as
+    options had been refused)."""
     if method == "exact":
         refuse_options(ctx, ("time_factor", "time", "laplacian"), "not used by -m exact (no diffusion)")
     if len(options_given(ctx, "time_factor", "time")) == 2:
@@ -435,7 +449,7 @@ def _refuse_unused_options(ctx: typer.Context, method: str, operators: str | Non
         refuse_options(ctx, ("heat_underflow",), "only with -m heat")
     if method not in ("heat", "log-heat"):
         refuse_options(ctx, ("operators",), "only with -m heat or -m log-heat")
-    if operators == "intrinsic":
+    if operators == "intrinsic" and laplacian != "intrinsic-delaunay":
         refuse_options(ctx, ("laplacian",), "not used with --operators intrinsic (its Laplacian is the "
                        "intrinsic Delaunay one throughout)")
 

@@ -595,6 +595,36 @@ def test_laplacian_unused_by_auto_intrinsic_is_noted(cli, make_fixtures, tmp_pat
     assert p.returncode == 0 and "--laplacian" not in p.stderr
 
 
+def test_the_reported_operators_and_laplacian_given_back_run_again(cli, fixture_dir, tmp_path):
+    # the report records laplacian intrinsic-delaunay with operators intrinsic; given back as
+    # options the pair had been refused ('--laplacian: not used with --operators intrinsic')
+    rep = tmp_path / "r.json"
+    args = ("geodesic", fixture_dir / "torus.ply", "-s", "0", "--operators", "intrinsic")
+    assert cli(*args, "-o", tmp_path / "a.ply", "--report", rep).returncode == 0
+    params = json.loads(rep.read_text())["params"]
+    assert (params["operators"], params["laplacian"]) == ("intrinsic", "intrinsic-delaunay")
+    p = cli(*args, "--laplacian", params["laplacian"], "-o", tmp_path / "b.ply")
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    assert (tmp_path / "a.ply").read_bytes() == (tmp_path / "b.ply").read_bytes()
+    p = cli(*args, "--laplacian", "cotan", "-o", tmp_path / "c.ply")  # one it would not use is still refused
+    assert p.returncode == 2 and "--laplacian: not used with --operators intrinsic" in p.stderr
+
+
+def test_negative_heat_of_the_heat_method_is_noted(cli, make_fixtures, tmp_path):
+    # cotan weights of obtuse triangles give negative heat at small times, where the normalized
+    # gradient turns round: heat on a sliver torus ended with them and no word
+    V, F = make_fixtures.torus(r=0.4, nu=60, nv=20, twist=3)
+    src, rep = tmp_path / "slivers.ply", tmp_path / "r.json"
+    save_mesh(src, Mesh(V, F))
+    p = cli("geodesic", src, "-s", "0", "-c", "0.01", "--laplacian", "cotan", "--operators", "extrinsic",
+            "-o", tmp_path / "d.ply", "--report", rep)
+    n = json.loads(rep.read_text())["metrics"]["negative_heat_vertices"]
+    assert p.returncode == 0 and n > 0
+    assert (f"{n} vertices got negative heat (the cotan weights of obtuse triangles are negative): the normalized "
+            "gradient points the wrong way there; the default --laplacian intrinsic-delaunay has no negative "
+            "weight") in " ".join(p.stderr.split())
+
+
 def test_faces_too_thin_for_cotan_weights_are_refused(cli, tmp_path):
     # face 0 has a positive cross-product area (5e-10) but its edge lengths give 0:
     # libigl's cotangents are infinite there, so the heat solve returned NaN (and a
