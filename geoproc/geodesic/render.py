@@ -95,6 +95,17 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
     return buf.getvalue()
 
 
+def seen_area_share(V: np.ndarray, F: np.ndarray, view: str = "z") -> float:
+    """The surface's area as the view along ``view`` (as :func:`render_distance_png`
+    takes it) sees it, over its area: the faces' areas projected on the
+    picture plane, summed, over their areas summed; 0 for a flat mesh seen
+    edge-on (whose picture is empty), 0 for a mesh of no area."""
+    V, F = np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)
+    N = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    total = float(np.linalg.norm(N, axis=1).sum())
+    return float(np.abs(N[:, "xyz".index(view[-1])]).sum()) / total if total > 0 else 0.0
+
+
 def _front_face_image(fig, ax, P: np.ndarray, F: np.ndarray, order: np.ndarray) -> np.ndarray:
     """(H, W) index of the face seen at each pixel (-1 for none): the faces drawn
     back to front, as the picture draws them, each in a colour that spells its

@@ -789,6 +789,15 @@ def test_exact_is_its_own_reference(fixture_dir, tmp_path, monkeypatch, capsys):
     assert _report(rep)["metrics"]["max_relative_error"] == 0.0
 
 
+def test_a_flat_mesh_seen_edge_on_is_noted(cli, fixture_dir, tmp_path):
+    # the grid lies in the xy plane: from x the picture is empty (it had been written without a word)
+    args = ("geodesic", fixture_dir / "grid.ply", "-s", "220", "-o", tmp_path / "g.ply", "--render", tmp_path / "g.png")
+    p = cli(*args, "--render-view", "x")
+    assert p.returncode == 0 and "the mesh is flat along x and seen edge-on from --render-view x" in p.stderr
+    p = cli(*args)
+    assert p.returncode == 0 and "edge-on" not in p.stderr, p.stderr
+
+
 def test_render_view_chooses_the_side_the_mesh_is_seen_from(cli, fixture_dir, tmp_path):
     # the torus lies in the xy plane: from z its hole shows the white background
     # at the picture's centre; from x its side covers the centre and is flat
