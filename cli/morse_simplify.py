@@ -55,7 +55,8 @@ def morse_simplify(
         "--field", "-f",
         help="The vertex function: a per-vertex PLY property (e.g. 'distance' from geoproc geodesic), "
         "x, y or z, a .npy file with one value per vertex, mean-curvature (1/length) or gaussian-curvature "
-        "(1/length^2; both libigl; a vertex property of that name is read instead).",
+        "(1/length^2; both libigl; a vertex property of that name is read instead; the curvature an "
+        "earlier run wrote is read as -f mean_curvature).",
         metavar="SPEC", show_default=False)],
     persistence: Annotated[float, typer.Option(
         "--persistence", "-p",
@@ -237,6 +238,11 @@ def morse_simplify(
                     res.dim == 0, carried["input_vertex"], -1).astype(m.vertex_fields["input_vertex"].dtype)
             if name not in ("nx", "ny", "nz"):  # (a normal component simplified as the field stays the field)
                 run.refresh_normals(res.V, res.F, carried)  # interpolated normals are neither unit nor the surface's
+            elif set(carried) & {"nx", "ny", "nz"} - {name}:  # (had gone without a word)
+                others = ", ".join(k for k in ("nx", "ny", "nz") if k in carried and k != name)
+                run.note(f"--field {name} with --barycentric: the other normal components ({others}) are "
+                         "interpolated on the subdivision, not recomputed, so with the field they are no unit "
+                         "vectors there")
             out = Mesh(res.V, res.F, {**carried, name: g, f"{name}_original": summary.f_ref,
                                       "cell_dim": res.dim.astype(np.float64)},
                        {k: np.repeat(v, 6, axis=0) for k, v in m.face_fields.items()})  # 6 per input face

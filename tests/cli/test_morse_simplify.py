@@ -625,3 +625,18 @@ def test_faces_collapsed_by_merging_are_named_with_the_way_out(cli, tmp_path):
     p = cli("morse-simplify", path, "-f", "z", "-p", "0.1", "-o", out, "--no-clean", "-q")
     assert p.returncode == 0, p.stderr
     assert len(load_mesh(out, clean=False).V) == len(V)
+
+
+def test_a_normal_component_as_the_field_with_barycentric_notes_the_others(cli, fixture_dir, tmp_path):
+    # -f nx --barycentric keeps nx as the field and interpolates ny, nz: they had gone without a word
+    import igl
+
+    m = load_mesh(fixture_dir / "icosphere.ply")
+    N = igl.per_vertex_normals(m.V, m.F)
+    src = tmp_path / "n.ply"
+    save_mesh(src, Mesh(m.V, m.F, {"nx": N[:, 0].copy(), "ny": N[:, 1].copy(), "nz": N[:, 2].copy()}))
+    p = cli("morse-simplify", src, "-f", "nx", "-p", "0.1", "--relative", "--barycentric", "-o", tmp_path / "o.ply")
+    assert p.returncode == 0 and ("--field nx with --barycentric: the other normal components (ny, nz) are "
+                                  "interpolated on the subdivision") in " ".join(p.stderr.split()), p.stderr
+    p = cli("morse-simplify", src, "-f", "z", "-p", "0.1", "--relative", "--barycentric", "-o", tmp_path / "o.ply")
+    assert p.returncode == 0 and "other normal components" not in p.stderr
