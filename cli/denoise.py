@@ -254,7 +254,7 @@ def denoise(
             _outliers(run, input, output, k, threshold, keep_all, refined, no_clean)
         else:
             given = options_given(ctx, "method", "sigma_r", "sigma_s", "guidance_mix", "normal_iterations",
-                                  "vertex_iterations", "fidelity", "crease_repair", "pin_boundary")
+                                  "vertex_iterations", "fidelity", "crease_repair")
             _mesh(run, input, output, reference, method, dp, no_clean, given)
 
 
@@ -456,10 +456,10 @@ def _note_unused_filter_options(run, info: dict, dp, given: list[str]) -> None:
     counts = (("--rounds", "outer_iterations", dp.outer_iterations),
               ("--normal-iterations", "normal_iterations", dp.normal_iterations))
     zero = [opt for opt, _, value in counts if value == 0]  # the cause, not an unused option
-    filter_options = ("--sigma-r", "--guidance-mix", "--normal-iterations") + (() if narrow else ("--method",
-                                                                                                  "--sigma-s"))
+    # (--method decides whether the crease repair runs: used whenever a round ran)
+    filter_options = ("--sigma-r", "--guidance-mix", "--normal-iterations") + (() if narrow else ("--sigma-s",))
     unused = [o for o in given if o in filter_options and not filtered]
-    unused += [o for o in given if o in ("--vertex-iterations", "--fidelity", "--crease-repair", "--pin-boundary")
+    unused += [o for o in given if o in ("--method", "--vertex-iterations", "--fidelity", "--crease-repair")
                and not rounds]
     unused = [o for o in unused if o not in zero]
     if unused:
@@ -640,7 +640,8 @@ def _dynamic(run, input, output, reference, method, dp, coherence) -> None:
     with run.timer("denoise"), run.progress("denoise (dynamic)") as update, _naming_the_input(anim.path):
         V, info = denoise_animation(anim.V, anim.F, method, dp, progress=update, coherence=coherence)
     run.metrics.update({"frames": anim.n_frames, "vertices": int(anim.V.shape[1]), "faces": len(anim.F),
-                        "vertex_iterations": dp.vertex_iterations, "fidelity": dp.fidelity})
+                        "vertex_iterations": dp.vertex_iterations,
+                        "fidelity": dp.fidelity if dp.vertex_iterations > 0 else None})  # (it acts in the sweeps)
     run.metrics.update({k: v for k, v in info.items() if v is None or np.isscalar(v)})  # None: did not act
     if not info.get("outer_iterations"):  # no frame's static step ran a round: its fit did not act
         run.metrics.update({"vertex_iterations": None, "fidelity": None})

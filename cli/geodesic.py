@@ -338,11 +338,11 @@ def geodesic(
         out.vertex_fields[field_name] = d
         run.write_mesh(output, out)
         if render is not None:
-            from geoproc.geodesic.render import render_distance_png, seen_area_share
+            from geoproc.geodesic.render import render_distance_png, seen_area_pixels
 
-            if seen_area_share(m.V, m.F, render_view.value) < 1e-9:  # (the picture had been blank, no word)
-                run.note(f"--render {render}: the mesh is flat along {render_view.value[-1]} and seen edge-on from "
-                         f"--render-view {render_view.value}: the picture shows none of it; another view shows it")
+            if seen_area_pixels(m.V, m.F, render_view.value) < 900:  # (the picture had been blank, no word)
+                run.note(f"--render {render}: every face is seen edge-on from --render-view {render_view.value}: "
+                         "the picture shows next to nothing of the surface; another view shows it")
             with run.timer("render"):
                 title = f"{os.path.basename(mesh)}: {m_name}"
                 run.write_bytes(render, render_distance_png(m.V, m.F, d, sorted(set(srcs)), view=render_view.value,

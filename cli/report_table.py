@@ -290,8 +290,9 @@ def main(argv: list[str]) -> int:
     if csv_path is not None:
         clash = _report_at(csv_path, [path for path, _ in reports])
         if clash is not None:  # a link named .csv to a report had been written through, over the report
-            print(f"report_table: error: --csv {csv_path}: is the report {clash} (through a link); write the CSV "
-                  "elsewhere", file=sys.stderr)
+            what = (f"is the report {clash} (through a link)" if clash in [p for p, _ in reports]
+                    else f"is a link to {clash}, a .json file")
+            print(f"report_table: error: --csv {csv_path}: {what}; write the CSV elsewhere", file=sys.stderr)
             return 2
         return _write_csv(csv_path, reports_csv(reports, folder))
     console = Console()
@@ -306,11 +307,13 @@ def _report_at(csv_path: str, paths: list[Path]) -> Path | None:
     a hard link to it), or the ``.json`` file a symbolic link ``csv_path``
     leads to (a report elsewhere, which writing through the link would
     replace), else None (also for ``-`` and a file not yet made)."""
-    if csv_path == "-" or not os.path.exists(csv_path):
+    if csv_path == "-":
         return None
     target = os.path.realpath(csv_path)
-    if os.path.islink(csv_path) and target.lower().endswith(".json"):
+    if os.path.islink(csv_path) and target.lower().endswith(".json"):  # (a dangling one too: it makes the file)
         return Path(target)
+    if not os.path.exists(csv_path):
+        return None
     for path in paths:
         try:
             if os.path.samefile(csv_path, path):

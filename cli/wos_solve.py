@@ -103,8 +103,8 @@ def wos_solve(
              "> 0.5, traced to "
              "polylines in pixel units, y up); - reads the JSON from stdin.", metavar="DOMAIN", show_default=False)],
     output: Annotated[str, typer.Option("--output", "-o", help="Solution image: one-channel float "
-                                        "EXR over the domain's bounding box, NaN outside (a file; EXR "
-                                        "cannot stream to standard output).",
+                                        "EXR over the domain's bounding box, NaN outside (a file ending in .exr, "
+                                        "or a device such as /dev/null; not -).",
                                         metavar="U.exr", show_default=False)],
     boundary: Annotated[str | None, typer.Option(
         "--boundary", help="Dirichlet data as an expression in x and y: numbers, + - * / **, "

@@ -95,15 +95,23 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
     return buf.getvalue()
 
 
-def seen_area_share(V: np.ndarray, F: np.ndarray, view: str = "z") -> float:
-    """The surface's area as the view along ``view`` (as :func:`render_distance_png`
-    takes it) sees it, over its area: the faces' areas projected on the
-    picture plane, summed, over their areas summed; 0 for a flat mesh seen
-    edge-on (whose picture is empty), 0 for a mesh of no area."""
+def seen_area_pixels(V: np.ndarray, F: np.ndarray, view: str = "z", size_px: int = 900) -> float:
+    """The surface's area as :func:`render_distance_png`'s picture of it along
+    ``view`` shows it, in square pixels: the faces' areas projected on the
+    picture plane, summed, at the picture's scale (framed on the vertices
+    faces use, with its margin). Below ``size_px`` (one pixel's width across
+    the picture) the picture shows next to nothing: every face seen edge-on
+    (a flat mesh, or a tube along the view), up to the file's rounding."""
     V, F = np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)
+    if not len(F):
+        return 0.0
+    axis = "xyz".index(view[-1])
     N = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    total = float(np.linalg.norm(N, axis=1).sum())
-    return float(np.abs(N[:, "xyz".index(view[-1])]).sum()) / total if total > 0 else 0.0
+    Pu = np.delete(V[np.unique(F)], axis, axis=1)  # the picture's two axes, up to sign and order
+    extent = 1.06 * float(np.ptp(Pu, axis=0).max())
+    if not extent > 0:
+        return 0.0
+    return float(np.abs(N[:, axis]).sum()) / 2 * (size_px / extent) ** 2
 
 
 def _front_face_image(fig, ax, P: np.ndarray, F: np.ndarray, order: np.ndarray) -> np.ndarray:

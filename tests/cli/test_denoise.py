@@ -938,8 +938,6 @@ def test_fit_options_unused_are_noted(cli, fixture_dir, tmp_path):
     p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--vertex-iterations", "0",
             "--fidelity", "0.1", "-o", out, "--report", rep)
     assert json.loads(rep.read_text())["metrics"]["fidelity"] is None
-    p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "0", "--pin-boundary", "-o", out)
-    assert "note: --pin-boundary not used" in p.stderr, p.stderr  # (it had gone without a word)
     p = cli("denoise", fixture_dir / "torus.ply", "--rounds", "1", "--normal-iterations", "0",
             "--sigma-r", "0.3", "-o", out)
     assert "note: --sigma-r not used: no filter pass ran (--normal-iterations 0)" in p.stderr
@@ -961,6 +959,10 @@ def test_options_the_narrow_passes_use_with_no_scheduled_pass(cli, fixture_dir, 
     assert m["sigma_s"] == 1.5 and m["sigma_r"] is None and m["guidance_mix"] is None
     assert cli(*base, "-o", tmp_path / "b.ply").returncode == 0
     assert (tmp_path / "a.ply").read_bytes() != (tmp_path / "b.ply").read_bytes()  # --sigma-s acted
+    # --method decides whether the crease repair runs: not called unused (it had been)
+    p = cli(*base, "--method", "bilateral", "-o", tmp_path / "c.ply")
+    assert p.returncode == 0 and "--method not used" not in p.stderr, p.stderr
+    assert (tmp_path / "c.ply").read_bytes() != (tmp_path / "b.ply").read_bytes()
 
 
 def test_dynamic_from_standard_input_says_where_animations_are_read(cli, tmp_path):

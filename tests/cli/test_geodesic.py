@@ -793,8 +793,21 @@ def test_a_flat_mesh_seen_edge_on_is_noted(cli, fixture_dir, tmp_path):
     # the grid lies in the xy plane: from x the picture is empty (it had been written without a word)
     args = ("geodesic", fixture_dir / "grid.ply", "-s", "220", "-o", tmp_path / "g.ply", "--render", tmp_path / "g.png")
     p = cli(*args, "--render-view", "x")
-    assert p.returncode == 0 and "the mesh is flat along x and seen edge-on from --render-view x" in p.stderr
+    assert p.returncode == 0 and "every face is seen edge-on from --render-view x" in p.stderr
     p = cli(*args)
+    assert p.returncode == 0 and "edge-on" not in p.stderr, p.stderr
+    # also flat as a file stores it (rounded to 6 decimals), in a plane along no axis: seen from z
+    from geoproc.mesh import load_mesh
+
+    g = load_mesh(fixture_dir / "grid.ply")
+    u, v = g.V[:, 0] / np.ptp(g.V[:, 0]), g.V[:, 1] / np.ptp(g.V[:, 1])
+    tilted = tmp_path / "tilted.obj"
+    tilted.write_text("".join(f"v {0.8 * a:.6f} {0.6 * a:.6f} {b:.6f}\n" for a, b in zip(u, v, strict=True))
+                      + "".join(f"f {i + 1} {j + 1} {k + 1}\n" for i, j, k in g.F))
+    p = cli("geodesic", tilted, "-s", "220", "-o", tmp_path / "t.ply", "--render", tmp_path / "t.png")
+    assert p.returncode == 0 and "every face is seen edge-on from --render-view z" in p.stderr, p.stderr
+    p = cli("geodesic", tilted, "-s", "220", "-o", tmp_path / "t.ply", "--render", tmp_path / "t.png",
+            "--render-view", "x")
     assert p.returncode == 0 and "edge-on" not in p.stderr, p.stderr
 
 

@@ -185,12 +185,15 @@ def test_csv_arguments_and_unwritable_files_exit_2_with_one_line(tmp_path, capsy
     (tmp_path / "other").mkdir()  # a report it does not read is not written over either
     _write(tmp_path / "other", "c.json", {"command": "info", "metrics": {"genus": 0}})
     os.symlink("other/c.json", tmp_path / "o.csv")
-    for name in ("s.csv", "h.csv", "o.csv"):
+    os.symlink("other/new.json", tmp_path / "d.csv")  # dangling: writing through it makes a .json
+    for name in ("s.csv", "h.csv", "o.csv", "d.csv"):
         assert main(["report_table", str(tmp_path), "--csv", str(tmp_path / name)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and f"--csv {tmp_path / name}: is the report" in err[0] and "(through a link)" in err[0]
+        what = "is the report" if name in ("s.csv", "h.csv") else "is a link to"
+        assert len(err) == 1 and f"--csv {tmp_path / name}: {what}" in err[0], err
         assert json.loads((tmp_path / "a.json").read_text())["command"] == "info"
     assert json.loads((tmp_path / "other" / "c.json").read_text())["command"] == "info"
+    assert not (tmp_path / "other" / "new.json").exists()
     missing = tmp_path / "no" / "r.csv"
     assert main(["report_table", str(tmp_path), f"--csv={missing}"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
