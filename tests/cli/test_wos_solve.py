@@ -89,6 +89,7 @@ def test_same_seed_same_bytes(cli, inputs, tmp_path):
     assert outs[0][0] != outs[2][0]
 
 
+@pytest.mark.slow  # about 30 s of CLI runs: kept out of make test's ten minutes (make test-all runs it)
 def test_a_solution_float32_cannot_resolve_is_noted(cli, inputs, tmp_path):
     # u = 1e9 + x on the unit square: the EXR (float32, steps of 64 there) showed a constant
     args = ["wos-solve", inputs / "square.json", "--walks", "4", "--grid", "8", "-o", tmp_path / "u.exr"]
@@ -217,6 +218,7 @@ def test_exact_with_no_point_beyond_two_epsilon_is_refused_before_the_walks(tmp_
     assert not (tmp_path / "u.exr").exists()
 
 
+@pytest.mark.slow  # about 30 s of CLI runs: kept out of make test's ten minutes (make test-all runs it)
 def test_a_declared_solution_that_is_not_harmonic_gets_a_note(cli, inputs, tmp_path):
     # --exact compares with the function given; one that is not harmonic is not what the walks
     # estimate, and it had passed without a word
