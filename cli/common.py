@@ -721,17 +721,6 @@ missed option clusters (``-qc1e400``) and took another option's value
 (``-o -c5.ply``) or a file after ``--`` for it."""
 
 
-def _is_device(name: str) -> bool:
-    """Whether ``name`` is an existing file that is not a regular file or a
-    folder (a device such as /dev/null, a FIFO), which outputs write to
-    directly, whatever its name."""
-    try:
-        mode = os.stat(name).st_mode
-    except OSError:
-        return False
-    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
-
-
 def choices_metavar(names: Sequence[str]) -> str:
     """How --help shows an option that takes one of ``names``: ``<a|b|c>``, as
     Typer shows the options typed as enumerations."""
@@ -755,7 +744,7 @@ def require_extension(path: str | os.PathLike, ext: str, option: str, stdout_ok:
         raise UsageError(f"{option}: the file name is empty")
     if (stdout_ok and name == "-") or name.lower().endswith(ext):
         return
-    if _is_device(name):  # written to directly (/dev/null keeps only the report and its gates)
+    if file_kind(name) == "other":  # a device or FIFO, written to directly (/dev/null keeps only the report)
         return
     if name == "-":
         raise UsageError(f"{option} -: this file is not written to standard output; give a file name ending in {ext}")
@@ -825,6 +814,15 @@ def require_animation_output(output: str) -> None:
     if not (names_folder(output) or output.lower().endswith(".npz")):
         raise UsageError(f"{output}: an animation is written as .npz or as a folder of frames (a name ending "
                          "in '/')")
+
+
+def input_kind_needs(animation: bool, animation_metrics: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
+    """``command_run``'s ``needs`` for what only one kind of input reports: the
+    load counts (:data:`LOAD_METRICS`) a mesh or point cloud's, the
+    ``animation_metrics`` an animation's (perturb and info)."""
+    if animation:
+        return {"a mesh or point cloud (not an animation)": LOAD_METRICS}
+    return {"an animation (.npz or a folder of frames)": animation_metrics}
 
 
 def frame_folder_outputs(output: str, animation: bool) -> tuple[list[str], list[str]]:

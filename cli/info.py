@@ -21,6 +21,7 @@ from geoproc_cli.common import (
     command_run,
     escaped,
     flag,
+    input_kind_needs,
     load_summary,
     metrics_epilog,
     refuse_options,
@@ -67,8 +68,7 @@ def info(
         params["clean"] = None  # frames are read as stored (as perturb and denoise report it)
     # a check on what only the other kind of input reports is refused before the input is read,
     # as perturb refuses it (it had been refused after the run, without the reason)
-    needs = ({"a mesh or point cloud (not an animation)": LOAD_METRICS} if animation
-             else {"an animation (.npz or a folder of frames)": ("frames", "worst_frame")})
+    needs = input_kind_needs(animation, ("frames", "worst_frame"))
     with command_run("info", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=["-"], inputs=[mesh], metrics=METRICS, needs=needs) as run:  # the summary goes to stdout
         frames = None

@@ -21,6 +21,7 @@ from geoproc_cli.common import (
     choices_metavar,
     command_run,
     frame_folder_outputs,
+    input_kind_needs,
     metrics_epilog,
     refuse_options,
     require_animation_output,
@@ -96,8 +97,7 @@ def perturb(
         params["direction"] = params["impulsive"] = None  # no noise to direct
     if not outliers > 0:
         params["outlier_range"] = None
-    needs = ({"a mesh or point cloud (not an animation)": LOAD_METRICS} if animation
-             else {"an animation (.npz or a folder of frames)": ("frames",)})
+    needs = input_kind_needs(animation, ("frames",))
     files, folders = frame_folder_outputs(output, animation)
     with command_run("perturb", params, report=report, checks=check, quiet=quiet, debug=debug,
                      outputs=files, folders=folders, inputs=[input], metrics=METRICS, needs=needs) as run:

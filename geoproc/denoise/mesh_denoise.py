@@ -56,6 +56,7 @@ from geoproc.denoise.rpca import rpca
 from geoproc.denoise.scale_groups import scale_groups
 from geoproc.denoise.vertex_update import unfold_faces, update_vertices
 from geoproc.errors import InputError, UsageError
+from geoproc.mesh.clean import remove_unreferenced_vertices
 from geoproc.mesh.locality import inverse_permutation
 from geoproc.mesh.topology import boundary_vertices, repeated_corner_faces
 from geoproc.mesh.validate import mesh_arrays
@@ -548,10 +549,10 @@ def _by_scale_group(V, F, groups, method, params, progress, initial_normals) -> 
     infos, done = [], 0.0
     for g in range(int(groups.max()) + 1):
         fg = np.flatnonzero(groups == g)
-        vg = np.unique(F[fg])
+        Vg, Fg, vg = remove_unreferenced_vertices(V, F[fg])
         share = len(fg) / m
         sub_progress = None if progress is None else (lambda x, a=done, w=share: progress(a + w * x))
-        res = denoise_mesh(V[vg], np.searchsorted(vg, F[fg]), method, params, sub_progress,
+        res = denoise_mesh(Vg, Fg, method, params, sub_progress,
                            None if initial_normals is None else np.asarray(initial_normals)[fg])
         V_out[vg], normals[fg], feature[fg] = res.V, res.normals, res.feature
         infos.append(res.info)

@@ -7,6 +7,7 @@ import numpy as np
 
 from geoproc.denoise.face_geometry import face_normals_and_areas, stored_rounding
 from geoproc.denoise.scale_groups import scale_groups
+from geoproc.mesh.clean import remove_unreferenced_vertices
 from geoproc.mesh.topology import mean_edge_length, referenced_vertices
 
 
@@ -24,8 +25,7 @@ def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     N = np.empty((len(F), 3))
     for g in range(int(groups.max()) + 1):
         fg = np.flatnonzero(groups == g)
-        vg = np.unique(F[fg])
-        Vg, Fg = V[vg], np.searchsorted(vg, F[fg])
+        Vg, Fg, _ = remove_unreferenced_vertices(V, F[fg])
         N[fg] = face_normals_and_areas(Vg, Fg, stored_rounding(Vg, Fg))[0]
     return N
 

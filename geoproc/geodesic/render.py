@@ -6,6 +6,9 @@ import io
 
 import numpy as np
 
+FRAME_MARGIN = 0.03
+"""The picture's margin on each side, as a fraction of the surface's larger extent."""
+
 
 def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=None, isolines: int = 20,
                         view: str = "z", size_px: int = 900, title: str | None = None) -> bytes:
@@ -68,7 +71,7 @@ def render_distance_png(V: np.ndarray, F: np.ndarray, d: np.ndarray, sources=Non
     fig = plt.figure(figsize=(size_px / 100, size_px / 100), dpi=100)
     ax = fig.add_axes((0, 0, 1, 1) if title is None else (0, 0, 1, 0.95))
     Pu = P[np.unique(F)]  # framed on the surface (vertices no face uses are not drawn)
-    pad = 0.03 * max(np.ptp(Pu[:, 0]), np.ptp(Pu[:, 1]))
+    pad = FRAME_MARGIN * max(np.ptp(Pu[:, 0]), np.ptp(Pu[:, 1]))
     ax.set_xlim(Pu[:, 0].min() - pad, Pu[:, 0].max() + pad)
     ax.set_ylim(Pu[:, 1].min() - pad, Pu[:, 1].max() + pad)
     ax.set_aspect("equal")
@@ -108,7 +111,7 @@ def seen_area_pixels(V: np.ndarray, F: np.ndarray, view: str = "z", size_px: int
     axis = "xyz".index(view[-1])
     N = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     Pu = np.delete(V[np.unique(F)], axis, axis=1)  # the picture's two axes, up to sign and order
-    extent = 1.06 * float(np.ptp(Pu, axis=0).max())
+    extent = (1 + 2 * FRAME_MARGIN) * float(np.ptp(Pu, axis=0).max())
     if not extent > 0:
         return 0.0
     return float(np.abs(N[:, axis]).sum()) / 2 * (size_px / extent) ** 2
